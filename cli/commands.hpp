@@ -1,0 +1,32 @@
+// The cutload executable is one CLI11 app; each subcommand lives in its own cli/cmd_*.cpp and
+// registers itself here, so adding a command touches no shared file.
+#pragma once
+
+#include "motion_io/motion_io.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <stdexcept>
+#include <string>
+
+namespace cutload::cli {
+
+// Thrown by a command for bad input: main prints "cutload: error: <what>" and exits with code.
+class UsageError : public std::runtime_error {
+public:
+    explicit UsageError(const std::string& what, int code = 2) : std::runtime_error(what), code_(code) {}
+    int code() const { return code_; }
+private:
+    int code_;
+};
+
+using AddCommandFn = void (*)(CLI::App& app);
+
+// Returns a dummy value so it can initialise a namespace-scope constant in each cmd_*.cpp.
+bool register_command(const char* name, AddCommandFn add);
+
+// The log-format options shared by inspect, resample and predict:
+//   --format csv|shdr|auto, --map FILE, --units mm|in, --feed-units UNIT
+void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt);
+
+}  // namespace cutload::cli

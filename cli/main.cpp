@@ -1,0 +1,71 @@
+#include "cli/commands.hpp"
+#include "force_model/force_model.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <vector>
+
+namespace cutload::cli {
+namespace {
+struct Entry {
+    const char* name;
+    AddCommandFn add;
+};
+std::vector<Entry>& registry() {
+    static std::vector<Entry> r;
+    return r;
+}
+}  // namespace
+
+bool register_command(const char* name, AddCommandFn add) {
+    registry().push_back({name, add});
+    return true;
+}
+
+void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt) {
+    static const std::map<std::string, motion_io::Format> formats{
+        {"auto", motion_io::Format::Auto}, {"csv", motion_io::Format::Csv}, {"shdr", motion_io::Format::Shdr}};
+    sub.add_option("--format", opt.format, "Log format (default: from the file's content)")
+        ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
+    sub.add_option("--map", opt.map_file, "SHDR key mapping, JSON (see docs/formats.md)")
+        ->check(CLI::ExistingFile);
+    sub.add_option_function<std::string>(
+           "--units", [&opt](const std::string& u) { opt.length_unit = u; },
+           "Length unit of positions and feed when the log does not declare one")
+        ->check(CLI::IsMember({"mm", "in"}));
+    sub.add_option_function<std::string>(
+        "--feed-units", [&opt](const std::string& u) { opt.feed_unit = u; },
+        "Unit of the feed channel, overriding the log's declaration (mm/min, mm/s, in/min, in/s)");
+}
+
+}  // namespace cutload::cli
+
+int main(int argc, char** argv) {
+    using namespace cutload;
+    CLI::App app{"cutload: predict milling forces from CNC dry-run motion logs"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", "cutload 0.1.0");
+    auto& entries = cli::registry();
+    std::sort(entries.begin(), entries.end(),
+              [](const auto& a, const auto& b) { return std::string(a.name) < b.name; });
+    for (const auto& e : entries) e.add(app);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    } catch (const cli::UsageError& e) {
+        std::fprintf(stderr, "cutload: error: %s\n", e.what());
+        return e.code();
+    } catch (const motion_io::IngestError& e) {
+        std::fprintf(stderr, "cutload: error: %s\n", e.what());
+        return 2;
+    } catch (const force_model::SpecError& e) {
+        std::fprintf(stderr, "cutload: error: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "cutload: error: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

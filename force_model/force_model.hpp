@@ -1,0 +1,163 @@
+// Public interface of force_model: the run specification (tool, material, stock, limits,
+// resolution), the in-process stock, and the mechanistic force prediction over a motion model.
+//
+// Physics lives in plain value types and free functions; the heavy loops (engagement tests and
+// stock removal) run either as OpenCL kernels (kernels/*.cl) or as their scalar C++ twins.
+#pragma once
+
+#include "motion_io/motion_io.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cutload::force_model {
+
+// A bad run spec: the message names the key (e.g. "tool.diameter_mm: must be > 0").
+class SpecError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+enum class ToolShape { Flat, Ball, Bull };
+
+struct Holder {
+    double diameter_mm = 0;
+    double length_mm = 0;
+};
+
+struct ToolSpec {
+    ToolShape shape = ToolShape::Flat;
+    double diameter_mm = 8;
+    int flutes = 2;
+    double helix_deg = 30;
+    double corner_radius_mm = 0;   // flat: 0; ball: diameter/2; bull: 0 < r < diameter/2
+    double flute_length_mm = 20;
+    double stickout_mm = 30;       // tip to holder face
+    Holder holder;
+};
+
+// Altintas' convention: dFt = Ktc h db + Kte db, dFr = Krc h db + Kre db, dFa = Kac h db + Kae db.
+struct Material {
+    std::string name;
+    double Ktc_N_mm2 = 0, Krc_N_mm2 = 0, Kac_N_mm2 = 0;
+    double Kte_N_mm = 0, Kre_N_mm = 0, Kae_N_mm = 0;
+};
+
+struct StockBox {
+    double min_mm[3] = {0, 0, 0};
+    double max_mm[3] = {0, 0, 0};
+};
+
+// A limit of 0 means "not checked".
+struct Limits {
+    double force_N = 0, torque_Nm = 0, power_kW = 0, chip_mm = 0, bending_MPa = 0;
+    // A move at or above this path feed counts as a rapid: cutting during it trips rapid_in_material.
+    // The log carries no G00/G01 mode, so the threshold is the only honest signal.
+    double rapid_feed_mm_min = 10000;
+};
+
+struct Resolution {
+    double angle_step_deg = 2;
+    double axial_step_mm = 0.1;
+    double grid_mm = 0.1;
+};
+
+struct RunSpec {
+    ToolSpec tool;
+    Material material;
+    StockBox stock;
+    double offset_mm[3] = {0, 0, 0};   // added to logged positions -> tool tip in stock coordinates
+    Limits limits;
+    Resolution resolution;
+};
+
+RunSpec parse_run_spec(const nlohmann::json& j);     // throws SpecError naming the key
+RunSpec load_run_spec(const std::string& path);      // file errors are SpecError too
+nlohmann::json to_json(const RunSpec& spec);
+
+// The in-process workpiece: a multi-interval Z-map (dexel) over the stock box. Opaque; it can be
+// saved and loaded so a run can start from another run's final stock.
+class Stock;
+struct StockDeleter { void operator()(Stock*) const; };
+using StockPtr = std::unique_ptr<Stock, StockDeleter>;
+StockPtr make_stock(const StockBox& box, double grid_mm);
+StockPtr copy_stock(const Stock& s);
+void save_stock(const Stock& s, const std::string& path);   // binary, versioned
+StockPtr load_stock(const std::string& path);               // throws std::runtime_error on bad file
+double stock_volume_mm3(const Stock& s);
+
+enum class Device { OpenCL, Cpu };
+
+// One row per angle step while cutting (air time coarser). Forces act on the tool, in machine axes.
+struct ForceSample {
+    double t_s = 0;
+    double spindle_angle_deg = 0;
+    std::int32_t block = -1;        // index into MotionModel::block_names
+    float fx_N = 0, fy_N = 0, fz_N = 0;
+    float torque_Nm = 0, power_kW = 0;
+    float chip_mm = 0;              // max uncut chip thickness over engaged elements
+    float bending_MPa = 0;          // bending stress at the holder face
+    float radial_engagement_mm = 0, axial_engagement_mm = 0;
+    float removed_mm3 = 0;          // volume removed since the previous row
+    bool holder_contact = false;
+};
+
+struct FlagHit {
+    std::string flag;      // force_limit, torque_limit, power_limit, chip_load_limit, bending_limit,
+                           // rapid_in_material, holder_contact
+    double t_s = 0;        // first time it tripped
+    double value = 0;      // the value that tripped it (units of the matching limit)
+};
+
+struct BlockSummary {
+    std::string block;
+    double t_start_s = 0, t_end_s = 0;
+    double peak_force_N = 0, mean_force_N = 0;
+    double peak_torque_Nm = 0, peak_power_kW = 0;
+    double max_chip_mm = 0, max_bending_MPa = 0;
+    double max_radial_engagement_mm = 0, max_axial_engagement_mm = 0;
+    double removed_mm3 = 0;
+    std::vector<FlagHit> flags;
+};
+
+struct PredictStats {
+    double simulated_s = 0;       // duration of motion simulated
+    double wall_s = 0;
+    std::size_t steps = 0, cutting_steps = 0;
+    std::string device;           // device name actually used
+};
+
+struct Prediction {
+    std::vector<ForceSample> samples;
+    std::vector<BlockSummary> blocks;
+    std::vector<std::string> block_names;
+    StockPtr final_stock;
+    PredictStats stats;
+};
+
+struct PredictOptions {
+    Device device = Device::OpenCL;
+    const Stock* base_stock = nullptr;                    // start from this stock instead of the box
+    std::function<void(double fraction)> progress;        // 0..1, called from the calling thread
+    const std::atomic<bool>* cancel = nullptr;            // set to stop early (throws Cancelled)
+};
+
+class Cancelled : public std::runtime_error {
+public:
+    Cancelled() : std::runtime_error("prediction cancelled") {}
+};
+
+Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
+
+void write_forces_csv(const Prediction& p, const std::string& path);
+void write_blocks_csv(const Prediction& p, const std::string& path);
+
+}  // namespace cutload::force_model

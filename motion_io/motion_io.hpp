@@ -1,0 +1,104 @@
+// Public interface of motion_io: read a dry-run motion log (CSV or MTConnect SHDR), repair its
+// unequal sampling and hand the force engine a uniform, C1-continuous motion model.
+//
+// Ingest is a pipeline of small named stages (see docs/ingest.md):
+//   parse -> validate -> align channels -> drop stale repeats -> smooth -> resample -> attribute blocks
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cutload::motion_io {
+
+enum class Format { Auto, Csv, Shdr };
+
+struct ReadOptions {
+    Format format = Format::Auto;
+    std::string map_file;                  // SHDR key->channel mapping (JSON); empty: built-in defaults
+    std::optional<std::string> length_unit; // "mm" | "in": overrides the log's position/feed length unit
+    std::optional<std::string> feed_unit;   // e.g. "mm/min", "mm/s", "in/min": explicit override for
+                                            // logs whose feed values disagree with their declaration
+    double step_ms = 1.0;                   // uniform resampling step of the motion model
+};
+
+// A bad log: names where (file, line, column or key) and what was expected.
+class IngestError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+struct IntervalStats {
+    double min_s = 0, median_s = 0, max_s = 0;
+};
+
+struct ChannelReport {
+    std::size_t samples = 0;
+    IntervalStats interval;
+    double update_period_s = 0;      // estimated CNC update grid (0: not estimated)
+    std::size_t stale_dropped = 0;   // repeated (not updated) readings removed
+};
+
+struct IngestWarning {
+    std::string code;       // e.g. "gap", "stale_repeat", "time_backwards", "out_of_range"
+    std::string message;    // human-readable, names where
+    std::size_t count = 0;
+};
+
+struct IngestReport {
+    std::string file;
+    std::string format;                            // "csv" | "shdr"
+    double duration_s = 0;
+    std::size_t sessions = 0;
+    std::size_t blocks = 0;
+    std::map<std::string, ChannelReport> channels; // "pos", "feed", "spindle", "block", ...
+    double feed_raw_min_mm_min = 0, feed_raw_max_mm_min = 0;         // plain differencing
+    double feed_repaired_min_mm_min = 0, feed_repaired_max_mm_min = 0;
+    std::vector<IngestWarning> warnings;
+};
+
+// The repaired motion: uniform time step inside each session. Sessions are concatenated; the
+// first index of each is listed in session_start. Positions are machine positions as logged
+// (setup offsets are applied by the force engine).
+struct MotionModel {
+    double step_s = 0.001;
+    std::vector<double> t_s;
+    std::vector<double> x_mm, y_mm, z_mm;
+    std::vector<double> vx_mm_s, vy_mm_s, vz_mm_s;   // C0 estimates consistent with the C1 interpolant
+    std::vector<double> spindle_rpm;                 // signed: positive = M03 (clockwise from spindle)
+    std::vector<double> spindle_angle_deg;           // integrated from speed, unwrapped
+    std::vector<std::int32_t> block;                 // index into block_names, -1 = unknown
+    std::vector<std::string> block_names;
+    std::vector<std::size_t> session_start;          // always starts with 0 when non-empty
+
+    std::size_t size() const { return t_s.size(); }
+};
+
+// One interpolated state; position and velocity come from a cubic Hermite interpolant (C1).
+struct MotionState {
+    double t_s = 0;
+    double pos_mm[3] = {0, 0, 0};
+    double vel_mm_s[3] = {0, 0, 0};
+    double spindle_rpm = 0;
+    double spindle_angle_deg = 0;
+    std::int32_t block = -1;
+};
+
+// Interpolates the model at time t_s inside sample interval [i, i+1] (i + 1 < size()).
+MotionState sample_between(const MotionModel& m, std::size_t i, double t_s);
+
+// Whole pipeline into memory (predict, serve).
+MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport* report = nullptr);
+
+// Streaming variants with bounded memory (inspect, resample of very long logs).
+IngestReport inspect(const std::string& path, const ReadOptions& opt);
+// Writes t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block; returns rows written.
+std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,
+                            IngestReport* report = nullptr);
+
+}  // namespace cutload::motion_io
