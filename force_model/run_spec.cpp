@@ -1,0 +1,356 @@
+// RUN.json: parsing and validation. Every error names the key path (e.g. "tool.diameter_mm") and
+// says what was expected, because the person reading it is fixing a file by hand.
+#include "force_model/force_model.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+#include <string>
+
+namespace cutload::force_model {
+namespace {
+
+using nlohmann::json;
+
+// Above this many dexel cells the stock alone would exceed about 1 GB: refuse rather than swap.
+constexpr double kMaxStockCells = 60e6;
+
+std::string join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+}
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+    throw SpecError(path + ": " + what);
+}
+
+// Reads one JSON object, remembering which keys were consumed so that leftovers (typos such as
+// "diamter_mm") are reported instead of silently ignored.
+class ObjectReader {
+public:
+    ObjectReader(const json& j, std::string path) : j_(j), path_(std::move(path)) {
+        if (!j_.is_object()) fail(path_.empty() ? "spec" : path_, "expected a JSON object");
+    }
+
+    bool has(const std::string& key) const { return j_.contains(key) && !j_.at(key).is_null(); }
+
+    // An optional section written as null is accepted as absent.
+    void accept_null(const std::string& key) { used_.insert(key); }
+
+    const json& object(const std::string& key) {
+        used_.insert(key);
+        if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
+        const json& v = j_.at(key);
+        if (!v.is_object()) fail(join(path_, key), "expected a JSON object");
+        return v;
+    }
+
+    double number(const std::string& key) {
+        used_.insert(key);
+        if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
+        return to_number(key, j_.at(key));
+    }
+
+    double number_or(const std::string& key, double fallback) {
+        used_.insert(key);
+        return has(key) ? to_number(key, j_.at(key)) : fallback;
+    }
+
+    std::string string(const std::string& key) {
+        used_.insert(key);
+        if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
+        const json& v = j_.at(key);
+        if (!v.is_string()) fail(join(path_, key), "expected a string");
+        return v.get<std::string>();
+    }
+
+    void vec3(const std::string& key, double out[3], bool required) {
+        used_.insert(key);
+        if (!has(key)) {
+            if (required) fail(join(path_, key), "required key is missing");
+            return;
+        }
+        const json& v = j_.at(key);
+        if (!v.is_array() || v.size() != 3) fail(join(path_, key), "expected an array of 3 numbers [x, y, z]");
+        for (int i = 0; i < 3; ++i) {
+            if (!v[i].is_number()) fail(join(path_, key) + "[" + std::to_string(i) + "]", "expected a number");
+            out[i] = v[i].get<double>();
+            if (!std::isfinite(out[i])) fail(join(path_, key) + "[" + std::to_string(i) + "]", "must be finite");
+        }
+    }
+
+    std::string key_path(const std::string& key) const { return join(path_, key); }
+    const std::string& path() const { return path_; }
+
+    // Call after reading every known key.
+    void reject_unknown() const {
+        for (const auto& [key, value] : j_.items()) {
+            (void)value;
+            if (!used_.count(key)) fail(join(path_, key), "unknown key");
+        }
+    }
+
+private:
+    double to_number(const std::string& key, const json& v) const {
+        if (!v.is_number()) fail(join(path_, key), "expected a number");
+        const double x = v.get<double>();
+        if (!std::isfinite(x)) fail(join(path_, key), "must be finite");
+        return x;
+    }
+
+    const json& j_;
+    std::string path_;
+    std::set<std::string> used_;
+};
+
+void require(bool ok, const std::string& path, const std::string& what) {
+    if (!ok) fail(path, what);
+}
+
+ToolShape parse_shape(const std::string& s, const std::string& path) {
+    if (s == "flat") return ToolShape::Flat;
+    if (s == "ball") return ToolShape::Ball;
+    if (s == "bull") return ToolShape::Bull;
+    fail(path, "expected one of \"flat\", \"ball\", \"bull\", got \"" + s + "\"");
+}
+
+const char* shape_name(ToolShape s) {
+    switch (s) {
+        case ToolShape::Flat: return "flat";
+        case ToolShape::Ball: return "ball";
+        case ToolShape::Bull: return "bull";
+    }
+    return "flat";
+}
+
+ToolSpec parse_tool(ObjectReader& r) {
+    ToolSpec t;
+    t.shape = parse_shape(r.string("shape"), r.key_path("shape"));
+    t.diameter_mm = r.number("diameter_mm");
+    require(t.diameter_mm > 0 && t.diameter_mm <= 200, r.key_path("diameter_mm"), "must be in (0, 200] mm");
+    const double R = t.diameter_mm / 2;
+
+    const double flutes = r.number("flutes");
+    require(flutes >= 1 && flutes <= 16 && flutes == std::floor(flutes), r.key_path("flutes"),
+            "must be a whole number from 1 to 16");
+    t.flutes = static_cast<int>(flutes);
+
+    t.helix_deg = r.number("helix_deg");
+    require(t.helix_deg >= 0 && t.helix_deg < 70, r.key_path("helix_deg"), "must be in [0, 70) degrees");
+
+    // The corner radius is implied by the shape for flat and ball tools; when given it must agree.
+    const double default_corner = t.shape == ToolShape::Flat ? 0.0 : t.shape == ToolShape::Ball ? R : -1.0;
+    if (t.shape == ToolShape::Bull && !r.has("corner_radius_mm"))
+        fail(r.key_path("corner_radius_mm"), "required for a bull-nose tool");
+    t.corner_radius_mm = r.number_or("corner_radius_mm", default_corner);
+    const std::string cr = r.key_path("corner_radius_mm");
+    switch (t.shape) {
+        case ToolShape::Flat: require(t.corner_radius_mm == 0, cr, "must be 0 for a flat end mill"); break;
+        case ToolShape::Ball:
+            require(std::abs(t.corner_radius_mm - R) < 1e-9, cr, "must equal diameter_mm / 2 for a ball end mill");
+            break;
+        case ToolShape::Bull:
+            require(t.corner_radius_mm > 0 && t.corner_radius_mm < R, cr,
+                    "must be in (0, diameter_mm / 2) for a bull-nose end mill");
+            break;
+    }
+
+    t.flute_length_mm = r.number("flute_length_mm");
+    require(t.flute_length_mm > 0 && t.flute_length_mm <= 500, r.key_path("flute_length_mm"), "must be in (0, 500] mm");
+    require(t.flute_length_mm >= t.corner_radius_mm, r.key_path("flute_length_mm"),
+            "must be at least corner_radius_mm");
+    t.stickout_mm = r.number("stickout_mm");
+    require(t.stickout_mm >= t.flute_length_mm && t.stickout_mm <= 1000, r.key_path("stickout_mm"),
+            "must be at least flute_length_mm and at most 1000 mm");
+
+    if (r.has("holder")) {
+        ObjectReader h(r.object("holder"), r.key_path("holder"));
+        t.holder.diameter_mm = h.number("diameter_mm");
+        require(t.holder.diameter_mm >= t.diameter_mm && t.holder.diameter_mm <= 500, h.key_path("diameter_mm"),
+                "must be at least the tool diameter and at most 500 mm");
+        t.holder.length_mm = h.number("length_mm");
+        require(t.holder.length_mm > 0 && t.holder.length_mm <= 1000, h.key_path("length_mm"), "must be in (0, 1000] mm");
+        h.reject_unknown();
+    } else {
+        r.accept_null("holder");
+    }
+    r.reject_unknown();
+    return t;
+}
+
+Material parse_material(ObjectReader& r) {
+    Material m;
+    m.name = r.has("name") ? r.string("name") : std::string();
+    m.Ktc_N_mm2 = r.number("Ktc_N_mm2");
+    m.Krc_N_mm2 = r.number("Krc_N_mm2");
+    m.Kac_N_mm2 = r.number("Kac_N_mm2");
+    m.Kte_N_mm = r.number("Kte_N_mm");
+    m.Kre_N_mm = r.number("Kre_N_mm");
+    m.Kae_N_mm = r.number("Kae_N_mm");
+    // Tangential and radial coefficients resist the cut by definition; the axial ones change sign
+    // with helix hand and are left free.
+    require(m.Ktc_N_mm2 > 0 && m.Ktc_N_mm2 < 2e4, r.key_path("Ktc_N_mm2"), "must be in (0, 20000) N/mm^2");
+    require(m.Krc_N_mm2 >= 0 && m.Krc_N_mm2 < 2e4, r.key_path("Krc_N_mm2"), "must be in [0, 20000) N/mm^2");
+    require(std::abs(m.Kac_N_mm2) < 2e4, r.key_path("Kac_N_mm2"), "must be in (-20000, 20000) N/mm^2");
+    require(m.Kte_N_mm >= 0 && m.Kte_N_mm < 1e3, r.key_path("Kte_N_mm"), "must be in [0, 1000) N/mm");
+    require(m.Kre_N_mm >= 0 && m.Kre_N_mm < 1e3, r.key_path("Kre_N_mm"), "must be in [0, 1000) N/mm");
+    require(std::abs(m.Kae_N_mm) < 1e3, r.key_path("Kae_N_mm"), "must be in (-1000, 1000) N/mm");
+    r.reject_unknown();
+    return m;
+}
+
+StockBox parse_stock(ObjectReader& r) {
+    StockBox b;
+    ObjectReader box(r.object("box_mm"), r.key_path("box_mm"));
+    box.vec3("min", b.min_mm, true);
+    box.vec3("max", b.max_mm, true);
+    static const char* axis[3] = {"x", "y", "z"};
+    for (int i = 0; i < 3; ++i)
+        require(b.max_mm[i] > b.min_mm[i], box.key_path("max"),
+                std::string("must exceed min along ") + axis[i]);
+    box.reject_unknown();
+    r.reject_unknown();
+    return b;
+}
+
+Limits parse_limits(ObjectReader& r) {
+    Limits l;
+    auto read = [&r](const char* key, double& out) {
+        out = r.number_or(key, out);
+        require(out >= 0, r.key_path(key), "must be >= 0 (0 disables the check)");
+    };
+    read("force_N", l.force_N);
+    read("torque_Nm", l.torque_Nm);
+    read("power_kW", l.power_kW);
+    read("chip_mm", l.chip_mm);
+    read("bending_MPa", l.bending_MPa);
+    read("rapid_feed_mm_min", l.rapid_feed_mm_min);
+    r.reject_unknown();
+    return l;
+}
+
+Resolution parse_resolution(ObjectReader& r) {
+    Resolution res;
+    res.angle_step_deg = r.number_or("angle_step_deg", res.angle_step_deg);
+    require(res.angle_step_deg >= 0.1 && res.angle_step_deg <= 30, r.key_path("angle_step_deg"),
+            "must be in [0.1, 30] degrees");
+    res.axial_step_mm = r.number_or("axial_step_mm", res.axial_step_mm);
+    require(res.axial_step_mm >= 0.005 && res.axial_step_mm <= 5, r.key_path("axial_step_mm"),
+            "must be in [0.005, 5] mm");
+    res.grid_mm = r.number_or("grid_mm", res.grid_mm);
+    require(res.grid_mm >= 0.005 && res.grid_mm <= 10, r.key_path("grid_mm"), "must be in [0.005, 10] mm");
+    r.reject_unknown();
+    return res;
+}
+
+}  // namespace
+
+RunSpec parse_run_spec(const json& j) {
+    ObjectReader root(j, "");
+    RunSpec spec;
+    {
+        ObjectReader r(root.object("tool"), "tool");
+        spec.tool = parse_tool(r);
+    }
+    {
+        ObjectReader r(root.object("material"), "material");
+        spec.material = parse_material(r);
+    }
+    {
+        ObjectReader r(root.object("stock"), "stock");
+        spec.stock = parse_stock(r);
+    }
+    if (root.has("setup")) {
+        ObjectReader r(root.object("setup"), "setup");
+        r.vec3("offset_mm", spec.offset_mm, false);
+        r.reject_unknown();
+    } else {
+        root.accept_null("setup");
+    }
+    if (root.has("limits")) {
+        ObjectReader r(root.object("limits"), "limits");
+        spec.limits = parse_limits(r);
+    } else {
+        root.accept_null("limits");
+    }
+    if (root.has("resolution")) {
+        ObjectReader r(root.object("resolution"), "resolution");
+        spec.resolution = parse_resolution(r);
+    } else {
+        root.accept_null("resolution");
+    }
+    root.reject_unknown();
+
+    const auto& b = spec.stock;
+    const double g = spec.resolution.grid_mm;
+    const double cells = std::ceil((b.max_mm[0] - b.min_mm[0]) / g) * std::ceil((b.max_mm[1] - b.min_mm[1]) / g);
+    if (cells > kMaxStockCells) {
+        std::ostringstream msg;
+        msg << "a " << g << " mm grid over the stock box needs " << cells << " cells (limit "
+            << kMaxStockCells << "): use a coarser grid or a smaller stock";
+        fail("resolution.grid_mm", msg.str());
+    }
+    return spec;
+}
+
+RunSpec load_run_spec(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw SpecError(path + ": cannot open run spec");
+    json j;
+    try {
+        j = json::parse(in);
+    } catch (const json::parse_error& e) {
+        // nlohmann reports the byte offset; that is what a person needs to find the typo.
+        throw SpecError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    try {
+        return parse_run_spec(j);
+    } catch (const SpecError& e) {
+        throw SpecError(path + ": " + e.what());
+    }
+}
+
+json to_json(const RunSpec& s) {
+    json tool = {{"shape", shape_name(s.tool.shape)},
+                 {"diameter_mm", s.tool.diameter_mm},
+                 {"flutes", s.tool.flutes},
+                 {"helix_deg", s.tool.helix_deg},
+                 {"corner_radius_mm", s.tool.corner_radius_mm},
+                 {"flute_length_mm", s.tool.flute_length_mm},
+                 {"stickout_mm", s.tool.stickout_mm}};
+    if (s.tool.holder.diameter_mm > 0)
+        tool["holder"] = {{"diameter_mm", s.tool.holder.diameter_mm}, {"length_mm", s.tool.holder.length_mm}};
+    const auto& m = s.material;
+    return {
+        {"tool", tool},
+        {"material",
+         {{"name", m.name},
+          {"Ktc_N_mm2", m.Ktc_N_mm2},
+          {"Krc_N_mm2", m.Krc_N_mm2},
+          {"Kac_N_mm2", m.Kac_N_mm2},
+          {"Kte_N_mm", m.Kte_N_mm},
+          {"Kre_N_mm", m.Kre_N_mm},
+          {"Kae_N_mm", m.Kae_N_mm}}},
+        {"stock",
+         {{"box_mm",
+           {{"min", {s.stock.min_mm[0], s.stock.min_mm[1], s.stock.min_mm[2]}},
+            {"max", {s.stock.max_mm[0], s.stock.max_mm[1], s.stock.max_mm[2]}}}}}},
+        {"setup", {{"offset_mm", {s.offset_mm[0], s.offset_mm[1], s.offset_mm[2]}}}},
+        {"limits",
+         {{"force_N", s.limits.force_N},
+          {"torque_Nm", s.limits.torque_Nm},
+          {"power_kW", s.limits.power_kW},
+          {"chip_mm", s.limits.chip_mm},
+          {"bending_MPa", s.limits.bending_MPa},
+          {"rapid_feed_mm_min", s.limits.rapid_feed_mm_min}}},
+        {"resolution",
+         {{"angle_step_deg", s.resolution.angle_step_deg},
+          {"axial_step_mm", s.resolution.axial_step_mm},
+          {"grid_mm", s.resolution.grid_mm}}},
+    };
+}
+
+}  // namespace cutload::force_model
