@@ -28,8 +28,8 @@ void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt) {
         {"auto", motion_io::Format::Auto}, {"csv", motion_io::Format::Csv}, {"shdr", motion_io::Format::Shdr}};
     sub.add_option("--format", opt.format, "Log format (default: from the file's content)")
         ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
-    sub.add_option("--map", opt.map_file, "SHDR key mapping, JSON (see docs/formats.md)")
-        ->check(CLI::ExistingFile);
+    // The reader checks the map file itself so that a bad path gets the one-line error format.
+    sub.add_option("--map", opt.map_file, "SHDR key mapping, JSON (see docs/formats.md)");
     sub.add_option_function<std::string>(
            "--units", [&opt](const std::string& u) { opt.length_unit = u; },
            "Length unit of positions and feed when the log does not declare one")

@@ -61,7 +61,7 @@ struct Limits {
     double force_N = 0, torque_Nm = 0, power_kW = 0, chip_mm = 0, bending_MPa = 0;
     // A move at or above this path feed counts as a rapid: cutting during it trips rapid_in_material.
     // The log carries no G00/G01 mode, so the threshold is the only honest signal.
-    double rapid_feed_mm_min = 10000;
+    double rapid_feed_mm_min = 20000;
 };
 
 struct Resolution {

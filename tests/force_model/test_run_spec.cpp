@@ -51,7 +51,7 @@ TEST_CASE("run spec: the seed's experiment parses with every value kept", "[spec
     CHECK(spec.stock.max_mm[1] == 90);
     CHECK(spec.offset_mm[0] == -200);
     CHECK(spec.limits.chip_mm == 0.3);
-    CHECK(spec.limits.rapid_feed_mm_min == 10000);  // documented default
+    CHECK(spec.limits.rapid_feed_mm_min == 20000);  // documented default
     CHECK(spec.resolution.grid_mm == 0.1);
 }
 
