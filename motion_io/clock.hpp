@@ -1,0 +1,38 @@
+// Internal: recovering the CNC's position-update clock from client readings.
+//
+// The CNC latches a new position every T seconds (4 ms on the seed's FANUC); the client reads at
+// its own, drifting times. A reading taken at t shows the position latched at the last tick
+// before t. If T and the tick phase are known, every reading gets the time of the tick it shows,
+// and positions become exact samples of the motion: no beat is left to smooth away. This
+// generalises the seed's eqs. 4.1/4.2, which pick the CNC samples by the phase offset alpha.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace cutload::motion_io::detail {
+
+struct PosRead {
+    double t_s = 0;
+    double p_mm[3] = {0, 0, 0};
+};
+
+// The tick at or before t on the grid phase + k * period (period 0: t itself, no grid).
+double tick_at_or_before(double t_s, double period_s, double phase_s);
+
+// How much the velocity from consecutive readings jumps when each reading is timed at its tick:
+// mean over consecutive moving pairs of |v_k - v_k-1|^2 / (|v_k|^2 + |v_k-1|^2); two different
+// positions on one tick count 1. 0 for a smooth motion. pairs (optional) receives the pairs used.
+double tick_roughness(const PosRead* reads, std::size_t n, double period_s, double phase_s,
+                      std::size_t* pairs = nullptr);
+
+// Estimated update period (s) from readings of a moving machine; 0 when the readings show no
+// update grid that explains them better than their own time stamps (too few moving readings,
+// event-driven logs, or already uniform sampling).
+double estimate_update_period(const std::vector<PosRead>& reads);
+
+// Tick phase (s, in [0, period)) that best explains reads[0..n); `fallback` when they barely move.
+// The chosen phase is the middle of the range of equally good phases, far from read times.
+double best_phase(const PosRead* reads, std::size_t n, double period_s, double fallback_s);
+
+}  // namespace cutload::motion_io::detail

@@ -1,0 +1,174 @@
+// The ingest pipeline's driver: reader -> Sequencer -> Repairer -> sink (model, CSV, nothing).
+#include "motion_io/motion_io.hpp"
+#include "motion_io/pipeline.hpp"
+#include "motion_io/repair.hpp"
+#include "motion_io/sequencer.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <unistd.h>
+
+namespace cutload::motion_io {
+namespace {
+
+using detail::GridSample;
+
+class ModelSink final : public detail::GridSink {
+public:
+    explicit ModelSink(MotionModel& m) : m_(m) {}
+    void begin_session() override { new_session_ = true; }
+    void sample(const GridSample& s) override {
+        if (new_session_) {
+            m_.session_start.push_back(m_.size());
+            new_session_ = false;
+        }
+        m_.t_s.push_back(s.t_s);
+        m_.x_mm.push_back(s.p_mm[0]), m_.y_mm.push_back(s.p_mm[1]), m_.z_mm.push_back(s.p_mm[2]);
+        m_.vx_mm_s.push_back(s.v_mm_s[0]), m_.vy_mm_s.push_back(s.v_mm_s[1]), m_.vz_mm_s.push_back(s.v_mm_s[2]);
+        m_.spindle_rpm.push_back(s.spindle_rpm);
+        m_.spindle_angle_deg.push_back(s.spindle_angle_deg);
+        m_.block.push_back(s.block);
+    }
+
+private:
+    MotionModel& m_;
+    bool new_session_ = true;
+};
+
+class NullSink final : public detail::GridSink {
+public:
+    void sample(const GridSample&) override {}
+};
+
+class CsvSink final : public detail::GridSink {
+public:
+    CsvSink(std::FILE* f, const detail::BlockTable& blocks) : f_(f), blocks_(blocks) {
+        buf_.append(std::string_view("t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block\n"));
+    }
+    void sample(const GridSample& s) override {
+        const double feed = std::sqrt(s.v_mm_s[0] * s.v_mm_s[0] + s.v_mm_s[1] * s.v_mm_s[1] + s.v_mm_s[2] * s.v_mm_s[2]) * 60;
+        fmt::format_to(std::back_inserter(buf_), "{:.6f},{:.4f},{:.4f},{:.4f},{:.2f},{:.2f},{:.3f},", s.t_s, s.p_mm[0],
+                       s.p_mm[1], s.p_mm[2], feed, s.spindle_rpm, s.spindle_angle_deg);
+        if (s.block >= 0) {
+            const std::string& name = blocks_.names()[static_cast<std::size_t>(s.block)];
+            if (name.find(',') != std::string::npos || name.find('"') != std::string::npos)
+                fmt::format_to(std::back_inserter(buf_), "\"{}\"", name);
+            else
+                buf_.append(name);
+        }
+        buf_.push_back('\n');
+        ++rows_;
+        if (buf_.size() > (1 << 20)) flush();
+    }
+    void flush() {
+        if (std::fwrite(buf_.data(), 1, buf_.size(), f_) != buf_.size()) throw std::runtime_error("write failed");
+        buf_.clear();
+    }
+    std::size_t rows() const { return rows_; }
+
+private:
+    std::FILE* f_;
+    const detail::BlockTable& blocks_;
+    fmt::memory_buffer buf_;
+    std::size_t rows_ = 0;
+};
+
+// The feed channel's unit cannot be read from the numbers alone, but its integral over time must
+// match the distance the positions travel. A clear mismatch is reported with the likely cause;
+// the values are never rescaled without --feed-units.
+void check_feed_unit(double ratio, detail::Diagnostics& diag) {
+    if (ratio == 0 || (ratio > 0.5 && ratio < 2.0)) return;
+    struct Cause {
+        double ratio;
+        const char* hint;
+    };
+    static const Cause causes[] = {
+        {60.0, "per-minute values read as per-second: try --feed-units mm/min"},
+        {1 / 60.0, "per-second values read as per-minute: try --feed-units mm/s"},
+        {25.4, "inch values read as mm: try --feed-units in/min"},
+        {1 / 25.4, "mm values read as inch: try --feed-units mm/min"}};
+    std::string hint = "check the feed channel's unit (--feed-units)";
+    for (const Cause& c : causes)
+        if (std::fabs(std::log(ratio / c.ratio)) < std::log(1.5)) hint = c.hint;
+    diag.warn("feed_unit_suspect", 0,
+              fmt::format("feed channel integrates to {:.1f} x the path length of the positions; {}", ratio, hint));
+}
+
+IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detail::GridSink& sink,
+                          detail::BlockTable& blocks) {
+    if (!(opt.step_ms > 0) || !std::isfinite(opt.step_ms))
+        throw IngestError(fmt::format("step must be a positive number of milliseconds, got {}", opt.step_ms));
+    detail::Diagnostics diag(path);
+    const Format format = opt.format == Format::Auto ? detail::detect_format(path, diag) : opt.format;
+    const bool event_driven = format == Format::Shdr;
+    detail::Repairer repair(diag, sink, opt.step_ms * 1e-3, event_driven);
+    detail::Sequencer sequencer(diag, repair, event_driven);
+    if (format == Format::Csv)
+        detail::read_csv(path, opt, diag, blocks, sequencer);
+    else
+        detail::read_shdr(path, opt, diag, blocks, sequencer);
+    if (repair.position_reads() == 0)
+        diag.fail(0, "no position samples (CSV: columns x, y, z; SHDR: a path-position or axis key)");
+
+    IngestReport report;
+    repair.fill_report(report);
+    if (!report.channels.count("spindle"))
+        diag.warn("no_spindle", 0, "no spindle speed channel: speed 0 rpm assumed");
+    check_feed_unit(repair.feed_to_path_ratio(), diag);
+    report.file = path;
+    report.format = format == Format::Csv ? "csv" : "shdr";
+    report.blocks = blocks.names().size();
+    report.warnings = diag.warnings();
+    return report;
+}
+
+}  // namespace
+
+MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport* report) {
+    MotionModel m;
+    m.step_s = opt.step_ms * 1e-3;
+    ModelSink sink(m);
+    detail::BlockTable blocks;
+    IngestReport r = run_pipeline(path, opt, sink, blocks);
+    m.block_names = blocks.names();
+    if (report) *report = std::move(r);
+    return m;
+}
+
+IngestReport inspect(const std::string& path, const ReadOptions& opt) {
+    NullSink sink;
+    detail::BlockTable blocks;
+    return run_pipeline(path, opt, sink, blocks);
+}
+
+std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,
+                            IngestReport* report) {
+    // Written next to the target and renamed at the end, so a failure leaves no partial file.
+    const std::string tmp = fmt::format("{}.tmp{}", out_csv, static_cast<long>(::getpid()));
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw std::runtime_error(fmt::format("{}: cannot create output file", out_csv));
+    try {
+        detail::BlockTable blocks;
+        CsvSink sink(f, blocks);
+        IngestReport r = run_pipeline(path, opt, sink, blocks);
+        sink.flush();
+        if (std::fclose(f) != 0) {
+            f = nullptr;
+            throw std::runtime_error(fmt::format("{}: write failed", out_csv));
+        }
+        f = nullptr;
+        std::filesystem::rename(tmp, out_csv);
+        if (report) *report = std::move(r);
+        return sink.rows();
+    } catch (...) {
+        if (f) std::fclose(f);
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        throw;
+    }
+}
+
+}  // namespace cutload::motion_io

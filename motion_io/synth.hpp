@@ -1,0 +1,66 @@
+// Synthetic dry-run logs in the seed's sampling pattern (seed 001, section 4.2.3, table 4.1):
+// an acceleration-limited machine updates its actual position on a CNC grid (4 ms), and an
+// open-CNC client reads spindle speed, feed and position one after another (about 1.8, 2.0 and
+// 2.25 ms each, with jitter), each with its own time stamp. Used for the bundled demo log
+// (data/demo_dryrun.csv), the tests and the benchmark.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace cutload::motion_io {
+
+// One NC block, in machine coordinates.
+struct ProgramBlock {
+    std::string name;              // sequence number, e.g. "N10"
+    bool rapid = false;            // G00 at the machine's rapid rate; otherwise G01 at feed_mm_min
+    double target_mm[3] = {0, 0, 0};
+    double feed_mm_min = 0;
+};
+
+// A FANUC-like machine: linear interpolation of the program at the CNC period, then
+// acceleration/deceleration after interpolation (two cascaded moving averages, a bell-shaped
+// velocity ramp that rounds corners inward and makes the feed dip there), then a first-order
+// servo lag. The actual position is latched once per CNC period.
+struct MachineModel {
+    double cnc_period_s = 0.004;
+    double rapid_mm_min = 30000;
+    int accdec_ticks[2] = {8, 4};         // moving-average lengths (32 ms, 16 ms at 4 ms)
+    double servo_time_constant_s = 0.005;
+    double spindle_rpm = 10000;           // M03: positive
+    double spindle_ramp_s = 0.5;          // 0 to spindle_rpm after start
+    double spindle_ripple_rpm = 2;
+    double position_resolution_mm = 0.001;
+};
+
+// The open-CNC client: sequential reads of spindle, feed, position per cycle.
+struct ClientModel {
+    double read_s[3] = {0.0018, 0.0020, 0.00225};   // spindle, feed, position
+    double jitter_s = 0.00004;                      // standard deviation of each read's duration
+    double start_s = 0.0013;                        // client's first read against the CNC clock
+};
+
+struct DryRunSpec {
+    std::vector<ProgramBlock> program;
+    double start_mm[3] = {0, 0, 0};   // machine position before the first block
+    MachineModel machine;
+    ClientModel client;
+    double settle_s = 0.3;            // logging continues this long after the last block ends
+    std::uint64_t seed = 1;
+    std::size_t max_rows = 0;         // 0: until the program (and settle time) ends
+};
+
+// Writes the log as CSV with per-channel time stamps:
+//   t_spindle [s], spindle [rpm], t_feed [s], feed [mm/min], t_pos [s], x [mm], y [mm], z [mm], block
+// Deterministic for a given spec (own RNG). Returns the number of rows written.
+std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv);
+
+// The demo program (geometry in docs: data/README.md): a pocket cleared by ramping, slotting and
+// step-overs in two 3 mm levels, then the outer contour finished by a down cut at radial 1 mm,
+// axial 3 mm, F6000, S10000 M03. Machine coordinates; work zero at machine (200, -300, -350).
+DryRunSpec demo_dry_run_spec();
+
+}  // namespace cutload::motion_io

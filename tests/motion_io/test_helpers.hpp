@@ -1,0 +1,65 @@
+// Shared helpers of the motion_io tests: temporary files and synthetic logs.
+#pragma once
+
+#include "motion_io/motion_io.hpp"
+#include "motion_io/synth.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace cutload::motion_io::test {
+
+// A file under the system temp folder, removed when the object goes out of scope.
+class TempFile {
+public:
+    // Writes `content` unless create is false (a path that must not exist).
+    explicit TempFile(const std::string& name, const std::string& content = {}, bool create = true)
+        : path_(std::filesystem::temp_directory_path() / ("cutload_motion_test_" + name)) {
+        std::error_code ec;
+        std::filesystem::remove(path_, ec);
+        if (create) std::ofstream(path_, std::ios::binary) << content;
+    }
+    ~TempFile() {
+        std::error_code ec;
+        std::filesystem::remove(path_, ec);
+    }
+    std::string path() const { return path_.string(); }
+
+private:
+    std::filesystem::path path_;
+};
+
+// One straight G01 move at a constant programmed feed, in the seed's sampling pattern.
+inline DryRunSpec straight_line_spec(double feed_mm_min, double length_mm, std::uint64_t seed = 7) {
+    DryRunSpec spec;
+    spec.start_mm[0] = 238.555, spec.start_mm[1] = -279.308, spec.start_mm[2] = -321.958;
+    ProgramBlock b;
+    b.name = "N10";
+    b.feed_mm_min = feed_mm_min;
+    // Diagonal in XY so both axes beat against the grid.
+    b.target_mm[0] = spec.start_mm[0] - length_mm * 0.6;
+    b.target_mm[1] = spec.start_mm[1] - length_mm * 0.8;
+    b.target_mm[2] = spec.start_mm[2];
+    spec.program.push_back(b);
+    spec.seed = seed;
+    return spec;
+}
+
+inline std::string synth_csv(const DryRunSpec& spec) {
+    std::ostringstream s;
+    synthesize_dry_run(spec, s);
+    return s.str();
+}
+
+inline double speed_mm_min(const MotionModel& m, std::size_t i) {
+    return std::sqrt(m.vx_mm_s[i] * m.vx_mm_s[i] + m.vy_mm_s[i] * m.vy_mm_s[i] + m.vz_mm_s[i] * m.vz_mm_s[i]) * 60.0;
+}
+
+inline std::string source_path(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
+inline std::string shared_path(const std::string& rel) { return std::string(CUTLOAD_SHARED_DIR) + "/" + rel; }
+
+}  // namespace cutload::motion_io::test
