@@ -1,0 +1,99 @@
+// cutload predict LOG --spec RUN.json --out FORCES.csv [--blocks BLOCKS.csv] [--device opencl|cpu]
+// Reads and repairs the dry-run log, predicts cutting forces over it and writes the per-step and
+// per-block results; prints a short summary with the flagged blocks.
+#include "cli/commands.hpp"
+#include "force_model/force_model.hpp"
+#include "kernels/opencl_runtime.hpp"
+
+#include <cstdio>
+#include <memory>
+
+namespace cutload::cli {
+namespace {
+
+struct PredictArgs {
+    std::string log, spec, out, blocks, device = "auto", start_stock, save_stock;
+    bool quiet = false;
+    motion_io::ReadOptions read;
+};
+
+force_model::Device pick_device(const std::string& name) {
+    if (name == "cpu") return force_model::Device::Cpu;
+    if (name == "opencl") return force_model::Device::OpenCL;
+    // auto: OpenCL when a device exists, else the scalar path (said on stderr).
+    try {
+        kernels::OpenClRuntime::instance();
+        return force_model::Device::OpenCL;
+    } catch (const kernels::OpenClError& e) {
+        std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
+        return force_model::Device::Cpu;
+    }
+}
+
+void run_predict(const PredictArgs& a) {
+    const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
+    const motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
+    if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
+    force_model::StockPtr base;
+    if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
+
+    force_model::PredictOptions opt;
+    opt.device = pick_device(a.device);
+    opt.base_stock = base.get();
+    int last_pct = -1;
+    if (!a.quiet)
+        opt.progress = [&last_pct](double f) {
+            const int pct = int(f * 100);
+            if (pct / 10 != last_pct / 10) std::fprintf(stderr, "\rpredicting... %3d%%", pct);
+            last_pct = pct;
+        };
+    const force_model::Prediction p = force_model::predict(motion, spec, opt);
+    if (!a.quiet) std::fprintf(stderr, "\r                    \r");
+
+    force_model::write_forces_csv(p, a.out);
+    if (!a.blocks.empty()) force_model::write_blocks_csv(p, a.blocks);
+    if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
+
+    const auto& s = p.stats;
+    std::printf("device: %s\n", s.device.c_str());
+    std::printf("simulated %.3f s in %.3f s wall (%.1fx real time); %zu angle steps, %zu cutting\n", s.simulated_s,
+                s.wall_s, s.wall_s > 0 ? s.simulated_s / s.wall_s : 0.0, s.steps, s.cutting_steps);
+    std::size_t flagged = 0;
+    for (const auto& b : p.blocks) {
+        if (b.flags.empty()) continue;
+        ++flagged;
+        std::printf("  %s:", b.block.c_str());
+        for (const auto& f : b.flags) std::printf(" %s@%.3fs=%.4g", f.flag.c_str(), f.t_s, f.value);
+        std::printf("\n");
+    }
+    std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
+                a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
+}
+
+void add_predict(CLI::App& app) {
+    auto a = std::make_shared<PredictArgs>();
+    auto* cmd = app.add_subcommand("predict", "Predict cutting forces from a dry-run log and flag overloaded blocks");
+    cmd->add_option("LOG", a->log, "Dry-run motion log (CSV or SHDR)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("--spec", a->spec, "Run spec (RUN.json: tool, material, stock, limits, resolution)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--out", a->out, "FORCES.csv: one row per angle step while cutting")->required();
+    cmd->add_option("--blocks", a->blocks, "BLOCKS.csv: one row per NC block with peaks and flags");
+    cmd->add_option("--device", a->device, "opencl, cpu, or auto (OpenCL when a device exists)")
+        ->check(CLI::IsMember({"opencl", "cpu", "auto"}))
+        ->capture_default_str();
+    cmd->add_option("--start-stock", a->start_stock, "Start from a stock saved by an earlier run (--save-stock)")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--save-stock", a->save_stock, "Save the final in-process stock (binary) for a later run");
+    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    add_log_options(*cmd, a->read);
+    cmd->callback([a] { run_predict(*a); });
+}
+
+const bool registered = register_command("predict", &add_predict);
+
+}  // namespace
+}  // namespace cutload::cli

@@ -1,0 +1,32 @@
+// The scalar path: the kernels' C++ twins on the host stock, one thread.
+#include "force_model/engine.hpp"
+
+namespace cutload::force_model {
+
+namespace {
+
+class CpuBackend final : public Backend {
+public:
+    CpuBackend(Stock& stock, const ToolGeometry& tool) : stock_(stock), tool_(tool) {}
+    std::string name() const override { return "cpu (scalar C++ twins)"; }
+    void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
+        kernels::engage_twin(steps, tool_.edges, p, stock_.cells.data(), stock_.grid, out);
+    }
+    void sweep(const std::vector<kernels::SweepSegment>& segs, const kernels::SweepParams& p,
+               kernels::SweepCellResult* out) override {
+        kernels::sweep_twin(segs, p, stock_.cells.data(), stock_.grid, out);
+    }
+    void download(Stock&) override {}
+
+private:
+    Stock& stock_;
+    const ToolGeometry& tool_;
+};
+
+}  // namespace
+
+std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const ToolGeometry& tool) {
+    return std::make_unique<CpuBackend>(stock, tool);
+}
+
+}  // namespace cutload::force_model

@@ -1,0 +1,137 @@
+#include "force_model/stock.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+
+namespace cutload::force_model {
+
+namespace {
+
+constexpr char kMagic[8] = {'C', 'U', 'T', 'L', 'S', 'T', 'K', '\0'};
+constexpr std::uint32_t kVersion = 1;
+
+// FNV-1a: catches truncation and bit rot; the file is not a security boundary.
+std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 1469598103934665603ull) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) {
+        h ^= p[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+struct Header {
+    char magic[8];
+    std::uint32_t version, intervals;
+    std::int32_t nx, ny;
+    double cell_mm, x0_mm, y0_mm;
+    double box_min[3], box_max[3];
+};
+
+}  // namespace
+
+void StockDeleter::operator()(Stock* s) const { delete s; }
+
+StockPtr make_stock(const StockBox& box, double grid_mm) {
+    if (!(grid_mm > 0)) throw std::invalid_argument("make_stock: grid_mm must be > 0");
+    for (int k = 0; k < 3; ++k)
+        if (!(box.max_mm[k] > box.min_mm[k])) throw std::invalid_argument("make_stock: box max must exceed min");
+    StockPtr s(new Stock());
+    s->box = box;
+    s->grid.cell_mm = grid_mm;
+    s->grid.x0_mm = box.min_mm[0];
+    s->grid.y0_mm = box.min_mm[1];
+    // Round to whole cells so that a box that is a multiple of the grid is represented exactly.
+    s->grid.nx = std::max(1, int(std::lround((box.max_mm[0] - box.min_mm[0]) / grid_mm)));
+    s->grid.ny = std::max(1, int(std::lround((box.max_mm[1] - box.min_mm[1]) / grid_mm)));
+    const std::size_t rays = std::size_t(s->grid.nx) * s->grid.ny;
+    if (rays > 400'000'000ull) throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
+    s->cells.assign(rays * kernels::kDexelFloats, 0.0f);
+    for (std::size_t r = 0; r < rays; ++r) {
+        float* ray = s->cells.data() + r * kernels::kDexelFloats;
+        for (int k = 0; k < kernels::kDexelIntervals; ++k) {
+            ray[k] = k == 0 ? float(box.min_mm[2]) : kernels::kEmptyLo;
+            ray[kernels::kDexelIntervals + k] = k == 0 ? float(box.max_mm[2]) : kernels::kEmptyHi;
+        }
+    }
+    return s;
+}
+
+StockPtr copy_stock(const Stock& s) { return StockPtr(new Stock(s)); }
+
+double stock_volume_mm3(const Stock& s) {
+    double len = 0;
+    const std::size_t rays = s.cells.size() / kernels::kDexelFloats;
+    for (std::size_t r = 0; r < rays; ++r) len += kernels::ray_length(s.cells.data() + r * kernels::kDexelFloats);
+    return len * s.grid.cell_mm * s.grid.cell_mm;
+}
+
+void save_stock(const Stock& s, const std::string& path) {
+    Header h{};
+    std::memcpy(h.magic, kMagic, sizeof kMagic);
+    h.version = kVersion;
+    h.intervals = kernels::kDexelIntervals;
+    h.nx = s.grid.nx;
+    h.ny = s.grid.ny;
+    h.cell_mm = s.grid.cell_mm;
+    h.x0_mm = s.grid.x0_mm;
+    h.y0_mm = s.grid.y0_mm;
+    for (int k = 0; k < 3; ++k) {
+        h.box_min[k] = s.box.min_mm[k];
+        h.box_max[k] = s.box.max_mm[k];
+    }
+    const std::size_t bytes = s.cells.size() * sizeof(float);
+    std::uint64_t sum = fnv1a(&h, sizeof h);
+    sum = fnv1a(s.cells.data(), bytes, sum);
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) throw std::runtime_error("cannot write stock file " + tmp);
+        out.write(reinterpret_cast<const char*>(&h), sizeof h);
+        out.write(reinterpret_cast<const char*>(s.cells.data()), std::streamsize(bytes));
+        out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
+        if (!out) throw std::runtime_error("writing stock file " + tmp + " failed");
+    }
+    std::filesystem::rename(tmp, path);
+}
+
+StockPtr load_stock(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open stock file " + path);
+    Header h{};
+    in.read(reinterpret_cast<char*>(&h), sizeof h);
+    if (!in || std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
+        throw std::runtime_error(path + ": not a cutload stock file (bad magic)");
+    if (h.version != kVersion)
+        throw std::runtime_error(path + ": stock file version " + std::to_string(h.version) + ", this build reads " +
+                                 std::to_string(kVersion));
+    if (h.intervals != std::uint32_t(kernels::kDexelIntervals))
+        throw std::runtime_error(path + ": stock file has " + std::to_string(h.intervals) +
+                                 " intervals per ray, this build uses " + std::to_string(kernels::kDexelIntervals));
+    if (h.nx <= 0 || h.ny <= 0 || std::int64_t(h.nx) * h.ny > 400'000'000 || !(h.cell_mm > 0) ||
+        !std::isfinite(h.x0_mm) || !std::isfinite(h.y0_mm))
+        throw std::runtime_error(path + ": stock file header is corrupt (grid size or cell)");
+    StockPtr s(new Stock());
+    s->grid = {h.x0_mm, h.y0_mm, h.cell_mm, h.nx, h.ny};
+    for (int k = 0; k < 3; ++k) {
+        s->box.min_mm[k] = h.box_min[k];
+        s->box.max_mm[k] = h.box_max[k];
+    }
+    s->cells.resize(std::size_t(h.nx) * h.ny * kernels::kDexelFloats);
+    const std::size_t bytes = s->cells.size() * sizeof(float);
+    in.read(reinterpret_cast<char*>(s->cells.data()), std::streamsize(bytes));
+    std::uint64_t stored = 0;
+    in.read(reinterpret_cast<char*>(&stored), sizeof stored);
+    if (!in) throw std::runtime_error(path + ": stock file is truncated");
+    if (in.peek() != std::char_traits<char>::eof()) throw std::runtime_error(path + ": stock file has trailing bytes");
+    std::uint64_t sum = fnv1a(&h, sizeof h);
+    sum = fnv1a(s->cells.data(), bytes, sum);
+    if (sum != stored) throw std::runtime_error(path + ": stock file checksum mismatch (corrupt)");
+    return s;
+}
+
+}  // namespace cutload::force_model

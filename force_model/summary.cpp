@@ -1,0 +1,81 @@
+#include "force_model/summary.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+namespace cutload::force_model {
+
+namespace {
+
+void trip(BlockSummary& b, const char* flag, double t_s, double value) {
+    for (const FlagHit& f : b.flags)
+        if (f.flag == flag) return;   // keep the first time it tripped
+    b.flags.push_back({flag, t_s, value});
+}
+
+}  // namespace
+
+std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
+                                           const std::vector<RowExtra>& extra, const Limits& limits,
+                                           const EngineSettings& settings) {
+    // One summary per block in order of first appearance in the motion; rows without a block
+    // (index -1) are summarised as "(none)".
+    std::vector<BlockSummary> out;
+    std::map<std::int32_t, std::size_t> index;
+    auto slot = [&](std::int32_t block, double t_s) -> BlockSummary& {
+        auto [it, fresh] = index.try_emplace(block, out.size());
+        if (fresh) {
+            BlockSummary b;
+            b.block = block >= 0 && std::size_t(block) < motion.block_names.size() ? motion.block_names[block] : "(none)";
+            b.t_start_s = b.t_end_s = t_s;
+            out.push_back(std::move(b));
+        }
+        return out[it->second];
+    };
+    for (std::size_t i = 0; i < motion.size(); ++i) {
+        BlockSummary& b = slot(motion.block[i], motion.t_s[i]);
+        b.t_start_s = std::min(b.t_start_s, motion.t_s[i]);
+        b.t_end_s = std::max(b.t_end_s, motion.t_s[i]);
+    }
+    std::vector<double> force_sum(out.size() + 1, 0.0);
+    std::vector<std::size_t> cutting_rows(out.size() + 1, 0);
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        const ForceSample& s = rows[r];
+        const RowExtra& x = extra[r];
+        BlockSummary& b = slot(s.block, s.t_s);
+        const std::size_t bi = index[s.block];
+        if (force_sum.size() < out.size()) {
+            force_sum.resize(out.size(), 0.0);
+            cutting_rows.resize(out.size(), 0);
+        }
+        const double force = std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N + double(s.fz_N) * s.fz_N);
+        b.peak_force_N = std::max(b.peak_force_N, force);
+        b.peak_torque_Nm = std::max(b.peak_torque_Nm, double(s.torque_Nm));
+        b.peak_power_kW = std::max(b.peak_power_kW, double(s.power_kW));
+        b.max_chip_mm = std::max(b.max_chip_mm, double(s.chip_mm));
+        b.max_bending_MPa = std::max(b.max_bending_MPa, double(s.bending_MPa));
+        b.max_radial_engagement_mm = std::max(b.max_radial_engagement_mm, double(s.radial_engagement_mm));
+        b.max_axial_engagement_mm = std::max(b.max_axial_engagement_mm, double(s.axial_engagement_mm));
+        b.removed_mm3 += s.removed_mm3;
+        if (x.engaged > 0) {
+            force_sum[bi] += force;
+            ++cutting_rows[bi];
+        }
+        if (limits.force_N > 0 && force > limits.force_N) trip(b, "force_limit", s.t_s, force);
+        if (limits.torque_Nm > 0 && s.torque_Nm > limits.torque_Nm) trip(b, "torque_limit", s.t_s, s.torque_Nm);
+        if (limits.power_kW > 0 && s.power_kW > limits.power_kW) trip(b, "power_limit", s.t_s, s.power_kW);
+        if (limits.chip_mm > 0 && s.chip_mm > limits.chip_mm) trip(b, "chip_load_limit", s.t_s, s.chip_mm);
+        if (limits.bending_MPa > 0 && s.bending_MPa > limits.bending_MPa)
+            trip(b, "bending_limit", s.t_s, s.bending_MPa);
+        if (x.feed_mm_min >= settings.rapid_feed_mm_min && (x.engaged > 0 || s.removed_mm3 > 0))
+            trip(b, "rapid_in_material", s.t_s, x.feed_mm_min);
+        if (s.holder_contact) trip(b, "holder_contact", s.t_s, 1.0);
+        if (x.stopped_in_material) trip(b, "spindle_stopped", s.t_s, x.spindle_rpm);
+    }
+    for (std::size_t bi = 0; bi < out.size(); ++bi)
+        if (bi < cutting_rows.size() && cutting_rows[bi] > 0) out[bi].mean_force_N = force_sum[bi] / double(cutting_rows[bi]);
+    return out;
+}
+
+}  // namespace cutload::force_model

@@ -1,0 +1,119 @@
+// The two heavy loops of the force engine, as data layouts shared by the OpenCL kernels
+// (engage.cl, remove.cl) and their scalar C++ twins (twins.cpp).
+//
+// The twins are the reference: double precision, trigonometry evaluated per edge element. The
+// kernels do the same arithmetic in float with precomputed per-element rotations, so the two paths
+// agree to float rounding (tests require 0.5 % on forces).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace cutload::kernels {
+
+// ---- Dexel (multi-interval Z-map) grid -----------------------------------------------------------
+// Cell (i, j) is the vertical ray at x = x0 + (i + 0.5) g, y = y0 + (j + 0.5) g. Each ray holds up to
+// kDexelIntervals material intervals [lo, hi), stored as lo[4] then hi[4] (8 floats per cell), sorted
+// by lo; unused slots are empty ([kEmptyLo, kEmptyHi)), so "inside" needs no count.
+constexpr int kDexelIntervals = 4;
+constexpr int kDexelFloats = 2 * kDexelIntervals;
+constexpr float kEmptyLo = 1e30f;
+constexpr float kEmptyHi = -1e30f;
+
+struct GridInfo {
+    double x0_mm = 0, y0_mm = 0, cell_mm = 0.1;
+    int nx = 0, ny = 0;
+};
+
+// ---- Tool edge elements --------------------------------------------------------------------------
+// One element per piece of the tool profile in the (r, z) half-plane, for one flute; sorted by z so a
+// batch can stop at the highest element that can reach material. The first `bottom_count` elements
+// have a downward normal (flat end): they can only cut while the tool descends.
+struct EdgeTable {
+    std::vector<double> r_mm, z_mm;          // edge point: radius, height above the tip
+    std::vector<double> nr, nz;              // outward surface normal (radial, axial components)
+    std::vector<double> db_mm;               // chip width (element length along the profile)
+    std::vector<double> z_lo_mm, z_hi_mm;    // axial extent of the element
+    std::vector<double> lag_rad;             // helix lag behind the flute's tip
+    int flutes = 2;
+    int bottom_count = 0;
+    std::size_t size() const { return r_mm.size(); }
+};
+
+struct CuttingCoefficients {
+    double Ktc = 0, Krc = 0, Kac = 0;   // N/mm^2
+    double Kte = 0, Kre = 0, Kae = 0;   // N/mm
+};
+
+// ---- One batch of time steps ---------------------------------------------------------------------
+// Spindle rotation: an edge point of flute j at element e points along
+//   alpha = pi/2 - theta - 2 pi j / N + spin * lag_e      (machine XY, counter-clockwise from +X)
+// so spindle angle 0 puts flute 0's tip on +Y and M03 (spin +1) turns clockwise seen from above.
+// spin -1 (M04) mirrors the cutter (left-hand helix, cutting counter-clockwise).
+struct StepBatch {
+    std::vector<double> tip_x, tip_y, tip_z;       // tool tip in stock coordinates, mm
+    std::vector<double> feed_x, feed_y, feed_z;    // feed per tooth vector, mm
+    std::vector<double> theta_rad;                 // spindle angle
+    std::vector<double> spin;                      // +1 M03, -1 M04
+    std::size_t size() const { return tip_x.size(); }
+    void clear();
+    void reserve(std::size_t n);
+};
+
+// Per step, summed over flutes and engaged elements. Forces act on the tool in machine axes.
+struct StepResult {
+    float fx_N = 0, fy_N = 0, fz_N = 0;
+    float torque_Nmm = 0;                // sum of r * dFt: the load on the spindle
+    float mx_Nmm = 0, my_Nmm = 0;        // bending moment about the holder face
+    float chip_mm = 0;                   // max uncut chip thickness
+    float q_min_mm = 0, q_max_mm = 0;    // engaged extent across the feed direction
+    float z_min_mm = 0, z_max_mm = 0;    // engaged extent along the axis (above the tip)
+    float engaged = 0;                   // number of engaged elements
+};
+static_assert(sizeof(StepResult) == 12 * sizeof(float), "StepResult mirrors the kernel's 12 floats");
+
+struct EngageParams {
+    CuttingCoefficients k;
+    double holder_face_z_mm = 30;   // lever arm origin: height of the holder face above the tip
+    double min_chip_mm = 0;         // an element cuts only where h exceeds this (minimum chip thickness)
+    int element_end = 0;            // elements [0, element_end) may reach material in this batch
+};
+
+// ---- Swept-volume removal ------------------------------------------------------------------------
+// The tool's cutting part moving along straight segments of the tip path. Its lower surface is the
+// profile's lower envelope, tabulated as height above the tip at radius d = i * lower_dr_mm.
+struct SweepSegment {
+    double ax, ay, az, bx, by, bz;
+};
+
+struct SweepParams {
+    std::vector<double> lower_mm;   // lower surface height over radius, lower_mm.size() >= 2
+    double radius_mm = 4;           // cutting radius (last table entry)
+    double cut_length_mm = 20;      // flute length: material above it is not cut (shank contact)
+    int i0 = 0, j0 = 0, width = 0, height = 0;   // cell rectangle to update
+};
+
+struct SweepCellResult {
+    float removed_mm = 0;   // material length removed from the ray
+    float top_mm = 0;       // new top of the ray (kEmptyHi when empty)
+};
+
+// Scalar twins.
+void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const float* cells,
+                 const GridInfo& grid, StepResult* out);
+void sweep_twin(const std::vector<SweepSegment>& segs, const SweepParams& p, float* cells, const GridInfo& grid,
+                SweepCellResult* out);
+
+// Shared interval arithmetic (also used to build and check stocks): removes [a, b) from one ray;
+// returns the length removed. When the ray would need more than kDexelIntervals pieces, the
+// narrowest gap is filled (material kept: the conservative choice for collision checks).
+double subtract_interval(float* ray, double a_mm, double b_mm);
+double ray_length(const float* ray);
+float ray_top(const float* ray);
+bool ray_contains(const float* ray, double z_mm);
+
+// Height of the tabulated lower surface at radius d (linear interpolation).
+double lower_surface(const SweepParams& p, double d_mm);
+
+}  // namespace cutload::kernels

@@ -1,0 +1,114 @@
+// Swept-volume removal: one work item per dexel ray in the batch's cell rectangle. For each straight
+// segment of the tip path it finds where the tool's lower surface passes lowest over the ray and
+// the top of the cutting part, then subtracts that interval from the ray. Twin: sweep_twin.
+//
+// segs:  6 floats per segment: a x, y, z, b x, y, z (tool tip)
+// lower: lower surface height above the tip at radius d = k * radius / (n_lower - 1)
+// out:   per ray: removed length, new top
+#define K 4
+#define EMPTY_LO 1e30f
+#define EMPTY_HI -1e30f
+#define SLIVER 1e-4f
+
+float lower_at(__global const float* lower, const int n_lower, const float radius, const float d) {
+    const float u = clamp(d / radius, 0.0f, 1.0f) * (float)(n_lower - 1);
+    const int i = min((int)u, n_lower - 2);
+    const float w = u - (float)i;
+    return lower[i] * (1.0f - w) + lower[i + 1] * w;
+}
+
+float height_at(const float A, const float B, const float C, const float az, const float uz, const float t,
+                __global const float* lower, const int n_lower, const float radius) {
+    const float d = sqrt(fmax(0.0f, A * t * t + B * t + C));
+    return az + uz * t + lower_at(lower, n_lower, radius, d);
+}
+
+__kernel void remove_sweep(__global float* cells, const int nx, const float x0, const float y0, const float cell,
+                           const int i0, const int j0, const int width, const int height,
+                           __global const float* segs, const int n_segs, __global const float* lower,
+                           const int n_lower, const float radius, const float cut_length, __global float2* out) {
+    const int g = get_global_id(0);
+    if (g >= width * height) return;
+    const int ii = g % width, jj = g / width;
+    const int i = i0 + ii, j = j0 + jj;
+    const float cx = x0 + ((float)i + 0.5f) * cell, cy = y0 + ((float)j + 0.5f) * cell;
+    const float R2 = radius * radius;
+    float zb = INFINITY, zt = -INFINITY;
+    for (int s = 0; s < n_segs; ++s) {
+        __global const float* sg = segs + 6 * s;
+        const float ux = sg[3] - sg[0], uy = sg[4] - sg[1], uz = sg[5] - sg[2];
+        const float wx = sg[0] - cx, wy = sg[1] - cy;
+        const float A = ux * ux + uy * uy, B = 2.0f * (ux * wx + uy * wy), C = wx * wx + wy * wy;
+        float t0 = 0.0f, t1 = 1.0f;
+        if (A < 1e-18f) {
+            if (C > R2) continue;
+        } else {
+            const float disc = B * B - 4.0f * A * (C - R2);
+            if (disc < 0.0f) continue;
+            const float sq = sqrt(disc);
+            t0 = fmax(0.0f, (-B - sq) / (2.0f * A));
+            t1 = fmin(1.0f, (-B + sq) / (2.0f * A));
+            if (t0 > t1) continue;
+        }
+        float best;
+        if (fabs(uz) < 1e-12f) {
+            const float tc = A < 1e-18f ? t0 : clamp(-B / (2.0f * A), t0, t1);
+            best = height_at(A, B, C, sg[2], uz, tc, lower, n_lower, radius);
+        } else {
+            const float inv_phi = 0.618034f;
+            float lo = t0, hi = t1;
+            float m1 = hi - inv_phi * (hi - lo), m2 = lo + inv_phi * (hi - lo);
+            float h1 = height_at(A, B, C, sg[2], uz, m1, lower, n_lower, radius);
+            float h2 = height_at(A, B, C, sg[2], uz, m2, lower, n_lower, radius);
+            for (int it = 0; it < 24; ++it) {
+                if (h1 < h2) {
+                    hi = m2; m2 = m1; h2 = h1; m1 = hi - inv_phi * (hi - lo);
+                    h1 = height_at(A, B, C, sg[2], uz, m1, lower, n_lower, radius);
+                } else {
+                    lo = m1; m1 = m2; h1 = h2; m2 = lo + inv_phi * (hi - lo);
+                    h2 = height_at(A, B, C, sg[2], uz, m2, lower, n_lower, radius);
+                }
+            }
+            best = fmin(fmin(h1, h2), fmin(height_at(A, B, C, sg[2], uz, t0, lower, n_lower, radius),
+                                           height_at(A, B, C, sg[2], uz, t1, lower, n_lower, radius)));
+        }
+        zb = fmin(zb, best);
+        zt = fmax(zt, fmax(sg[2] + uz * t0, sg[2] + uz * t1) + cut_length);
+    }
+    __global float* ray = cells + 8 * (j * nx + i);
+    float before = 0.0f, after = 0.0f, top = EMPTY_HI;
+    if (zb < zt) {
+        float plo[K + 1], phi[K + 1];
+        int n = 0;
+        for (int k = 0; k < K; ++k) {
+            const float lo = ray[k], hi = ray[K + k];
+            if (!(hi > lo)) continue;
+            before += hi - lo;
+            if (zt <= lo || zb >= hi) {
+                plo[n] = lo; phi[n] = hi; ++n;
+                continue;
+            }
+            if (zb - lo > SLIVER) { plo[n] = lo; phi[n] = zb; ++n; }
+            if (hi - zt > SLIVER) { plo[n] = zt; phi[n] = hi; ++n; }
+        }
+        // Pieces come out ordered (input sorted, each split yields lower piece first).
+        if (n > K) {
+            int narrowest = 0;
+            for (int k = 1; k + 1 < n; ++k)
+                if (plo[k + 1] - phi[k] < plo[narrowest + 1] - phi[narrowest]) narrowest = k;
+            phi[narrowest] = phi[narrowest + 1];
+            for (int k = narrowest + 1; k + 1 < n; ++k) { plo[k] = plo[k + 1]; phi[k] = phi[k + 1]; }
+            --n;
+        }
+        for (int k = 0; k < K; ++k) {
+            ray[k] = k < n ? plo[k] : EMPTY_LO;
+            ray[K + k] = k < n ? phi[k] : EMPTY_HI;
+            if (k < n) { after += phi[k] - plo[k]; top = fmax(top, phi[k]); }
+        }
+        out[g] = (float2)(before - after, top);
+    } else {
+        for (int k = 0; k < K; ++k)
+            if (ray[K + k] > ray[k]) top = fmax(top, ray[K + k]);
+        out[g] = (float2)(0.0f, top);
+    }
+}

@@ -1,0 +1,223 @@
+#include "kernels/engine_kernels.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace cutload::kernels {
+
+void StepBatch::clear() {
+    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &spin}) v->clear();
+}
+
+void StepBatch::reserve(std::size_t n) {
+    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &spin}) v->reserve(n);
+}
+
+bool ray_contains(const float* ray, double z_mm) {
+    for (int k = 0; k < kDexelIntervals; ++k)
+        if (z_mm >= ray[k] && z_mm < ray[kDexelIntervals + k]) return true;
+    return false;
+}
+
+double ray_length(const float* ray) {
+    double len = 0;
+    for (int k = 0; k < kDexelIntervals; ++k)
+        if (ray[kDexelIntervals + k] > ray[k]) len += double(ray[kDexelIntervals + k]) - double(ray[k]);
+    return len;
+}
+
+float ray_top(const float* ray) {
+    float top = kEmptyHi;
+    for (int k = 0; k < kDexelIntervals; ++k)
+        if (ray[kDexelIntervals + k] > ray[k]) top = std::max(top, ray[kDexelIntervals + k]);
+    return top;
+}
+
+double subtract_interval(float* ray, double a_mm, double b_mm) {
+    // Thinner leftovers than this are numerical dust from repeated sweeps, not material.
+    constexpr double kSliver_mm = 1e-4;
+    std::array<std::pair<double, double>, kDexelIntervals + 1> piece{};
+    int n = 0;
+    const double before = ray_length(ray);
+    for (int k = 0; k < kDexelIntervals; ++k) {
+        const double lo = ray[k], hi = ray[kDexelIntervals + k];
+        if (!(hi > lo)) continue;
+        if (b_mm <= lo || a_mm >= hi) {
+            piece[n++] = {lo, hi};
+            continue;
+        }
+        if (a_mm - lo > kSliver_mm) piece[n++] = {lo, a_mm};
+        if (hi - b_mm > kSliver_mm) piece[n++] = {b_mm, hi};
+    }
+    // Pieces come out ordered: the rays are sorted and a split yields its lower piece first.
+    if (n > kDexelIntervals) {
+        int narrowest = 0;
+        for (int k = 1; k + 1 < n; ++k)
+            if (piece[k + 1].first - piece[k].second < piece[narrowest + 1].first - piece[narrowest].second)
+                narrowest = k;
+        piece[narrowest].second = piece[narrowest + 1].second;
+        std::copy(piece.begin() + narrowest + 2, piece.begin() + n, piece.begin() + narrowest + 1);
+        --n;
+    }
+    for (int k = 0; k < kDexelIntervals; ++k) {
+        ray[k] = k < n ? float(piece[k].first) : kEmptyLo;
+        ray[kDexelIntervals + k] = k < n ? float(piece[k].second) : kEmptyHi;
+    }
+    return before - ray_length(ray);
+}
+
+double lower_surface(const SweepParams& p, double d_mm) {
+    const auto last = p.lower_mm.size() - 1;
+    const double u = std::clamp(d_mm / p.radius_mm, 0.0, 1.0) * double(last);
+    const auto i = std::min<std::size_t>(static_cast<std::size_t>(u), last - 1);
+    const double w = u - double(i);
+    return p.lower_mm[i] * (1 - w) + p.lower_mm[i + 1] * w;
+}
+
+namespace {
+
+// Where the tool passes over the ray at (cx, cy) while its tip runs along one segment: the lowest
+// point of its lower surface (zb) and the highest point of its cutting part (zt). False when the
+// ray stays outside the cutting radius.
+bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParams& p, double& zb, double& zt) {
+    const double ux = s.bx - s.ax, uy = s.by - s.ay, uz = s.bz - s.az;
+    const double wx = s.ax - cx, wy = s.ay - cy;
+    // horizontal distance squared along the segment: A t^2 + B t + C
+    const double A = ux * ux + uy * uy, B = 2 * (ux * wx + uy * wy), C = wx * wx + wy * wy;
+    const double R2 = p.radius_mm * p.radius_mm;
+    double t0 = 0, t1 = 1;
+    if (A < 1e-18) {
+        if (C > R2) return false;
+    } else {
+        const double disc = B * B - 4 * A * (C - R2);
+        if (disc < 0) return false;
+        const double sq = std::sqrt(disc);
+        t0 = std::max(0.0, (-B - sq) / (2 * A));
+        t1 = std::min(1.0, (-B + sq) / (2 * A));
+        if (t0 > t1) return false;
+    }
+    auto height = [&](double t) {
+        const double d = std::sqrt(std::max(0.0, A * t * t + B * t + C));
+        return s.az + uz * t + lower_surface(p, d);
+    };
+    double best;
+    if (std::abs(uz) < 1e-12) {
+        // Level move: the lower surface rises with radius, so the closest approach is lowest.
+        const double tc = A < 1e-18 ? t0 : std::clamp(-B / (2 * A), t0, t1);
+        best = height(tc);
+    } else {
+        // Ramp or plunge: height(t) is convex (convex rising profile of a convex distance plus a
+        // linear term), so a golden-section search finds its minimum.
+        constexpr double kInvPhi = 0.6180339887498949;
+        double lo = t0, hi = t1;
+        double m1 = hi - kInvPhi * (hi - lo), m2 = lo + kInvPhi * (hi - lo);
+        double h1 = height(m1), h2 = height(m2);
+        for (int it = 0; it < 24; ++it) {
+            if (h1 < h2) {
+                hi = m2; m2 = m1; h2 = h1; m1 = hi - kInvPhi * (hi - lo); h1 = height(m1);
+            } else {
+                lo = m1; m1 = m2; h1 = h2; m2 = lo + kInvPhi * (hi - lo); h2 = height(m2);
+            }
+        }
+        best = std::min({h1, h2, height(t0), height(t1)});
+    }
+    zb = best;
+    zt = std::max(s.az + uz * t0, s.az + uz * t1) + p.cut_length_mm;
+    return true;
+}
+
+}  // namespace
+
+void sweep_twin(const std::vector<SweepSegment>& segs, const SweepParams& p, float* cells, const GridInfo& grid,
+                SweepCellResult* out) {
+    for (int jj = 0; jj < p.height; ++jj) {
+        for (int ii = 0; ii < p.width; ++ii) {
+            const int i = p.i0 + ii, j = p.j0 + jj;
+            float* ray = cells + (std::size_t(j) * grid.nx + i) * kDexelFloats;
+            const double cx = grid.x0_mm + (i + 0.5) * grid.cell_mm, cy = grid.y0_mm + (j + 0.5) * grid.cell_mm;
+            double zb = std::numeric_limits<double>::infinity(), zt = -zb;
+            for (const SweepSegment& s : segs) {
+                double b, t;
+                if (segment_cover(s, cx, cy, p, b, t)) {
+                    zb = std::min(zb, b);
+                    zt = std::max(zt, t);
+                }
+            }
+            SweepCellResult& r = out[std::size_t(jj) * p.width + ii];
+            r.removed_mm = zb < zt ? float(subtract_interval(ray, zb, zt)) : 0.0f;
+            r.top_mm = ray_top(ray);
+        }
+    }
+}
+
+void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const float* cells,
+                 const GridInfo& grid, StepResult* out) {
+    const double pitch = 2 * std::numbers::pi / tool.flutes;
+    const CuttingCoefficients& k = p.k;
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+        const double tx = steps.tip_x[i], ty = steps.tip_y[i], tz = steps.tip_z[i];
+        const double fx = steps.feed_x[i], fy = steps.feed_y[i], fz = steps.feed_z[i];
+        const double s = steps.spin[i];
+        const double fxy = std::hypot(fx, fy);
+        const double px = fxy > 1e-12 ? -fy / fxy : 1.0, py = fxy > 1e-12 ? fx / fxy : 0.0;
+        double Fx = 0, Fy = 0, Fz = 0, T = 0, Mx = 0, My = 0, chip = 0;
+        double qmin = 1e30, qmax = -1e30, zmin = 1e30, zmax = -1e30;
+        int engaged = 0;
+        const int first = fz >= 0 ? tool.bottom_count : 0;
+        for (int j = 0; j < tool.flutes; ++j) {
+            for (int e = first; e < p.element_end; ++e) {
+                const double alpha = std::numbers::pi / 2 - steps.theta_rad[i] - j * pitch + s * tool.lag_rad[e];
+                const double cu = std::cos(alpha), su = std::sin(alpha);
+                const double nr = tool.nr[e], nz = tool.nz[e], r = tool.r_mm[e];
+                const double h = nr * (fx * cu + fy * su) + nz * fz;
+                if (h <= p.min_chip_mm) continue;
+                const double x = tx + r * cu, y = ty + r * su, z = tz + tool.z_mm[e];
+                const double ci = std::floor((x - grid.x0_mm) / grid.cell_mm);
+                const double cj = std::floor((y - grid.y0_mm) / grid.cell_mm);
+                if (ci < 0 || cj < 0 || ci >= grid.nx || cj >= grid.ny) continue;
+                const float* ray = cells + (std::size_t(cj) * grid.nx + std::size_t(ci)) * kDexelFloats;
+                if (!ray_contains(ray, z)) continue;
+                const double db = tool.db_mm[e];
+                const double dFt = (k.Ktc * h + k.Kte) * db;
+                const double dFr = (k.Krc * h + k.Kre) * db;
+                const double dFa = (k.Kac * h + k.Kae) * db;
+                const double normal = dFr * nr + dFa * nz;
+                const double ex = -s * dFt * su - normal * cu;
+                const double ey = s * dFt * cu - normal * su;
+                const double ez = -dFr * nz + dFa * nr;
+                Fx += ex;
+                Fy += ey;
+                Fz += ez;
+                T += r * dFt;
+                const double lz = tool.z_mm[e] - p.holder_face_z_mm;
+                Mx += r * su * ez - lz * ey;
+                My += lz * ex - r * cu * ez;
+                chip = std::max(chip, h);
+                const double q = r * (cu * px + su * py);
+                qmin = std::min(qmin, q);
+                qmax = std::max(qmax, q);
+                zmin = std::min(zmin, tool.z_lo_mm[e]);
+                zmax = std::max(zmax, tool.z_hi_mm[e]);
+                ++engaged;
+            }
+        }
+        StepResult& o = out[i];
+        o.fx_N = float(Fx);
+        o.fy_N = float(Fy);
+        o.fz_N = float(Fz);
+        o.torque_Nmm = float(T);
+        o.mx_Nmm = float(Mx);
+        o.my_Nmm = float(My);
+        o.chip_mm = float(chip);
+        o.q_min_mm = engaged ? float(qmin) : 0.0f;
+        o.q_max_mm = engaged ? float(qmax) : 0.0f;
+        o.z_min_mm = engaged ? float(zmin) : 0.0f;
+        o.z_max_mm = engaged ? float(zmax) : 0.0f;
+        o.engaged = float(engaged);
+    }
+}
+
+}  // namespace cutload::kernels

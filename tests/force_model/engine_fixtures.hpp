@@ -1,0 +1,91 @@
+// Small fixtures for the engine tests: run specs and motion models built directly (uniform samples,
+// constant feed along straight 3D segments), so the tests do not depend on log ingest.
+#pragma once
+
+#include "force_model/engine.hpp"
+#include "kernels/opencl_runtime.hpp"
+
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace cutload::enginetest {
+
+using P3 = std::array<double, 3>;
+
+struct Leg {
+    P3 end;
+    double feed_mm_min;
+    std::string block;
+    double rpm = 10000;
+};
+
+// Uniform 1 ms samples along straight legs from `start`; spindle angle by the trapezoid rule.
+inline motion_io::MotionModel legs_motion(P3 start, const std::vector<Leg>& legs, double step_s = 0.001) {
+    motion_io::MotionModel m;
+    m.step_s = step_s;
+    double t = 0, angle = 0, prev_rpm = legs.empty() ? 0 : legs.front().rpm;
+    P3 p = start;
+    auto push = [&](const P3& pos, const P3& vel, double rpm, int block) {
+        if (!m.t_s.empty()) angle += 6.0 * 0.5 * (prev_rpm + rpm) * step_s;
+        prev_rpm = rpm;
+        m.t_s.push_back(t);
+        m.x_mm.push_back(pos[0]);
+        m.y_mm.push_back(pos[1]);
+        m.z_mm.push_back(pos[2]);
+        m.vx_mm_s.push_back(vel[0]);
+        m.vy_mm_s.push_back(vel[1]);
+        m.vz_mm_s.push_back(vel[2]);
+        m.spindle_rpm.push_back(rpm);
+        m.spindle_angle_deg.push_back(angle);
+        m.block.push_back(block);
+        t += step_s;
+    };
+    for (std::size_t l = 0; l < legs.size(); ++l) {
+        const Leg& leg = legs[l];
+        m.block_names.push_back(leg.block);
+        const P3 d{leg.end[0] - p[0], leg.end[1] - p[1], leg.end[2] - p[2]};
+        const double len = std::hypot(d[0], d[1], d[2]);
+        const double speed = leg.feed_mm_min / 60.0;
+        const auto n = std::max<long>(1, std::lround(len / (speed * step_s)));
+        const P3 v = len > 0 ? P3{d[0] / len * speed, d[1] / len * speed, d[2] / len * speed} : P3{0, 0, 0};
+        for (long k = 0; k < n; ++k) {
+            const double u = double(k) / double(n);
+            push({p[0] + u * d[0], p[1] + u * d[1], p[2] + u * d[2]}, v, leg.rpm, int(l));
+        }
+        p = leg.end;
+    }
+    push(p, {0, 0, 0}, legs.empty() ? 0 : legs.back().rpm, int(legs.size()) - 1);
+    m.session_start = {0};
+    return m;
+}
+
+inline force_model::RunSpec base_spec(double box_x = 40, double box_y = 20, double box_z = 10) {
+    force_model::RunSpec s;
+    s.tool.shape = force_model::ToolShape::Flat;
+    s.tool.diameter_mm = 8;
+    s.tool.flutes = 2;
+    s.tool.helix_deg = 30;
+    s.tool.flute_length_mm = 20;
+    s.tool.stickout_mm = 30;
+    s.tool.holder = {32, 40};
+    s.material = {"Al7075-T6", 767.0, 168.8, 222.0, 27.7, 26.6, 0.7};
+    s.stock.min_mm[0] = s.stock.min_mm[1] = s.stock.min_mm[2] = 0;
+    s.stock.max_mm[0] = box_x;
+    s.stock.max_mm[1] = box_y;
+    s.stock.max_mm[2] = box_z;
+    s.resolution = {2, 0.1, 0.1};
+    return s;
+}
+
+inline bool opencl_available() {
+    try {
+        kernels::OpenClRuntime::instance();
+        return true;
+    } catch (const kernels::OpenClError&) {
+        return false;
+    }
+}
+
+}  // namespace cutload::enginetest
