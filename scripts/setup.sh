@@ -16,6 +16,16 @@ missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# The web page is built with npm. Judge by the command, not the package: a machine may carry a
+# newer Node.js from elsewhere whose bundled npm conflicts with Debian's npm package.
+command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
+# Extra packages asked for by the caller (scripts/test.sh adds the browser for the web tests).
+for p in ${CUTLOAD_EXTRA_PACKAGES:-}; do
+  case "$p" in
+    chromium) [ -x /usr/bin/chromium ] || missing+=(chromium) ;;
+    *) dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p") ;;
+  esac
+done
 if ((${#missing[@]})); then
   echo "cutload setup: installing ${missing[*]}"
   SUDO=""

@@ -1,0 +1,104 @@
+// cutload serve: the HTTP service (see docs/api.md). SIGINT / SIGTERM stop it gracefully:
+// running jobs get --drain-s seconds to finish and are re-queued otherwise.
+#include "cli/commands.hpp"
+#include "server/server.hpp"
+
+#include <csignal>
+#include <cstdio>
+#include <pthread.h>
+
+namespace cutload::cli {
+namespace {
+
+struct ServeArgs {
+    server::ServerOptions opt;
+    std::string listen = "127.0.0.1:8080";
+    double max_body_mb = 256;
+    std::string device = "opencl";
+};
+
+void split_listen(const std::string& listen, server::ServerOptions& opt) {
+    const auto colon = listen.rfind(':');
+    if (colon == std::string::npos || colon == 0) throw UsageError("--listen: expected HOST:PORT, got '" + listen + "'");
+    std::string host = listen.substr(0, colon);
+    if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+    int port = -1;
+    try {
+        std::size_t used = 0;
+        port = std::stoi(listen.substr(colon + 1), &used);
+        if (used != listen.size() - colon - 1) port = -1;
+    } catch (const std::exception&) {
+    }
+    if (port < 0 || port > 65535) throw UsageError("--listen: '" + listen.substr(colon + 1) + "' is not a port (0..65535)");
+    opt.host = host;
+    opt.port = port;
+}
+
+void run_serve(ServeArgs& a) {
+    split_listen(a.listen, a.opt);
+    a.opt.max_body_bytes = static_cast<std::size_t>(a.max_body_mb * 1024 * 1024);
+    a.opt.use_opencl = a.device == "opencl";
+
+    // Signals go to this thread only, via sigwait: no work in a signal handler.
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &set, nullptr);
+    std::signal(SIGPIPE, SIG_IGN);
+
+    server::Server srv(a.opt);
+    srv.start();
+    std::printf("cutload: listening on http://%s:%d\n", a.opt.host.c_str(), srv.port());
+    std::fflush(stdout);
+    int sig = 0;
+    sigwait(&set, &sig);
+    std::printf("cutload: %s received, shutting down\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    std::fflush(stdout);
+    srv.stop();
+}
+
+void add_serve(CLI::App& app) {
+    auto a = std::make_shared<ServeArgs>();
+    auto* sub = app.add_subcommand("serve", "Run the HTTP service: REST API, prediction jobs, alerts");
+    sub->add_option("--listen", a->listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
+    sub->add_option("--db", a->opt.db_path, "SQLite database file (created if missing)")->capture_default_str();
+    sub->add_option("--data-dir", a->opt.data_dir, "Where uploaded logs are kept (default: <db>.data)");
+    sub->add_option("--web", a->opt.web_dir, "Directory of static files served at / (default: none)");
+    sub->add_option("--workers", a->opt.workers, "Prediction jobs computed at once")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str();
+    sub->add_option("--device", a->device, "Force engine device")
+        ->check(CLI::IsMember({"opencl", "cpu"}))
+        ->capture_default_str();
+    sub->add_option("--http-threads", a->opt.http_threads, "HTTP worker threads (bounds concurrent connections)")
+        ->check(CLI::Range(4, 1024))
+        ->capture_default_str();
+    sub->add_option("--max-body-mb", a->max_body_mb, "Largest request body, MiB (413 beyond)")
+        ->check(CLI::Range(0.001, 4096.0))
+        ->capture_default_str();
+    sub->add_option("--max-log-rows", a->opt.max_log_rows, "Most rows in an uploaded log (413 beyond)")->capture_default_str();
+    sub->add_option("--max-pending-jobs", a->opt.max_pending_jobs, "Most runs queued or running (429 beyond)")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    sub->add_option("--max-points", a->opt.max_points, "Largest max_points of forces/motion queries")
+        ->check(CLI::Range(2, 1000000))
+        ->capture_default_str();
+    sub->add_flag("--anonymous-loopback-reads", a->opt.anonymous_loopback_reads,
+                  "Allow GET requests without an API key from 127.0.0.1 / ::1");
+    sub->add_option("--drain-s", a->opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")
+        ->check(CLI::Range(0.0, 3600.0))
+        ->capture_default_str();
+    sub->add_option("--webhook-backoff-s", a->opt.webhook_backoff_s, "First webhook retry delay (doubles per attempt)")
+        ->check(CLI::Range(0.01, 3600.0))
+        ->capture_default_str();
+    sub->add_option("--webhook-max-attempts", a->opt.webhook_max_attempts, "Webhook attempts before giving up")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    sub->callback([a] { run_serve(*a); });
+}
+
+const bool registered = register_command("serve", &add_serve);
+
+}  // namespace
+}  // namespace cutload::cli

@@ -1,0 +1,155 @@
+#include "db/db.hpp"
+
+#include <fmt/format.h>
+#include <sqlite3.h>
+
+#include <chrono>
+#include <ctime>
+
+namespace cutload::db {
+namespace {
+
+[[noreturn]] void fail(sqlite3* db, int rc, std::string_view what) {
+    const char* msg = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    throw Error(fmt::format("sqlite: {}: {}", what, msg), db ? sqlite3_extended_errcode(db) : rc);
+}
+
+}  // namespace
+
+bool Error::is_constraint() const { return (code_ & 0xff) == SQLITE_CONSTRAINT; }
+
+Stmt::Stmt(sqlite3* db, std::string_view sql) : db_(db), st_(nullptr) {
+    int rc = sqlite3_prepare_v2(db, sql.data(), static_cast<int>(sql.size()), &st_, nullptr);
+    if (rc != SQLITE_OK) fail(db, rc, fmt::format("prepare \"{}\"", sql));
+}
+
+Stmt::Stmt(Stmt&& o) noexcept : db_(o.db_), st_(o.st_) { o.st_ = nullptr; }
+
+Stmt::~Stmt() { sqlite3_finalize(st_); }
+
+Stmt& Stmt::bind(int i, std::int64_t v) {
+    if (int rc = sqlite3_bind_int64(st_, i, v); rc != SQLITE_OK) fail(db_, rc, "bind");
+    return *this;
+}
+Stmt& Stmt::bind(int i, double v) {
+    if (int rc = sqlite3_bind_double(st_, i, v); rc != SQLITE_OK) fail(db_, rc, "bind");
+    return *this;
+}
+Stmt& Stmt::bind(int i, std::string_view v) {
+    int rc = sqlite3_bind_text64(st_, i, v.data(), v.size(), SQLITE_TRANSIENT, SQLITE_UTF8);
+    if (rc != SQLITE_OK) fail(db_, rc, "bind");
+    return *this;
+}
+Stmt& Stmt::bind_blob(int i, const void* data, std::size_t bytes) {
+    if (int rc = sqlite3_bind_blob64(st_, i, data, bytes, SQLITE_TRANSIENT); rc != SQLITE_OK) fail(db_, rc, "bind");
+    return *this;
+}
+Stmt& Stmt::bind_null(int i) {
+    if (int rc = sqlite3_bind_null(st_, i); rc != SQLITE_OK) fail(db_, rc, "bind");
+    return *this;
+}
+
+bool Stmt::step() {
+    int rc = sqlite3_step(st_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    fail(db_, rc, "step");
+}
+
+void Stmt::run() {
+    while (step()) {
+    }
+}
+
+void Stmt::reset() {
+    sqlite3_reset(st_);
+}
+
+bool Stmt::is_null(int col) const { return sqlite3_column_type(st_, col) == SQLITE_NULL; }
+std::int64_t Stmt::i64(int col) const { return sqlite3_column_int64(st_, col); }
+double Stmt::real(int col) const { return sqlite3_column_double(st_, col); }
+std::string Stmt::text(int col) const {
+    auto* p = reinterpret_cast<const char*>(sqlite3_column_text(st_, col));
+    return p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, col))) : std::string();
+}
+std::optional<std::string> Stmt::opt_text(int col) const {
+    if (is_null(col)) return std::nullopt;
+    return text(col);
+}
+std::optional<std::int64_t> Stmt::opt_i64(int col) const {
+    if (is_null(col)) return std::nullopt;
+    return i64(col);
+}
+std::optional<double> Stmt::opt_real(int col) const {
+    if (is_null(col)) return std::nullopt;
+    return real(col);
+}
+const void* Stmt::blob(int col, std::size_t* bytes) const {
+    const void* p = sqlite3_column_blob(st_, col);
+    *bytes = static_cast<std::size_t>(sqlite3_column_bytes(st_, col));
+    return p;
+}
+
+Connection::Connection(const std::string& path, int busy_timeout_ms) {
+    int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+    int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr);
+    if (rc != SQLITE_OK) {
+        std::string msg = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+        sqlite3_close(db_);
+        db_ = nullptr;
+        throw Error(fmt::format("cannot open database {}: {}", path, msg), rc);
+    }
+    sqlite3_busy_timeout(db_, busy_timeout_ms);
+    // NORMAL is durable across application crashes in WAL mode (only power loss can lose the
+    // last commits), which is the guarantee the job store needs.
+    exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
+}
+
+Connection::~Connection() { sqlite3_close_v2(db_); }
+
+void Connection::exec(std::string_view sql) {
+    std::string s(sql);
+    char* err = nullptr;
+    int rc = sqlite3_exec(db_, s.c_str(), nullptr, nullptr, &err);
+    if (rc != SQLITE_OK) {
+        std::string msg = err ? err : sqlite3_errstr(rc);
+        sqlite3_free(err);
+        throw Error(fmt::format("sqlite: {}", msg), sqlite3_extended_errcode(db_));
+    }
+}
+
+std::int64_t Connection::last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
+int Connection::changes() const { return sqlite3_changes(db_); }
+
+Transaction::Transaction(Connection& c, bool immediate) : c_(c) {
+    c_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN");
+}
+
+Transaction::~Transaction() {
+    if (open_) {
+        try {
+            c_.exec("ROLLBACK");
+        } catch (const Error&) {
+            // The transaction was already rolled back by SQLite itself (e.g. after SQLITE_FULL).
+        }
+    }
+}
+
+void Transaction::commit() {
+    c_.exec("COMMIT");
+    open_ = false;
+}
+
+std::string now_iso() {
+    using namespace std::chrono;
+    auto now = system_clock::now();
+    auto ms = duration_cast<milliseconds>(now.time_since_epoch()).count() % 1000;
+    std::time_t t = system_clock::to_time_t(now);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+    return fmt::format("{}.{:03}Z", buf, ms);
+}
+
+}  // namespace cutload::db

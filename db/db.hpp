@@ -1,0 +1,108 @@
+// Public interface of db: a thin, exception-based wrapper over SQLite and cutload's schema.
+//
+// One Connection per thread at a time (SQLite connections are not shared between threads here);
+// WAL mode lets many readers run beside the one writer. Write transactions start IMMEDIATE so two
+// writers queue on the busy timeout instead of failing half-way with SQLITE_BUSY.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace cutload::db {
+
+class Error : public std::runtime_error {
+public:
+    Error(const std::string& what, int code) : std::runtime_error(what), code_(code) {}
+    int code() const { return code_; }              // SQLite extended result code
+    bool is_constraint() const;                     // UNIQUE / FOREIGN KEY / CHECK violation
+private:
+    int code_;
+};
+
+class Stmt {
+public:
+    Stmt(sqlite3* db, std::string_view sql);
+    Stmt(Stmt&& o) noexcept;
+    Stmt(const Stmt&) = delete;
+    Stmt& operator=(const Stmt&) = delete;
+    ~Stmt();
+
+    // Parameters are 1-based like SQLite's; each returns *this so calls chain.
+    Stmt& bind(int i, std::int64_t v);
+    Stmt& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
+    Stmt& bind(int i, double v);
+    Stmt& bind(int i, std::string_view v);
+    Stmt& bind(int i, const char* v) { return bind(i, std::string_view(v)); }
+    Stmt& bind(int i, const std::string& v) { return bind(i, std::string_view(v)); }
+    Stmt& bind_blob(int i, const void* data, std::size_t bytes);
+    Stmt& bind_null(int i);
+    template <class T>
+    Stmt& bind(int i, const std::optional<T>& v) { return v ? bind(i, *v) : bind_null(i); }
+
+    bool step();     // true: a row is ready; false: done
+    void run();      // steps to completion, for statements without rows
+    void reset();    // ready to step again with the same bindings
+
+    bool is_null(int col) const;
+    std::int64_t i64(int col) const;
+    double real(int col) const;
+    std::string text(int col) const;
+    std::optional<std::string> opt_text(int col) const;
+    std::optional<std::int64_t> opt_i64(int col) const;
+    std::optional<double> opt_real(int col) const;
+    // Borrowed until the next step/reset.
+    const void* blob(int col, std::size_t* bytes) const;
+
+private:
+    sqlite3* db_;
+    sqlite3_stmt* st_;
+};
+
+class Connection {
+public:
+    // Opens (creating if needed), sets WAL, foreign keys and the busy timeout.
+    explicit Connection(const std::string& path, int busy_timeout_ms = 10000);
+    Connection(const Connection&) = delete;
+    Connection& operator=(const Connection&) = delete;
+    ~Connection();
+
+    void exec(std::string_view sql);   // one or more statements, no rows
+    Stmt prepare(std::string_view sql) { return Stmt(db_, sql); }
+    std::int64_t last_insert_id() const;
+    int changes() const;
+    sqlite3* handle() { return db_; }
+
+private:
+    sqlite3* db_ = nullptr;
+};
+
+// Rolls back unless commit() was called.
+class Transaction {
+public:
+    explicit Transaction(Connection& c, bool immediate = true);
+    Transaction(const Transaction&) = delete;
+    Transaction& operator=(const Transaction&) = delete;
+    ~Transaction();
+    void commit();
+
+private:
+    Connection& c_;
+    bool open_ = true;
+};
+
+// Brings the database to the newest schema version (PRAGMA user_version); idempotent.
+// Returns the version reached.
+int migrate(Connection& c);
+int schema_version();
+
+// UTC "YYYY-MM-DDTHH:MM:SS.sssZ" now, the format every timestamp column uses.
+std::string now_iso();
+
+}  // namespace cutload::db

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Quick-start command 1: install what is missing, build, and start `cutload serve` on
+# 127.0.0.1:8080 with the bundled demo dry run already submitted, so the first thing a new user
+# sees is a finished run. Prints an admin API key and the URLs. Ctrl-C stops the service
+# gracefully. Safe to run again: the database, key and demo run are reused.
+#
+# Environment: CUTLOAD_LISTEN (127.0.0.1:8080), CUTLOAD_STATE_DIR (build/serve),
+#              CUTLOAD_BUILD_DIR (build), CUTLOAD_DEVICE (opencl).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+scripts/setup.sh
+
+BUILD_DIR=${CUTLOAD_BUILD_DIR:-build}
+BIN=$BUILD_DIR/cli/cutload
+LISTEN=${CUTLOAD_LISTEN:-127.0.0.1:8080}
+STATE_DIR=${CUTLOAD_STATE_DIR:-$BUILD_DIR/serve}
+DB=$STATE_DIR/cutload.db
+KEY_FILE=$STATE_DIR/admin.key
+URL=http://$LISTEN
+LOG=data/demo_dryrun.csv
+SPEC=data/demo_run.json
+
+for f in "$LOG" "$SPEC"; do
+  [ -f "$f" ] || { echo "cutload start: $f is missing from this checkout" >&2; exit 1; }
+done
+mkdir -p "$STATE_DIR"
+
+# The key is only shown once by `keys create`; keep it (owner-only) so a second start can reuse it.
+if [ ! -s "$KEY_FILE" ]; then
+  (umask 077; "$BIN" keys create --role admin --db "$DB" --name quick-start | tail -n 1 > "$KEY_FILE")
+fi
+KEY=$(cat "$KEY_FILE")
+
+"$BIN" serve --listen "$LISTEN" --db "$DB" --web "$BUILD_DIR/web/site" --anonymous-loopback-reads \
+  --device "${CUTLOAD_DEVICE:-opencl}" &
+SERVER=$!
+trap 'kill -TERM $SERVER 2>/dev/null; wait $SERVER' INT TERM
+
+for _ in $(seq 1 100); do
+  curl -fsS "$URL/healthz" >/dev/null 2>&1 && break
+  kill -0 $SERVER 2>/dev/null || { echo "cutload start: the service did not start (is $LISTEN in use?)" >&2; exit 1; }
+  sleep 0.1
+done
+
+api() { curl -fsS -H "Authorization: Bearer $KEY" "$@"; }
+json_field() { sed -n "s/.*\"$1\":\([^,}]*\).*/\1/p" | head -n 1 | tr -d '"'; }
+
+RUN=$(api "$URL/api/v1/runs?program=demo&limit=1" | json_field id)
+if [ -z "$RUN" ]; then
+  echo "cutload start: submitting the demo dry run ($LOG)"
+  RUN=$(api -F "log=@$LOG" -F "spec=<$SPEC" -F name=demo -F program=demo "$URL/api/v1/runs" | json_field id)
+fi
+while :; do
+  STATE=$(api "$URL/api/v1/runs/$RUN" | json_field state)
+  case "$STATE" in
+    queued|running) sleep 0.5 ;;
+    *) break ;;
+  esac
+done
+
+cat <<EOF
+
+cutload is running at $URL  (Ctrl-C stops it)
+  demo run $RUN: $STATE
+  web page:         $URL/
+  the run:          $URL/api/v1/runs/$RUN
+  per-block loads:  $URL/api/v1/runs/$RUN/blocks
+  forces (plot):    $URL/api/v1/runs/$RUN/forces?max_points=2000
+  API description:  $URL/api/v1/openapi.json
+  metrics:          $URL/metrics
+Reads from this machine need no key. For writes, the admin key (kept in $KEY_FILE):
+  $KEY
+e.g. curl -H "Authorization: Bearer $KEY" -F log=@$LOG -F "spec=<$SPEC" $URL/api/v1/runs
+EOF
+
+wait $SERVER

@@ -1,0 +1,569 @@
+// Routes: /api/v1/runs (upload + queue, list, get, delete, cancel) and the result queries
+// (blocks, forces, motion) with window decimation and CSV.
+#include "force_model/force_model.hpp"
+#include "motion_io/motion_io.hpp"
+#include "server/core.hpp"
+#include "server/jobs.hpp"
+#include "server/library.hpp"
+#include "server/series.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <openssl/rand.h>
+#include <unistd.h>
+
+#include <charconv>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+namespace cutload::server {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kRunColumns =
+    "id, name, program, machine_id, tool_id, material_id, base_run, state, progress, error, attempts, inputs, "
+    "summary, flagged, created_at, started_at, finished_at";
+
+json opt_json(const db::Stmt& st, int col, bool integer) {
+    if (st.is_null(col)) return nullptr;
+    return integer ? json(st.i64(col)) : json(st.text(col));
+}
+
+json run_json(const db::Stmt& st) {
+    const std::int64_t id = st.i64(0);
+    return {{"id", id},
+            {"name", opt_json(st, 1, false)},
+            {"program", opt_json(st, 2, false)},
+            {"machine_id", opt_json(st, 3, true)},
+            {"tool_id", opt_json(st, 4, true)},
+            {"material_id", opt_json(st, 5, true)},
+            {"base_run", opt_json(st, 6, true)},
+            {"state", st.text(7)},
+            {"progress", st.real(8)},
+            {"error", opt_json(st, 9, false)},
+            {"attempts", st.i64(10)},
+            {"inputs", column_json(st, 11)},
+            {"summary", column_json(st, 12)},
+            {"flagged", st.i64(13) != 0},
+            {"created_at", st.text(14)},
+            {"started_at", opt_json(st, 15, false)},
+            {"finished_at", opt_json(st, 16, false)},
+            {"links",
+             {{"self", fmt::format("/api/v1/runs/{}", id)},
+              {"blocks", fmt::format("/api/v1/runs/{}/blocks", id)},
+              {"forces", fmt::format("/api/v1/runs/{}/forces", id)},
+              {"motion", fmt::format("/api/v1/runs/{}/motion", id)}}}};
+}
+
+json load_run(db::Connection& c, std::int64_t id) {
+    auto st = c.prepare(fmt::format("SELECT {} FROM runs WHERE id = ?", kRunColumns));
+    st.bind(1, id);
+    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
+    return run_json(st);
+}
+
+std::string random_hex(std::size_t bytes) {
+    std::vector<unsigned char> b(bytes);
+    RAND_bytes(b.data(), static_cast<int>(bytes));
+    std::string s;
+    for (auto v : b) s += fmt::format("{:02x}", v);
+    return s;
+}
+
+// Written and flushed to the disk before the run row commits: "stored before 202".
+void write_durable(const fs::path& p, const std::string& data) {
+    int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) throw std::runtime_error(fmt::format("cannot write {}", p.string()));
+    std::size_t done = 0;
+    while (done < data.size()) {
+        ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+        if (n <= 0) {
+            ::close(fd);
+            throw std::runtime_error(fmt::format("cannot write {}", p.string()));
+        }
+        done += static_cast<std::size_t>(n);
+    }
+    ::fsync(fd);
+    ::close(fd);
+}
+
+void fsync_dir(const fs::path& p) {
+    int fd = ::open(p.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd >= 0) {
+        ::fsync(fd);
+        ::close(fd);
+    }
+}
+
+// Removes a directory unless released: a rejected upload leaves nothing on disk.
+class DirGuard {
+public:
+    explicit DirGuard(fs::path p) : p_(std::move(p)) {}
+    ~DirGuard() {
+        if (!p_.empty()) {
+            std::error_code ec;
+            fs::remove_all(p_, ec);
+        }
+    }
+    void release() { p_.clear(); }
+    void retarget(fs::path p) { p_ = std::move(p); }
+
+private:
+    fs::path p_;
+};
+
+std::optional<std::string> part(const httplib::Request& req, const char* name) {
+    if (!req.has_file(name)) return std::nullopt;
+    return req.get_file_value(name).content;
+}
+
+std::optional<std::int64_t> id_from(const json& spec, const httplib::Request& req, const char* key) {
+    std::optional<std::int64_t> id;
+    if (spec.contains(key)) {
+        if (!spec[key].is_number_integer()) throw ApiError(400, "bad_spec", fmt::format("{}: must be an integer id", key));
+        id = spec[key].get<std::int64_t>();
+    }
+    if (auto p = part(req, key)) {
+        try {
+            std::size_t used = 0;
+            id = std::stoll(*p, &used);
+            if (used != p->size()) throw std::invalid_argument(*p);
+        } catch (const std::exception&) {
+            throw ApiError(400, "bad_request", fmt::format("part {}: '{}' is not an integer id", key, *p));
+        }
+    }
+    return id;
+}
+
+struct Resolved {
+    json spec;   // canonical (force_model::to_json) after references are inlined
+    std::optional<std::int64_t> machine_id, tool_id, material_id;
+};
+
+// Inlines library references (tool_id, material_id) and fills limits the spec leaves at 0 from
+// the tool's limits, then the machine's spindle power and torque.
+Resolved resolve_spec(db::Connection& c, json spec, const httplib::Request& req) {
+    if (!spec.is_object()) throw ApiError(400, "bad_spec", "spec: must be a JSON object");
+    Resolved r;
+    r.machine_id = id_from(spec, req, "machine_id");
+    r.tool_id = id_from(spec, req, "tool_id");
+    r.material_id = id_from(spec, req, "material_id");
+    for (const char* k : {"machine_id", "tool_id", "material_id"}) spec.erase(k);
+
+    json tool_limits = json::object();
+    if (r.tool_id) {
+        if (spec.contains("tool")) throw ApiError(400, "bad_spec", "tool_id: give either tool or tool_id, not both");
+        auto t = library_body(c, "tools", *r.tool_id);
+        if (!t) throw ApiError(404, "not_found", fmt::format("tool_id {}: no such tool", *r.tool_id));
+        spec["tool"] = (*t)["tool"];
+        tool_limits = (*t).value("limits", json::object());
+    }
+    if (r.material_id) {
+        if (spec.contains("material"))
+            throw ApiError(400, "bad_spec", "material_id: give either material or material_id, not both");
+        auto m = library_body(c, "materials", *r.material_id);
+        if (!m) throw ApiError(404, "not_found", fmt::format("material_id {}: no such material", *r.material_id));
+        spec["material"] = *m;
+    }
+    json machine_limits = json::object();
+    if (r.machine_id) {
+        auto m = library_body(c, "machines", *r.machine_id);
+        if (!m) throw ApiError(404, "not_found", fmt::format("machine_id {}: no such machine", *r.machine_id));
+        machine_limits = {{"power_kW", (*m)["spindle_power_kW"]}, {"torque_Nm", (*m)["spindle_torque_Nm"]}};
+    }
+    auto parsed = force_model::parse_run_spec(spec);
+    auto fill = [](double& v, const json& from, const char* key) {
+        if (v == 0 && from.contains(key) && from[key].is_number()) v = from[key].get<double>();
+    };
+    for (const json* src : {&tool_limits, &machine_limits}) {
+        fill(parsed.limits.force_N, *src, "force_N");
+        fill(parsed.limits.torque_Nm, *src, "torque_Nm");
+        fill(parsed.limits.power_kW, *src, "power_kW");
+        fill(parsed.limits.chip_mm, *src, "chip_mm");
+        fill(parsed.limits.bending_MPa, *src, "bending_MPa");
+    }
+    r.spec = force_model::to_json(parsed);
+    return r;
+}
+
+std::string log_extension(const std::string& filename) {
+    static const std::regex ok(R"(\.(csv|txt|shdr|log))", std::regex::icase);
+    const std::string ext = fs::path(filename).extension().string();
+    return std::regex_match(ext, ok) ? ext : std::string(".log");
+}
+
+std::string replace_all(std::string s, const std::string& from, const std::string& to) {
+    if (from.empty()) return s;
+    for (std::size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) s.replace(p, from.size(), to);
+    return s;
+}
+
+void create_run(Core& core, Ctx& x) {
+    const auto& req = x.req;
+    if (!req.is_multipart_form_data())
+        bad_request("POST /api/v1/runs takes multipart/form-data with parts 'log' (the dry-run log) and 'spec' (JSON)");
+    if (!req.has_file("log")) bad_request("part 'log' is missing: attach the dry-run log (CSV or SHDR)");
+    auto spec_text = part(req, "spec");
+    if (!spec_text) bad_request("part 'spec' is missing: attach the run spec (JSON)");
+    const auto log_part = req.get_file_value("log");
+    if (log_part.content.empty()) throw ApiError(400, "bad_log", "part 'log' is empty");
+
+    auto c = core.pool.get();
+    {
+        auto st = c->prepare("SELECT count(*) FROM runs WHERE state IN ('queued','running')");
+        st.step();
+        if (st.i64(0) >= core.opt.max_pending_jobs) {
+            x.res.set_header("Retry-After", "30");
+            throw ApiError(429, "too_many_jobs",
+                           fmt::format("{} runs are queued or running (limit {}): retry when some finish", st.i64(0),
+                                       core.opt.max_pending_jobs));
+        }
+    }
+
+    json spec_json;
+    try {
+        spec_json = json::parse(*spec_text);
+    } catch (const json::parse_error& e) {
+        throw ApiError(400, "bad_spec", fmt::format("spec is not valid JSON: byte {}: {}", e.byte, e.what()));
+    }
+    Resolved r = resolve_spec(*c, std::move(spec_json), req);
+
+    json log{{"filename", log_part.filename}, {"bytes", log_part.content.size()}};
+    const std::string format = part(req, "format").value_or("auto");
+    if (format != "auto" && format != "csv" && format != "shdr")
+        bad_request(fmt::format("part format: '{}' is not auto, csv or shdr", format));
+    log["format"] = format;
+    if (auto u = part(req, "units")) {
+        if (*u != "mm" && *u != "in") bad_request(fmt::format("part units: '{}' is not mm or in", *u));
+        log["units"] = *u;
+    }
+    if (auto u = part(req, "feed_units")) log["feed_units"] = *u;
+
+    std::optional<std::int64_t> base_run;
+    if (auto b = part(req, "base_run")) {
+        try {
+            base_run = std::stoll(*b);
+        } catch (const std::exception&) {
+            bad_request(fmt::format("part base_run: '{}' is not a run id", *b));
+        }
+        auto st = c->prepare("SELECT r.state, s.run_id IS NOT NULL FROM runs r LEFT JOIN run_stock s ON s.run_id = r.id WHERE r.id = ?");
+        st.bind(1, *base_run);
+        if (!st.step()) not_found(fmt::format("base_run {}: no such run", *base_run));
+        if (st.text(0) != "done" || st.i64(1) == 0)
+            throw ApiError(409, "conflict", fmt::format("base_run {}: run is {}, its final stock exists once it is done",
+                                                        *base_run, st.text(0)));
+    }
+
+    // Store the upload, then validate the stored file; any failure removes the directory.
+    const fs::path tmp = core.data_dir / "tmp" / random_hex(12);
+    fs::create_directories(tmp);
+    DirGuard guard(tmp);
+    const std::string stored_as = "log" + log_extension(log_part.filename);
+    write_durable(tmp / stored_as, log_part.content);
+    log["stored_as"] = stored_as;
+    log["sha256"] = sha256_hex(log_part.content);
+    motion_io::ReadOptions ro;
+    ro.format = format == "csv" ? motion_io::Format::Csv : format == "shdr" ? motion_io::Format::Shdr : motion_io::Format::Auto;
+    if (auto m = part(req, "mapping")) {
+        write_durable(tmp / "mapping.json", *m);
+        log["mapping"] = "mapping.json";
+        ro.map_file = (tmp / "mapping.json").string();
+    }
+    if (log.contains("units")) ro.length_unit = log["units"].get<std::string>();
+    if (log.contains("feed_units")) ro.feed_unit = log["feed_units"].get<std::string>();
+
+    motion_io::IngestReport report;
+    try {
+        report = motion_io::inspect((tmp / stored_as).string(), ro);
+    } catch (const motion_io::IngestError& e) {
+        // Name the uploaded file, not the server's temporary path.
+        std::string msg = replace_all(e.what(), (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename);
+        msg = replace_all(msg, (tmp / "mapping.json").string(), "mapping");
+        throw ApiError(400, "bad_log", msg);
+    }
+    std::size_t rows = 0;
+    for (const auto& [name, ch] : report.channels) rows = std::max(rows, ch.samples);
+    if (rows > core.opt.max_log_rows)
+        throw ApiError(413, "too_many_rows", fmt::format("the log has {} rows; the limit is {}", rows, core.opt.max_log_rows));
+    json warnings = json::array();
+    for (const auto& w : report.warnings) warnings.push_back({{"code", w.code}, {"message", w.message}, {"count", w.count}});
+    json inputs{{"log", log},
+                {"spec", r.spec},
+                {"ingest",
+                 {{"format", report.format},
+                  {"duration_s", report.duration_s},
+                  {"sessions", report.sessions},
+                  {"blocks", report.blocks},
+                  {"rows", rows},
+                  {"warnings", warnings}}}};
+
+    const auto name = part(req, "name");
+    const auto program = part(req, "program");
+    db::Transaction tx(*c);
+    auto ins = c->prepare(
+        "INSERT INTO runs(name, program, machine_id, tool_id, material_id, base_run, state, upload_dir, inputs, created_at) "
+        "VALUES (?,?,?,?,?,?,'queued','',?,?)");
+    ins.bind(1, name).bind(2, program).bind(3, r.machine_id).bind(4, r.tool_id).bind(5, r.material_id).bind(6, base_run);
+    ins.bind(7, inputs.dump()).bind(8, db::now_iso()).run();
+    const std::int64_t id = c->last_insert_id();
+    const std::string rel = fmt::format("uploads/{}", id);
+    c->prepare("UPDATE runs SET upload_dir = ? WHERE id = ?").bind(1, rel).bind(2, id).run();
+    fs::rename(tmp, core.data_dir / rel);
+    guard.retarget(core.data_dir / rel);
+    fsync_dir(core.data_dir / "uploads");
+    tx.commit();
+    guard.release();
+    core.jobs->notify();
+
+    x.res.set_header("Location", fmt::format("/api/v1/runs/{}", id));
+    x.reply(202, load_run(*c, id));
+}
+
+void list_runs(Core& core, Ctx& x) {
+    const auto limit = x.param_int("limit").value_or(50);
+    if (limit < 1 || limit > 500) bad_request("query parameter limit: must be 1..500");
+    const auto state = x.param("state");
+    if (state && *state != "queued" && *state != "running" && *state != "done" && *state != "failed" &&
+        *state != "cancelled")
+        bad_request(fmt::format("query parameter state: '{}' is not queued, running, done, failed or cancelled", *state));
+    static const std::regex iso(R"(\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2}(\.\d{1,3})?)?Z?)?)");
+    for (const char* p : {"created_since", "created_until"})
+        if (auto v = x.param(p); v && !std::regex_match(*v, iso))
+            bad_request(fmt::format("query parameter {}: '{}' is not an ISO 8601 UTC time (2024-05-01T08:00:00Z)", p, *v));
+    const auto flagged = x.param_bool("flagged");
+    auto c = core.pool.get();
+    auto st = c->prepare(fmt::format(
+        "SELECT {} FROM runs WHERE (?1 IS NULL OR id < ?1) AND (?2 IS NULL OR machine_id = ?2) "
+        "AND (?3 IS NULL OR program = ?3) AND (?4 IS NULL OR state = ?4) AND (?5 IS NULL OR flagged = ?5) "
+        "AND (?6 IS NULL OR created_at >= ?6) AND (?7 IS NULL OR created_at <= ?7) ORDER BY id DESC LIMIT ?8",
+        kRunColumns));
+    st.bind(1, x.param_int("cursor")).bind(2, x.param_int("machine_id")).bind(3, x.param("program")).bind(4, state);
+    if (flagged)
+        st.bind(5, *flagged ? 1 : 0);
+    else
+        st.bind_null(5);
+    st.bind(6, x.param("created_since")).bind(7, x.param("created_until")).bind(8, limit + 1);
+    json items = json::array();
+    while (st.step()) items.push_back(run_json(st));
+    json next = nullptr;
+    if (static_cast<std::int64_t>(items.size()) > limit) {
+        items.erase(items.end() - 1);
+        next = std::to_string(items.back()["id"].get<std::int64_t>());
+    }
+    x.reply(200, {{"items", items}, {"next_cursor", next}});
+}
+
+void delete_run(Core& core, Ctx& x) {
+    const auto id = x.id();
+    auto c = core.pool.get();
+    db::Transaction tx(*c);
+    auto st = c->prepare("SELECT state, upload_dir FROM runs WHERE id = ?");
+    st.bind(1, id);
+    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
+    if (st.text(0) == "running")
+        throw ApiError(409, "conflict", fmt::format("run {} is running: cancel it first (POST /api/v1/runs/{}/cancel)", id, id));
+    const fs::path dir = core.data_dir / st.text(1);
+    c->prepare("DELETE FROM runs WHERE id = ?").bind(1, id).run();
+    tx.commit();
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    x.res.status = 204;
+}
+
+void cancel_run(Core& core, Ctx& x) {
+    const auto id = x.id();
+    auto c = core.pool.get();
+    c->prepare("UPDATE runs SET state = 'cancelled', finished_at = ? WHERE id = ? AND state = 'queued'")
+        .bind(1, db::now_iso())
+        .bind(2, id)
+        .run();
+    if (c->changes() == 0) {
+        auto run = load_run(*c, id);
+        if (run["state"] != "running" || !core.jobs->cancel_running(id))
+            throw ApiError(409, "conflict", fmt::format("run {} is {}: only queued or running runs can be cancelled", id,
+                                                        run["state"].get<std::string>()));
+    }
+    x.reply(202, load_run(*c, id));
+}
+
+// Results exist only for finished runs; anything else is a conflict, not an empty answer.
+json require_done(db::Connection& c, std::int64_t id) {
+    auto st = c.prepare("SELECT state, block_names FROM runs WHERE id = ?");
+    st.bind(1, id);
+    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
+    if (st.text(0) != "done")
+        throw ApiError(409, "not_done", fmt::format("run {} is {}: results exist once it is done", id, st.text(0)));
+    return column_json(st, 1);
+}
+
+void list_blocks(Core& core, Ctx& x) {
+    const auto id = x.id();
+    const auto limit = x.param_int("limit").value_or(1000);
+    if (limit < 1 || limit > 10000) bad_request("query parameter limit: must be 1..10000");
+    const auto flagged = x.param_bool("flagged");
+    auto c = core.pool.get();
+    require_done(*c, id);
+    auto st = c->prepare(
+        "SELECT idx, body FROM run_blocks WHERE run_id = ?1 AND idx >= ?2 AND (?3 IS NULL OR flagged = ?3) "
+        "ORDER BY idx LIMIT ?4");
+    st.bind(1, id).bind(2, x.param_int("cursor").value_or(0));
+    if (flagged)
+        st.bind(3, *flagged ? 1 : 0);
+    else
+        st.bind_null(3);
+    st.bind(4, limit + 1);
+    json items = json::array();
+    std::int64_t last = -1;
+    while (st.step()) {
+        last = st.i64(0);
+        items.push_back(json::parse(st.text(1)));
+    }
+    json next = nullptr;
+    if (static_cast<std::int64_t>(items.size()) > limit) {
+        items.erase(items.end() - 1);
+        next = std::to_string(last);
+    }
+    x.reply(200, {{"run_id", id}, {"items", items}, {"next_cursor", next}});
+}
+
+std::string csv_number(float v) {
+    char buf[32];
+    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, ec == std::errc() ? end : buf);
+}
+
+void series_route(Core& core, Ctx& x, SeriesId s) {
+    const auto id = x.id();
+    const auto max_points = x.param_int("max_points").value_or(2000);
+    if (max_points < 2 || max_points > core.opt.max_points)
+        throw ApiError(400, "bad_request",
+                       fmt::format("query parameter max_points: {} is outside 2..{}", max_points, core.opt.max_points));
+    auto c = core.pool.get();
+    const json block_names = require_done(*c, id);
+    double t0 = 0, t1 = 0;
+    if (!series_extent(*c, id, s, &t0, &t1)) t0 = t1 = 0;
+    const double from_s = x.param_double("from_s").value_or(t0);
+    const double to_s = x.param_double("to_s").value_or(t1);
+    if (to_s < from_s) bad_request(fmt::format("to_s ({}) is before from_s ({})", to_s, from_s));
+    const Window w = query_window(*c, id, s, from_s, to_s, static_cast<std::size_t>(max_points));
+    const auto& ch = series_channels(s);
+    // channels=a,b selects what is written (default all); unknown names are an error.
+    std::vector<bool> wanted(ch.size(), !x.param("channels"));
+    if (auto list = x.param("channels")) {
+        std::stringstream ss(*list);
+        for (std::string name; std::getline(ss, name, ',');) {
+            auto pos = std::find(ch.begin(), ch.end(), name);
+            if (pos == ch.end())
+                bad_request(fmt::format("query parameter channels: unknown channel '{}'", name));
+            wanted[static_cast<std::size_t>(pos - ch.begin())] = true;
+        }
+    }
+    const std::size_t k = ch.size();
+    const std::size_t n = w.t_s.size();
+    const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
+    auto block_name = [&](float v) -> std::string {
+        const auto i = static_cast<std::int64_t>(v);
+        if (i >= 0 && block_names.is_array() && i < static_cast<std::int64_t>(block_names.size()))
+            return block_names[static_cast<std::size_t>(i)].get<std::string>();
+        return "";
+    };
+
+    if (x.wants_csv()) {
+        std::string out = w.decimated ? "t_s,t_end_s" : "t_s";
+        for (std::size_t j = 0; j < k; ++j)
+            if (wanted[j]) out += w.decimated ? "," + ch[j] + "_min," + ch[j] + "_max" : "," + ch[j];
+        out += '\n';
+        for (std::size_t i = 0; i < n; ++i) {
+            out += fmt::format("{:.6f}", w.t_s[i]);
+            if (w.decimated) out += fmt::format(",{:.6f}", w.t_end_s[i]);
+            for (std::size_t j = 0; j < k; ++j) {
+                if (!wanted[j]) continue;
+                if (!w.decimated) {
+                    out += ',';
+                    out += j == block_col ? block_name(w.values[i * k + j]) : csv_number(w.values[i * k + j]);
+                } else {
+                    out += ',' + csv_number(w.mins[i * k + j]) + ',' + csv_number(w.maxs[i * k + j]);
+                }
+            }
+            out += '\n';
+        }
+        x.res.status = 200;
+        x.res.set_content(out, "text/csv");
+        return;
+    }
+
+    // Written by hand rather than through json: numbers print in their shortest round-trip form
+    // with std::to_chars, several times faster than a json tree for a wide window.
+    std::string out;
+    out.reserve(64 + n * (w.decimated ? 2 * k + 2 : k + 1) * 12);
+    auto num = [&out](auto v) {
+        char buf[32];
+        auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+        out.append(buf, ec == std::errc() ? end : buf);
+    };
+    auto array = [&](const char* key, auto&& get) {
+        out += ",\"";
+        out += key;
+        out += "\":[";
+        for (std::size_t i = 0; i < n; ++i) {
+            if (i) out += ',';
+            num(get(i));
+        }
+        out += ']';
+    };
+    fmt::format_to(std::back_inserter(out), R"({{"run_id":{},"from_s":{},"to_s":{},"decimated":{},"level":{},"count":{})", id,
+                   from_s, to_s, w.decimated, w.level, n);
+    array("t_s", [&](std::size_t i) { return w.t_s[i]; });
+    std::set<std::int64_t> blocks_seen;
+    if (w.decimated) {
+        fmt::format_to(std::back_inserter(out), R"(,"bucket_s":{})", (to_s - from_s) / static_cast<double>(max_points));
+        array("t_end_s", [&](std::size_t i) { return w.t_end_s[i]; });
+        for (std::size_t c2 = 0; c2 < k; ++c2) {
+            if (!wanted[c2]) continue;
+            out += ",\"" + ch[c2] + "\":{\"min\":[";
+            for (std::size_t i = 0; i < n; ++i) {
+                if (i) out += ',';
+                num(w.mins[i * k + c2]);
+            }
+            out += R"(],"max":[)";
+            for (std::size_t i = 0; i < n; ++i) {
+                if (i) out += ',';
+                num(w.maxs[i * k + c2]);
+            }
+            out += "]}";
+        }
+        for (std::size_t i = 0; i < n; ++i)
+            for (auto b = static_cast<std::int64_t>(w.mins[i * k + block_col]); b <= static_cast<std::int64_t>(w.maxs[i * k + block_col]); ++b)
+                blocks_seen.insert(b);
+    } else {
+        for (std::size_t c2 = 0; c2 < k; ++c2)
+            if (wanted[c2]) array(ch[c2].c_str(), [&](std::size_t i) { return w.values[i * k + c2]; });
+        for (std::size_t i = 0; i < n; ++i) blocks_seen.insert(static_cast<std::int64_t>(w.values[i * k + block_col]));
+    }
+    json names = json::object();
+    for (auto b : blocks_seen)
+        if (b >= 0) names[std::to_string(b)] = block_name(static_cast<float>(b));
+    out += ",\"block_names\":" + names.dump() + "}";
+    x.res.status = 200;
+    x.res.set_content(out, "application/json");
+}
+
+}  // namespace
+
+void add_run_routes(Core& core) {
+    core.route("POST", "/api/v1/runs", Role::Write, [&core](Ctx& x) { create_run(core, x); });
+    core.route("GET", "/api/v1/runs", Role::Read, [&core](Ctx& x) { list_runs(core, x); });
+    core.route("GET", "/api/v1/runs/{id}", Role::Read, [&core](Ctx& x) {
+        auto c = core.pool.get();
+        x.reply(200, load_run(*c, x.id()));
+    });
+    core.route("DELETE", "/api/v1/runs/{id}", Role::Write, [&core](Ctx& x) { delete_run(core, x); });
+    core.route("POST", "/api/v1/runs/{id}/cancel", Role::Write, [&core](Ctx& x) { cancel_run(core, x); });
+    core.route("GET", "/api/v1/runs/{id}/blocks", Role::Read, [&core](Ctx& x) { list_blocks(core, x); });
+    core.route("GET", "/api/v1/runs/{id}/forces", Role::Read, [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
+    core.route("GET", "/api/v1/runs/{id}/motion", Role::Read, [&core](Ctx& x) { series_route(core, x, SeriesId::Motion); });
+}
+
+}  // namespace cutload::server

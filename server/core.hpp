@@ -1,0 +1,65 @@
+// Internal to server: what the route groups share (options, pool, metrics, jobs, webhooks) and
+// the route registration helper that applies auth, error mapping and metrics to every handler.
+#pragma once
+
+#include "server/common.hpp"
+#include "server/metrics.hpp"
+
+#include <httplib.h>
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <thread>
+
+namespace cutload::server {
+
+class Jobs;
+class Webhooks;
+
+struct Ctx {
+    const httplib::Request& req;
+    httplib::Response& res;
+    Role role;
+    std::string actor;   // "clk_1234ab" (the key's prefix) or "anonymous"
+
+    // The n-th numeric path parameter ({id}) of the route.
+    std::int64_t id(std::size_t n = 1) const;
+    bool wants_csv() const;
+    void reply(int status, const json& body);
+    // Query parameter helpers: 400 naming the parameter on a bad value.
+    std::optional<std::string> param(const char* name) const;
+    std::optional<double> param_double(const char* name) const;
+    std::optional<std::int64_t> param_int(const char* name) const;
+    std::optional<bool> param_bool(const char* name) const;
+};
+
+using Handler = std::function<void(Ctx&)>;
+
+struct Core {
+    explicit Core(ServerOptions o);
+    ~Core();
+
+    ServerOptions opt;
+    std::filesystem::path data_dir;
+    DbPool pool;
+    httplib::Server http;
+    Metrics metrics;
+    std::unique_ptr<Jobs> jobs;
+    std::unique_ptr<Webhooks> hooks;
+    std::vector<std::pair<std::string, std::string>> route_list;
+    int lock_fd = -1;
+
+    // path is the OpenAPI template; "{name}" segments match digits. need: nullopt = no key needed.
+    void route(const std::string& method, const std::string& path, std::optional<Role> need, Handler h);
+
+private:
+    Role authorize(const httplib::Request& req, Role need, std::string* actor);
+};
+
+void add_library_routes(Core& c);
+void add_run_routes(Core& c);
+void add_alert_routes(Core& c);
+void add_misc_routes(Core& c);
+
+}  // namespace cutload::server

@@ -1,0 +1,233 @@
+#include "server/jobs.hpp"
+
+#include "force_model/force_model.hpp"
+#include "motion_io/motion_io.hpp"
+#include "server/results.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+namespace cutload::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+motion_io::ReadOptions read_options(const json& log, const fs::path& dir) {
+    motion_io::ReadOptions o;
+    const std::string fmt_name = log.value("format", "auto");
+    o.format = fmt_name == "csv" ? motion_io::Format::Csv
+             : fmt_name == "shdr" ? motion_io::Format::Shdr
+                                  : motion_io::Format::Auto;
+    if (log.contains("mapping") && log["mapping"].is_string()) o.map_file = (dir / log["mapping"].get<std::string>()).string();
+    if (log.contains("units") && log["units"].is_string()) o.length_unit = log["units"].get<std::string>();
+    if (log.contains("feed_units") && log["feed_units"].is_string()) o.feed_unit = log["feed_units"].get<std::string>();
+    return o;
+}
+
+std::string read_file(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+}  // namespace
+
+Jobs::Jobs(DbPool& pool, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
+           std::function<void()> on_alerts)
+    : pool_(pool), opt_(opt), data_dir_(std::move(data_dir)), metrics_(metrics), on_alerts_(std::move(on_alerts)) {}
+
+Jobs::~Jobs() { stop(0); }
+
+void Jobs::start() {
+    {
+        auto c = pool_.get();
+        // Only one server owns the database (see the lock in Core), so 'running' here means the
+        // previous process died mid-job: its results were never committed, so run it again.
+        auto st = c->prepare("UPDATE runs SET state = 'queued', progress = 0 WHERE state = 'running'");
+        st.run();
+        if (int n = c->changes()) spdlog::info("re-queued {} run(s) interrupted by the last shutdown", n);
+    }
+    for (int i = 0; i < std::max(1, opt_.workers); ++i) threads_.emplace_back([this] { worker(); });
+}
+
+void Jobs::notify() {
+    std::lock_guard lk(mu_);
+    ++wake_seq_;
+    cv_.notify_all();
+}
+
+bool Jobs::cancel_running(std::int64_t id) {
+    std::lock_guard lk(mu_);
+    auto it = running_.find(id);
+    if (it == running_.end()) return false;
+    it->second->store(true);
+    return true;
+}
+
+long Jobs::running() const {
+    std::lock_guard lk(mu_);
+    return static_cast<long>(running_.size());
+}
+
+void Jobs::stop(double drain_s) {
+    {
+        std::unique_lock lk(mu_);
+        if (stopping_ && threads_.empty()) return;
+        stopping_ = true;
+        cv_.notify_all();
+        idle_cv_.wait_for(lk, std::chrono::duration<double>(drain_s), [this] { return running_.empty(); });
+        requeue_on_cancel_ = true;
+        for (auto& [id, flag] : running_) flag->store(true);
+    }
+    for (auto& t : threads_) t.join();
+    threads_.clear();
+}
+
+std::optional<std::int64_t> Jobs::claim() {
+    auto c = pool_.get();
+    auto st = c->prepare(
+        "UPDATE runs SET state = 'running', started_at = ?, progress = 0, attempts = attempts + 1 "
+        "WHERE id = (SELECT id FROM runs WHERE state = 'queued' ORDER BY id LIMIT 1) RETURNING id");
+    st.bind(1, db::now_iso());
+    if (!st.step()) return std::nullopt;
+    std::int64_t id = st.i64(0);
+    st.run();
+    return id;
+}
+
+void Jobs::worker() {
+    for (;;) {
+        std::optional<std::int64_t> id;
+        std::uint64_t seq = 0;
+        {
+            std::unique_lock lk(mu_);
+            if (stopping_) return;
+            seq = wake_seq_;
+        }
+        try {
+            id = claim();
+        } catch (const db::Error& e) {
+            spdlog::error("job queue: {}", e.what());
+        }
+        if (!id) {
+            std::unique_lock lk(mu_);
+            cv_.wait_for(lk, std::chrono::seconds(2), [this, seq] { return stopping_ || wake_seq_ != seq; });
+            continue;
+        }
+        auto flag = std::make_shared<std::atomic<bool>>(false);
+        {
+            std::lock_guard lk(mu_);
+            running_[*id] = flag;
+        }
+        execute(*id, *flag);
+        {
+            std::lock_guard lk(mu_);
+            running_.erase(*id);
+        }
+        idle_cv_.notify_all();
+    }
+}
+
+void Jobs::finish(std::int64_t id, const std::string& state, const std::string& error) {
+    auto c = pool_.get();
+    auto st = c->prepare(
+        "UPDATE runs SET state = ?, error = ?, finished_at = ?, progress = CASE WHEN ? = 'queued' THEN 0 ELSE progress END "
+        "WHERE id = ? AND state = 'running'");
+    st.bind(1, state);
+    if (error.empty())
+        st.bind_null(2);
+    else
+        st.bind(2, error);
+    if (state == "queued")
+        st.bind_null(3);
+    else
+        st.bind(3, db::now_iso());
+    st.bind(4, state).bind(5, id).run();
+}
+
+void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
+    const auto t_start = std::chrono::steady_clock::now();
+    auto elapsed_s = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    };
+    try {
+        json inputs;
+        fs::path dir;
+        std::optional<std::int64_t> base_run;
+        {
+            auto c = pool_.get();
+            auto st = c->prepare("SELECT upload_dir, inputs, base_run FROM runs WHERE id = ?");
+            st.bind(1, id);
+            if (!st.step()) return;   // deleted meanwhile
+            dir = data_dir_ / st.text(0);
+            inputs = json::parse(st.text(1));
+            base_run = st.opt_i64(2);
+        }
+        const json& log = inputs.at("log");
+        auto motion = motion_io::ingest((dir / log.at("stored_as").get<std::string>()).string(), read_options(log, dir));
+        auto spec = force_model::parse_run_spec(inputs.at("spec"));
+
+        force_model::StockPtr base;
+        if (base_run) {
+            auto c = pool_.get();
+            auto st = c->prepare("SELECT data FROM run_stock WHERE run_id = ?");
+            st.bind(1, *base_run);
+            if (!st.step())
+                throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
+            std::size_t bytes = 0;
+            const void* p = st.blob(0, &bytes);
+            fs::path tmp = dir / "base.stock";
+            std::ofstream(tmp, std::ios::binary).write(static_cast<const char*>(p), static_cast<std::streamsize>(bytes));
+            base = force_model::load_stock(tmp.string());
+            fs::remove(tmp);
+        }
+
+        force_model::PredictOptions po;
+        po.device = opt_.use_opencl ? force_model::Device::OpenCL : force_model::Device::Cpu;
+        po.base_stock = base.get();
+        po.cancel = &cancel;
+        auto last_write = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+        po.progress = [&](double f) {
+            // At most a few writes per second: progress is for people polling, not an audit trail.
+            auto now = std::chrono::steady_clock::now();
+            if (now - last_write < std::chrono::milliseconds(250)) return;
+            last_write = now;
+            auto c = pool_.get();
+            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
+        };
+        auto prediction = force_model::predict(motion, spec, po);
+
+        fs::path stock_file = dir / "final.stock";
+        force_model::save_stock(*prediction.final_stock, stock_file.string());
+        std::string stock_bytes = read_file(stock_file);
+        fs::remove(stock_file);
+
+        int alerts = 0;
+        {
+            auto c = pool_.get();
+            alerts = store_result(*c, id, motion, prediction, stock_bytes);
+        }
+        metrics_.job_finished("done", elapsed_s());
+        if (alerts > 0) {
+            metrics_.alerts_raised(alerts);
+            on_alerts_();
+        }
+        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts)", id, elapsed_s(), prediction.samples.size(), alerts);
+    } catch (const force_model::Cancelled&) {
+        const bool requeue = requeue_on_cancel_.load();
+        finish(id, requeue ? "queued" : "cancelled", "");
+        metrics_.job_finished(requeue ? "requeued" : "cancelled", elapsed_s());
+        spdlog::info("run {} {}", id, requeue ? "interrupted by shutdown, re-queued" : "cancelled");
+    } catch (const std::exception& e) {
+        finish(id, "failed", e.what());
+        metrics_.job_finished("failed", elapsed_s());
+        spdlog::warn("run {} failed: {}", id, e.what());
+    }
+}
+
+}  // namespace cutload::server

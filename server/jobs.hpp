@@ -1,0 +1,50 @@
+// Internal to server: the prediction job pool. The runs table is the queue: a worker claims the
+// oldest 'queued' run, computes it outside any transaction and writes every result row, the final
+// stock, the summary, alerts and webhook deliveries in one transaction with state 'done'. A crash
+// at any point leaves the run 'queued' or 'running' with no results; start() re-queues 'running'.
+#pragma once
+
+#include "server/common.hpp"
+#include "server/metrics.hpp"
+
+#include <filesystem>
+#include <map>
+#include <thread>
+
+namespace cutload::server {
+
+class Jobs {
+public:
+    Jobs(DbPool& pool, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
+         std::function<void()> on_alerts);
+    ~Jobs();
+
+    void start();
+    void notify();                        // a run was queued
+    bool cancel_running(std::int64_t id); // true if a worker was computing it
+    // Stops claiming; waits up to drain_s for running jobs, then cancels them back to 'queued'.
+    void stop(double drain_s);
+    long running() const;
+
+private:
+    void worker();
+    std::optional<std::int64_t> claim();
+    void execute(std::int64_t id, const std::atomic<bool>& cancel);
+    void finish(std::int64_t id, const std::string& state, const std::string& error);
+
+    DbPool& pool_;
+    const ServerOptions& opt_;
+    std::filesystem::path data_dir_;
+    Metrics& metrics_;
+    std::function<void()> on_alerts_;
+
+    mutable std::mutex mu_;
+    std::condition_variable cv_, idle_cv_;
+    bool stopping_ = false;
+    std::uint64_t wake_seq_ = 0;   // bumped by notify(), so a sleeping worker sees new runs
+    std::atomic<bool> requeue_on_cancel_{false};
+    std::map<std::int64_t, std::shared_ptr<std::atomic<bool>>> running_;
+    std::vector<std::thread> threads_;
+};
+
+}  // namespace cutload::server

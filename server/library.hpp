@@ -1,0 +1,16 @@
+// Internal to server: the machine, tool and material libraries that run specs may reference.
+#pragma once
+
+#include "server/common.hpp"
+
+namespace cutload::server {
+
+// The stored body of a library item, or nullopt when the id does not exist.
+// table: "machines", "tools" or "materials".
+std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id);
+
+// A complete, valid run spec used to validate one part (tool, material, limits) in isolation, so
+// the engine's own error message names the key.
+json probe_spec();
+
+}  // namespace cutload::server

@@ -1,0 +1,25 @@
+// Internal to server: turning a finished prediction into rows (blocks, series, stock, summary) and
+// evaluating thresholds into alerts and webhook deliveries, all inside the caller's transaction.
+#pragma once
+
+#include "force_model/force_model.hpp"
+#include "motion_io/motion_io.hpp"
+#include "server/common.hpp"
+
+namespace cutload::server {
+
+// Returns the number of alerts raised. The run must be 'running'; it becomes 'done'.
+int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
+                 const force_model::Prediction& p, const std::string& stock_bytes);
+
+// An alert as the API shows it; null when unknown. alert_row_json reads the columns of the
+// SELECT in load_alert (a.id, a.run_id, a.threshold_id, a.severity, a.body, a.created_at,
+// a.acked_at, a.acked_by, a.ack_note, r.name, r.program, r.machine_id).
+json load_alert(db::Connection& c, std::int64_t alert_id);
+json alert_row_json(const db::Stmt& st);
+
+// Metrics a threshold can test, and how to read each from a block summary.
+const std::vector<std::string>& threshold_metrics();
+const std::vector<std::string>& known_flags();
+
+}  // namespace cutload::server

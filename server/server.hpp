@@ -1,0 +1,67 @@
+// Public interface of server: cutload's HTTP service (REST API under /api/v1, job workers,
+// threshold alerts and webhook delivery) on an embedded SQLite store.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace cutload::server {
+
+struct ServerOptions {
+    std::string host = "127.0.0.1";
+    int port = 8080;                       // 0: any free port (see Server::port())
+    std::string db_path = "cutload.db";
+    std::string data_dir;                  // uploads; empty: "<db_path>.data" next to the db
+    std::string web_dir;                   // static files at "/"; empty: none
+    int workers = 2;                       // prediction jobs run at once
+    int http_threads = 64;                 // must exceed the concurrent keep-alive connections
+    std::size_t max_body_bytes = 256u << 20;
+    std::size_t max_log_rows = 20'000'000;
+    int max_pending_jobs = 64;             // queued + running; beyond: 429
+    int max_points = 20000;                // cap of forces/motion max_points
+    bool anonymous_loopback_reads = false; // GET without a key from 127.0.0.1 / ::1
+    bool use_opencl = true;                // force engine device
+    double drain_s = 10;                   // on stop: running jobs get this long, then re-queue
+    double webhook_backoff_s = 2;          // first retry delay; doubles per attempt
+    int webhook_max_attempts = 6;
+    double webhook_timeout_s = 5;
+};
+
+class Server {
+public:
+    explicit Server(ServerOptions opt);   // opens and migrates the db, re-queues interrupted jobs
+    ~Server();                            // stop() if still running
+    Server(const Server&) = delete;
+    Server& operator=(const Server&) = delete;
+
+    // Binds, starts workers and the HTTP listener in background threads; returns once listening.
+    void start();
+    // Graceful: stops accepting, lets running jobs finish within drain_s, re-queues the rest.
+    void stop();
+    // Blocks until stop() is called from another thread (or a signal handler's thread).
+    void wait();
+    int port() const;
+
+    // The routes this server answers, as (METHOD, OpenAPI path template) pairs.
+    std::vector<std::pair<std::string, std::string>> routes() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+enum class Role { Read = 0, Write = 1, Admin = 2 };
+Role parse_role(const std::string& s);          // throws std::invalid_argument
+const char* role_name(Role r);
+
+// Creates an API key in the database (migrating it if new) and returns the key; only its
+// SHA-256 is stored.
+std::string create_api_key(const std::string& db_path, Role role, const std::string& name = "");
+
+// The OpenAPI 3 document served at /api/v1/openapi.json.
+const std::string& openapi_json();
+
+}  // namespace cutload::server

@@ -1,0 +1,65 @@
+// The OpenAPI document matches the routes the server registers, both ways; /healthz and
+// /metrics answer in their formats.
+#include "harness.hpp"
+
+#include <set>
+
+using namespace cutload::test;
+
+TEST_CASE("openapi: every registered route is documented and every documented route exists") {
+    TestServer ts;
+    const json doc = json::parse(cutload::server::openapi_json());
+    REQUIRE(doc["openapi"].get<std::string>().rfind("3.", 0) == 0);
+
+    std::set<std::pair<std::string, std::string>> registered, documented;
+    for (const auto& [method, path] : ts.srv->routes()) registered.emplace(method, path);
+    for (const auto& [path, item] : doc["paths"].items())
+        for (const auto& [method, op] : item.items()) {
+            if (method == "parameters") continue;
+            std::string upper = method;
+            for (auto& ch : upper) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+            documented.emplace(upper, path);
+            INFO(upper << " " << path);
+            REQUIRE(op.contains("responses"));
+            REQUIRE(op.contains("operationId"));
+        }
+    for (const auto& r : registered) {
+        INFO("registered but not documented: " << r.first << " " << r.second);
+        REQUIRE(documented.count(r) == 1);
+    }
+    for (const auto& d : documented) {
+        INFO("documented but not registered: " << d.first << " " << d.second);
+        REQUIRE(registered.count(d) == 1);
+    }
+    // The document served is the one compiled in.
+    auto served = ts.client("").Get("/api/v1/openapi.json");
+    REQUIRE(json::parse(served->body) == doc);
+}
+
+TEST_CASE("metrics and health: Prometheus text with requests and latency and jobs and queue depth") {
+    TestServer ts;
+    auto c = ts.admin();
+    json health = body(c.Get("/healthz"));
+    REQUIRE(health["status"] == "ok");
+    auto r = upload(c, slot_log_csv(0.4), slot_spec());
+    wait_finished(c, body(r)["id"]);
+    c.Get("/api/v1/runs/999");
+    // The job counter and the running gauge move just after the run's commit that wait_finished saw.
+    std::string text;
+    for (int i = 0; i < 100; ++i) {
+        text = c.Get("/metrics")->body;
+        if (text.find("cutload_jobs_total{state=\"done\"} 1") != std::string::npos &&
+            text.find("cutload_jobs_running 0") != std::string::npos)
+            break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    for (const char* needle :
+         {"cutload_http_requests_total{method=\"POST\",route=\"/api/v1/runs\",status=\"202\"} 1",
+          "cutload_http_requests_total{method=\"GET\",route=\"/api/v1/runs/{id}\",status=\"404\"} 1",
+          "cutload_http_request_duration_seconds_bucket{route=\"/api/v1/runs\",le=\"+Inf\"} 1",
+          "cutload_jobs_total{state=\"done\"} 1", "cutload_jobs_queued 0", "cutload_jobs_running 0",
+          "# TYPE cutload_job_compute_seconds_total counter"}) {
+        INFO(needle);
+        REQUIRE(text.find(needle) != std::string::npos);
+    }
+}

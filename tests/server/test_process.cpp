@@ -1,0 +1,151 @@
+// The real binary: `cutload keys create`, kill -9 in the middle of a job and restart (the job
+// runs again to completion, nothing half-written), SIGTERM re-queues and exits promptly.
+#include "harness.hpp"
+
+#include <csignal>
+#include <fcntl.h>
+#include <regex>
+#include <sys/wait.h>
+#include <unistd.h>
+
+using namespace cutload::test;
+
+namespace {
+
+std::string read_text(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// Runs the cutload binary with its output in `log`; returns the pid.
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
+    pid_t pid = ::fork();
+    REQUIRE(pid >= 0);
+    if (pid == 0) {
+        int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+        std::vector<char*> argv;
+        for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+        argv.push_back(nullptr);
+        ::execv(argv[0], argv.data());
+        ::_exit(127);
+    }
+    return pid;
+}
+
+struct Proc {
+    pid_t pid = -1;
+    int port = 0;
+};
+
+Proc start_server(const fs::path& db, const fs::path& log) {
+    const std::size_t before = read_text(log).size();
+    Proc p;
+    p.pid = spawn({CUTLOAD_BINARY, "serve", "--listen", "127.0.0.1:0", "--db", db.string(), "--workers", "1", "--device",
+                   "cpu", "--drain-s", "0"},
+                  log);
+    static const std::regex listening(R"(listening on http://127\.0\.0\.1:(\d+))");
+    for (int i = 0; i < 500 && p.port == 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        const std::string out = read_text(log).substr(before);
+        std::smatch m;
+        if (std::regex_search(out, m, listening)) p.port = std::stoi(m[1]);
+    }
+    INFO(read_text(log));
+    REQUIRE(p.port > 0);
+    return p;
+}
+
+int wait_exit(pid_t pid) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return status;
+}
+
+// A run long enough to be caught mid-job: a finer angle step makes each logged second dear.
+json slow_spec() {
+    json s = slot_spec();
+    s["resolution"] = {{"angle_step_deg", 0.5}, {"axial_step_mm", 0.1}, {"grid_mm", 0.1}};
+    return s;
+}
+
+json get_run(httplib::Client& c, int id) { return body(c.Get(("/api/v1/runs/" + std::to_string(id)).c_str())); }
+
+}  // namespace
+
+TEST_CASE("process: kill -9 mid-job then restart completes queued and running jobs with results written once") {
+    TempDir dir;
+    const fs::path db = dir.path() / "k.db";
+    const fs::path log = dir.path() / "serve.log";
+    const fs::path keys_out = dir.path() / "keys.out";
+    pid_t kp = spawn({CUTLOAD_BINARY, "keys", "create", "--role", "admin", "--db", db.string()}, keys_out);
+    REQUIRE(WEXITSTATUS(wait_exit(kp)) == 0);
+    std::string out = read_text(keys_out);
+    out.erase(out.find_last_not_of('\n') + 1);
+    const std::string key = out.substr(out.rfind('\n') + 1);   // the key is the last line
+    REQUIRE(key.rfind("clk_", 0) == 0);
+
+    Proc p = start_server(db, log);
+    httplib::Client c("127.0.0.1", p.port);
+    c.set_bearer_token_auth(key.c_str());
+    std::vector<int> ids;
+    for (int i = 0; i < 2; ++i) {
+        auto r = upload(c, slot_log_csv(i == 0 ? 4.0 : 0.5), slow_spec());
+        REQUIRE(r->status == 202);
+        ids.push_back(body(r)["id"]);
+    }
+    // Wait until the first job is computing, then kill without warning.
+    for (int i = 0; i < 1000; ++i) {
+        json run = get_run(c, ids[0]);
+        if (run["state"] == "running" && run["progress"].get<double>() > 0) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    REQUIRE(get_run(c, ids[0])["state"] == "running");
+    ::kill(p.pid, SIGKILL);
+    wait_exit(p.pid);
+
+    Proc p2 = start_server(db, log);
+    httplib::Client c2("127.0.0.1", p2.port);
+    c2.set_bearer_token_auth(key.c_str());
+    for (int id : ids) {
+        json run = wait_finished(c2, id, 60);
+        REQUIRE(run["state"] == "done");
+        REQUIRE(run["error"].is_null());
+    }
+    json first = get_run(c2, ids[0]);
+    REQUIRE(first["attempts"] == 2);
+    json blocks = body(c2.Get(("/api/v1/runs/" + std::to_string(ids[0]) + "/blocks").c_str()));
+    REQUIRE(blocks["items"].size() == 2);   // one set of results, not two
+    REQUIRE(body(c2.Get(("/api/v1/runs/" + std::to_string(ids[0]) + "/forces?max_points=20000&from_s=0&to_s=0.5").c_str()))["count"].get<int>() > 0);
+    ::kill(p2.pid, SIGTERM);
+    REQUIRE(WEXITSTATUS(wait_exit(p2.pid)) == 0);
+}
+
+TEST_CASE("process: SIGTERM stops promptly and re-queues the running job and a restart finishes it") {
+    TempDir dir;
+    const fs::path db = dir.path() / "t.db";
+    const fs::path log = dir.path() / "serve.log";
+    const std::string key = cutload::server::create_api_key(db.string(), cutload::server::Role::Write);
+    Proc p = start_server(db, log);
+    httplib::Client c("127.0.0.1", p.port);
+    c.set_bearer_token_auth(key.c_str());
+    auto r = upload(c, slot_log_csv(4.0), slow_spec());
+    const int id = body(r)["id"];
+    for (int i = 0; i < 1000 && get_run(c, id)["state"] != "running"; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    const auto t0 = std::chrono::steady_clock::now();
+    ::kill(p.pid, SIGTERM);
+    REQUIRE(WEXITSTATUS(wait_exit(p.pid)) == 0);
+    REQUIRE(std::chrono::steady_clock::now() - t0 < std::chrono::seconds(3));
+    INFO(read_text(log));
+    REQUIRE(read_text(log).find("re-queued") != std::string::npos);
+
+    Proc p2 = start_server(db, log);
+    httplib::Client c2("127.0.0.1", p2.port);
+    c2.set_bearer_token_auth(key.c_str());
+    REQUIRE(wait_finished(c2, id, 60)["state"] == "done");
+    ::kill(p2.pid, SIGTERM);
+    wait_exit(p2.pid);
+}
