@@ -1,0 +1,424 @@
+// The force plot: Fx, Fy, Fz and the resultant (torque and power on demand) over time, on uPlot.
+//
+// The whole run is held as a coarse overview (min/max envelope); the visible window is fetched
+// again at about one bucket per pixel after each zoom or pan, so detail appears as you zoom while
+// panning stays instant on the overview. Limit lines, flagged intervals and the selection are
+// drawn in uPlot's hooks on the same canvas, so the PNG export shows them too.
+//
+// Each interaction records performance.measure('plot-frame') (input to drawn) and each window
+// refinement 'plot-refine' (scale change to finer data drawn), for the browser tests.
+import uPlot from '../vendor/uPlot.esm.js';
+import { lowerBound } from './dom.js';
+
+export const CHANNELS = [
+  { key: 'fx_N', label: 'Fx', unit: 'N', scale: 'N', stroke: '#d62728' },
+  { key: 'fy_N', label: 'Fy', unit: 'N', scale: 'N', stroke: '#2ca02c' },
+  { key: 'fz_N', label: 'Fz', unit: 'N', scale: 'N', stroke: '#1f77b4' },
+  { key: 'f_N', label: 'F (resultant)', unit: 'N', scale: 'N', stroke: '#111', width: 1.6 },
+  { key: 'torque_Nm', label: 'Torque', unit: 'N·m', scale: 'Nm', stroke: '#8c2d9c', dash: [6, 3], optional: true },
+  { key: 'power_kW', label: 'Power', unit: 'kW', scale: 'kW', stroke: '#e67e00', dash: [2, 3], optional: true },
+];
+
+const OVERVIEW_POINTS = 2000;   // buckets for the whole run: more than a laptop plot has pixels
+const MAX_WINDOW_POINTS = 4000;
+const REFINE_DELAY_MS = 120;
+
+// A window answer as plot columns. Decimated buckets become two points (min at the bucket's
+// start, max at its end) so the line sweeps the whole envelope of each pixel column.
+export function windowColumns(w) {
+  if (!w.decimated) return [Float64Array.from(w.t_s), ...CHANNELS.map((c) => Float32Array.from(w[c.key]))];
+  const n = w.t_s.length;
+  const x = new Float64Array(2 * n);
+  for (let i = 0; i < n; i++) {
+    x[2 * i] = w.t_s[i];
+    x[2 * i + 1] = w.t_end_s[i];
+  }
+  const ys = CHANNELS.map((c) => {
+    const { min, max } = w[c.key];
+    const y = new Float32Array(2 * n);
+    for (let i = 0; i < n; i++) {
+      y[2 * i] = min[i];
+      y[2 * i + 1] = max[i];
+    }
+    return y;
+  });
+  return [x, ...ys];
+}
+
+// The overview outside [from, to] around the detail inside it.
+export function mergeColumns(overview, detail, from, to) {
+  const a = lowerBound(overview[0], from);
+  const b = lowerBound(overview[0], to);
+  const d0 = detail[0];
+  const lo = lowerBound(d0, from);
+  const hi = lowerBound(d0, to + 1e-12 * Math.max(1, Math.abs(to)));
+  const n = a + (hi - lo) + (overview[0].length - b);
+  return overview.map((col, j) => {
+    const out = new (j === 0 ? Float64Array : Float32Array)(n);
+    out.set(col.subarray(0, a), 0);
+    out.set(detail[j].subarray(lo, hi), a);
+    out.set(col.subarray(b), a + hi - lo);
+    return out;
+  });
+}
+
+export class ForcePlot {
+  // fetchWindow(from_s, to_s, max_points, signal) -> forces window answer.
+  constructor(container, { fetchWindow, limits = {}, onPick, onRange }) {
+    this.container = container;
+    this.fetchWindow = fetchWindow;
+    this.limits = limits;
+    this.onPick = onPick;
+    this.onRange = onRange;
+    this.shaded = [];        // [{t0, t1}] flagged intervals
+    this.selected = null;    // {t0, t1} of the selected block
+    this.marker = null;      // selected time
+    this.show = { torque_Nm: false, power_kW: false };
+    this.refineTimer = 0;
+    this.inflight = null;
+    this.fetchedRange = null;
+    this.interactionStart = 0;
+    this.currentData = null;
+    container.addEventListener('keydown', (e) => this.keydown(e));
+  }
+
+  async load() {
+    const w = await this.fetchWindow(undefined, undefined, OVERVIEW_POINTS);
+    this.extent = [w.from_s, w.to_s];
+    this.overview = windowColumns(w);
+    this.currentData = this.overview;
+    this.decimatedOverview = w.decimated;
+    this.build();
+  }
+
+  options() {
+    const width = Math.max(320, this.container.clientWidth);
+    const showOpt = (c) => !c.optional || this.show[c.key];
+    const series = [{ label: 't (s)', value: (u, v) => (v == null ? '–' : v.toFixed(4)) }];
+    for (const c of CHANNELS) {
+      series.push({
+        label: c.label, scale: c.scale, stroke: c.stroke, width: c.width || 1, dash: c.dash, show: showOpt(c),
+        value: (u, v) => (v == null ? '–' : `${v.toFixed(1)} ${c.unit}`), points: { show: false },
+      });
+    }
+    const axes = [
+      { label: 'time (s)' },
+      { scale: 'N', label: 'force (N)', size: 60 },
+    ];
+    if (this.show.torque_Nm) axes.push({ scale: 'Nm', label: 'torque (N·m)', side: 1, grid: { show: false }, size: 60 });
+    if (this.show.power_kW) axes.push({ scale: 'kW', label: 'power (kW)', side: 1, grid: { show: false }, size: 60 });
+    const self = this;
+    return {
+      width,
+      height: 340,
+      series,
+      axes,
+      scales: { x: { time: false }, N: { auto: true }, Nm: { auto: true }, kW: { auto: true } },
+      legend: { live: true },
+      cursor: {
+        drag: { x: true, y: false, setScale: true },
+        bind: {
+          // Shift-drag or middle-drag pans; a plain drag selects a range to zoom into.
+          mousedown: (u, targ, handler) => (e) => {
+            if (e.button === 1 || (e.button === 0 && e.shiftKey)) {
+              self.startPan(e);
+              return null;
+            }
+            self.downAt = [e.clientX, e.clientY];
+            return handler(e);
+          },
+          mouseup: (u, targ, handler) => (e) => {
+            if (self.panning) return null;
+            const moved = self.downAt ? Math.hypot(e.clientX - self.downAt[0], e.clientY - self.downAt[1]) : 0;
+            self.downAt = null;
+            if (moved < 3) self.pick(e);
+            else self.interactionStart = performance.now();
+            return handler(e);
+          },
+        },
+      },
+      hooks: {
+        drawClear: [(u) => this.drawBands(u)],
+        draw: [(u) => this.drawOverlays(u)],
+        setScale: [(u, key) => key === 'x' && this.scaleChanged(u)],
+      },
+    };
+  }
+
+  build() {
+    const range = this.u ? [this.u.scales.x.min, this.u.scales.x.max] : null;
+    if (this.u) this.u.destroy();
+    this.u = new uPlot(this.options(), this.currentData, this.container);
+    if (range) this.setRange(range[0], range[1]);
+    this.u.over.addEventListener('wheel', (e) => this.wheel(e), { passive: false });
+    if (!this.resizeObserver) {
+      this.resizeObserver = new ResizeObserver(() => {
+        const w = Math.max(320, this.container.clientWidth);
+        if (this.u && Math.abs(w - this.u.width) > 2) this.u.setSize({ width: w, height: 340 });
+      });
+      this.resizeObserver.observe(this.container);
+    }
+    this.publishRange();
+  }
+
+  destroy() {
+    clearTimeout(this.refineTimer);
+    this.inflight?.abort();
+    this.resizeObserver?.disconnect();
+    this.u?.destroy();
+  }
+
+  setChannels(show) {
+    Object.assign(this.show, show);
+    this.build();
+  }
+
+  setShaded(intervals) {
+    this.shaded = intervals;
+    this.u?.redraw(false, false);
+  }
+
+  select(block, t) {
+    this.selected = block ? { t0: block.t_start_s, t1: block.t_end_s } : null;
+    this.marker = t ?? null;
+    this.u?.redraw(false, false);
+  }
+
+  xRange() {
+    return [this.u.scales.x.min, this.u.scales.x.max];
+  }
+
+  // Synchronous redraw, timed from interactionStart (or now) to the end of drawing.
+  setRange(from, to) {
+    const t0 = this.interactionStart || performance.now();
+    this.interactionStart = 0;
+    const [e0, e1] = this.extent;
+    const span = Math.min(e1 - e0, Math.max(to - from, 1e-6));
+    let a = Math.max(e0, Math.min(from, e1 - span));
+    const b = a + span;
+    if (b > e1) a = e1 - span;
+    this.u.batch(() => this.u.setScale('x', { min: a, max: b }));
+    performance.measure('plot-frame', { start: t0, end: performance.now() });
+  }
+
+  reset() {
+    this.setRange(this.extent[0], this.extent[1]);
+  }
+
+  zoom(factor, centre) {
+    const [a, b] = this.xRange();
+    const c = centre ?? (a + b) / 2;
+    this.setRange(c - (c - a) * factor, c + (b - c) * factor);
+  }
+
+  pan(fraction) {
+    const [a, b] = this.xRange();
+    const d = (b - a) * fraction;
+    this.setRange(a + d, b + d);
+  }
+
+  wheel(e) {
+    e.preventDefault();
+    this.interactionStart = performance.now();
+    const [a, b] = this.xRange();
+    if (e.shiftKey || Math.abs(e.deltaX) > Math.abs(e.deltaY)) {
+      this.pan(Math.sign(e.deltaX || e.deltaY) * 0.1);
+      return;
+    }
+    const rect = this.u.over.getBoundingClientRect();
+    const centre = a + ((e.clientX - rect.left) / rect.width) * (b - a);
+    this.zoom(e.deltaY < 0 ? 0.8 : 1.25, centre);
+  }
+
+  // uPlot's mousedown listener is passive: no preventDefault here (its overlay selects no text).
+  startPan(e) {
+    this.panning = true;
+    const [a, b] = this.xRange();
+    const x0 = e.clientX;
+    const perPx = (b - a) / this.u.over.clientWidth;
+    const move = (ev) => {
+      this.interactionStart = performance.now();
+      const d = (x0 - ev.clientX) * perPx;
+      this.setRange(a + d, b + d);
+    };
+    const up = () => {
+      this.panning = false;
+      window.removeEventListener('mousemove', move);
+      window.removeEventListener('mouseup', up);
+    };
+    window.addEventListener('mousemove', move);
+    window.addEventListener('mouseup', up);
+  }
+
+  pick(e) {
+    const rect = this.u.over.getBoundingClientRect();
+    const t = this.u.posToVal(e.clientX - rect.left, 'x');
+    this.onPick?.(t);
+  }
+
+  keydown(e) {
+    const keys = {
+      ArrowLeft: () => this.pan(-0.2),
+      ArrowRight: () => this.pan(0.2),
+      '+': () => this.zoom(0.5),
+      '=': () => this.zoom(0.5),
+      '-': () => this.zoom(2),
+      0: () => this.reset(),
+      Home: () => this.reset(),
+    };
+    const fn = keys[e.key];
+    if (!fn) return;
+    e.preventDefault();
+    this.interactionStart = performance.now();
+    fn();
+  }
+
+  publishRange() {
+    if (!this.u || this.u.scales.x.min == null) return;   // before uPlot's first commit
+    const [a, b] = this.xRange();
+    this.container.dataset.xMin = String(a);
+    this.container.dataset.xMax = String(b);
+    this.onRange?.(a, b);
+  }
+
+  scaleChanged(u) {
+    if (!this.extent) return;
+    if (this.interactionStart) {
+      // A drag-zoom: uPlot set the scale itself.
+      performance.measure('plot-frame', { start: this.interactionStart, end: performance.now() });
+      this.interactionStart = 0;
+    }
+    this.publishRange();
+    clearTimeout(this.refineTimer);
+    const scaleAt = performance.now();
+    this.refineTimer = setTimeout(() => this.refine(u.scales.x.min, u.scales.x.max, scaleAt), REFINE_DELAY_MS);
+  }
+
+  // Fetches the visible window at about one bucket per pixel and splices it into the overview.
+  async refine(from, to, scaleAt) {
+    const key = `${from}:${to}`;
+    if (this.fetchedRange === key) return;
+    this.inflight?.abort();
+    this.fetchedRange = key;
+    const [e0, e1] = this.extent;
+    if (!this.decimatedOverview || (from <= e0 && to >= e1)) {
+      // The overview already is full resolution, or the window is the whole run.
+      this.published(this.decimatedOverview ? 'envelope' : 'full', from, to);
+      if (this.currentData === this.overview) return;
+      this.currentData = this.overview;
+      this.u.batch(() => {
+        this.u.setData(this.overview, false);
+        this.u.setScale('x', { min: from, max: to });
+      });
+      return;
+    }
+    const ctl = new AbortController();
+    this.inflight = ctl;
+    const points = Math.min(MAX_WINDOW_POINTS, Math.max(200, Math.round(this.u.over.clientWidth)));
+    let w;
+    try {
+      w = await this.fetchWindow(from, to, points, ctl.signal);
+    } catch (err) {
+      if (this.fetchedRange === key) this.fetchedRange = null;
+      if (err.name !== 'AbortError') this.container.dispatchEvent(new CustomEvent('plot-error', { detail: err }));
+      return;
+    }
+    if (ctl.signal.aborted) return;
+    this.currentData = mergeColumns(this.overview, windowColumns(w), from, to);
+    this.u.batch(() => {
+      this.u.setData(this.currentData, false);
+      this.u.setScale('x', { min: from, max: to });
+    });
+    this.published(w.decimated ? 'envelope' : 'full', from, to);
+    performance.measure('plot-refine', { start: scaleAt, end: performance.now() });
+  }
+
+  // What the plot holds for the visible window, as data attributes (read by the browser tests).
+  published(resolution, from, to) {
+    Object.assign(this.container.dataset, { resolution, windowFrom: String(from), windowTo: String(to) });
+  }
+
+  drawBands(u) {
+    const { ctx } = u;
+    const { top, height } = u.bbox;
+    const band = (t0, t1, fill) => {
+      const x0 = u.valToPos(t0, 'x', true);
+      const x1 = u.valToPos(t1, 'x', true);
+      if (x1 < u.bbox.left || x0 > u.bbox.left + u.bbox.width) return;
+      ctx.fillStyle = fill;
+      ctx.fillRect(x0, top, Math.max(1, x1 - x0), height);
+    };
+    ctx.save();
+    for (const s of this.shaded) band(s.t0, s.t1, 'rgba(220, 38, 38, 0.13)');
+    if (this.selected) band(this.selected.t0, this.selected.t1, 'rgba(37, 99, 235, 0.16)');
+    ctx.restore();
+  }
+
+  drawOverlays(u) {
+    const { ctx } = u;
+    const { left, top, width, height } = u.bbox;
+    const px = devicePixelRatio || 1;
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(left, top, width, height);
+    ctx.clip();
+    const line = (value, scale, colour, label) => {
+      if (!value || !u.scales[scale] || u.scales[scale].min == null) return;
+      const y = u.valToPos(value, scale, true);
+      if (y < top || y > top + height) return;
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = 1.5 * px;
+      ctx.setLineDash([8 * px, 4 * px]);
+      ctx.beginPath();
+      ctx.moveTo(left, y);
+      ctx.lineTo(left + width, y);
+      ctx.stroke();
+      ctx.setLineDash([]);
+      ctx.fillStyle = colour;
+      ctx.textAlign = 'left';
+      ctx.textBaseline = 'bottom';
+      ctx.font = `${11 * px}px sans-serif`;
+      ctx.fillText(label, left + 6 * px, y - 3 * px);
+    };
+    line(this.limits.force_N, 'N', '#b91c1c', `force limit ${this.limits.force_N} N`);
+    if (this.show.torque_Nm) line(this.limits.torque_Nm, 'Nm', '#8c2d9c', `torque limit ${this.limits.torque_Nm} N·m`);
+    if (this.show.power_kW) line(this.limits.power_kW, 'kW', '#e67e00', `power limit ${this.limits.power_kW} kW`);
+    if (this.marker != null) {
+      const x = u.valToPos(this.marker, 'x', true);
+      ctx.strokeStyle = '#2563eb';
+      ctx.lineWidth = 1.5 * px;
+      ctx.beginPath();
+      ctx.moveTo(x, top);
+      ctx.lineTo(x, top + height);
+      ctx.stroke();
+    }
+    ctx.restore();
+  }
+
+  // The plot canvas with a white background, a title and a legend of the shown series.
+  async png(title) {
+    const src = this.u.ctx.canvas;
+    const px = devicePixelRatio || 1;
+    const head = 48 * px;
+    const out = document.createElement('canvas');
+    out.width = src.width;
+    out.height = src.height + head;
+    const ctx = out.getContext('2d');
+    ctx.fillStyle = '#fff';
+    ctx.fillRect(0, 0, out.width, out.height);
+    ctx.fillStyle = '#111';
+    ctx.font = `bold ${14 * px}px sans-serif`;
+    ctx.fillText(title, 10 * px, 18 * px);
+    let x = 10 * px;
+    ctx.font = `${12 * px}px sans-serif`;
+    CHANNELS.filter((c) => !c.optional || this.show[c.key]).forEach((c) => {
+      ctx.fillStyle = c.stroke;
+      ctx.fillRect(x, 30 * px, 14 * px, 4 * px);
+      ctx.fillStyle = '#111';
+      ctx.fillText(`${c.label} (${c.unit})`, x + 18 * px, 36 * px);
+      x += ctx.measureText(`${c.label} (${c.unit})`).width + 34 * px;
+    });
+    ctx.drawImage(src, 0, head);
+    return new Promise((resolve) => out.toBlob(resolve, 'image/png'));
+  }
+}

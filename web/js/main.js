@@ -1,0 +1,76 @@
+// The page shell: hash routes, the API key field and the banner for authorisation problems.
+import { apiKey, setApiKey, onApiError } from './api.js';
+import { renderRuns } from './runs.js';
+import { renderNewRun } from './new_run.js';
+import { renderRun } from './run_page.js';
+import { renderAlerts } from './alerts.js';
+import { renderLibraries } from './libraries.js';
+
+const routes = [
+  [/^#\/runs\/(\d+)$/, 'runs', (main, m) => renderRun(main, Number(m[1]))],
+  [/^#\/runs$/, 'runs', (main) => renderRuns(main)],
+  [/^#\/new$/, 'new', (main) => renderNewRun(main)],
+  [/^#\/alerts$/, 'alerts', (main) => renderAlerts(main)],
+  [/^#\/libraries$/, 'libraries', (main) => renderLibraries(main)],
+];
+
+let cleanup = null;
+
+function showBanner(text) {
+  const b = document.getElementById('banner');
+  b.textContent = text;
+  b.hidden = !text;
+}
+
+async function route() {
+  const hash = location.hash || '#/runs';
+  const found = routes.find(([re]) => re.test(hash));
+  if (!found) {
+    location.hash = '#/runs';
+    return;
+  }
+  const [re, nav, render] = found;
+  if (cleanup) cleanup();
+  cleanup = null;
+  showBanner('');
+  for (const a of document.querySelectorAll('[data-nav]')) {
+    if (a.dataset.nav === nav) a.setAttribute('aria-current', 'page');
+    else a.removeAttribute('aria-current');
+  }
+  const main = document.getElementById('main');
+  main.replaceChildren();
+  main.focus({ preventScroll: true });
+  cleanup = (await render(main, hash.match(re))) || null;
+}
+
+function showKeyState() {
+  document.getElementById('key-state').textContent = apiKey() ? 'key saved' : 'no key';
+}
+
+function setupKeyForm() {
+  const form = document.getElementById('key-form');
+  const input = document.getElementById('api-key');
+  input.value = apiKey();
+  showKeyState();
+  form.addEventListener('submit', (e) => {
+    e.preventDefault();
+    setApiKey(input.value.trim());
+    showKeyState();
+    route();
+  });
+  document.getElementById('key-clear').addEventListener('click', () => {
+    input.value = '';
+    setApiKey('');
+    showKeyState();
+    route();
+  });
+}
+
+onApiError((e) => {
+  if (e.status === 401) showBanner(`${e.message}. Enter an API key above (cutload keys create --role write).`);
+  else if (e.status === 403) showBanner(e.message);
+});
+
+setupKeyForm();
+window.addEventListener('hashchange', route);
+route();
