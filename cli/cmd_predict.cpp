@@ -2,6 +2,7 @@
 // Reads and repairs the dry-run log, predicts cutting forces over it and writes the per-step and
 // per-block results; prints a short summary with the flagged blocks.
 #include "cli/commands.hpp"
+#include "cli/predict_program.hpp"
 #include "force_model/force_model.hpp"
 #include "kernels/opencl_runtime.hpp"
 
@@ -15,6 +16,7 @@ struct PredictArgs {
     std::string log, spec, out, blocks, device = "auto", start_stock, save_stock;
     bool quiet = false;
     motion_io::ReadOptions read;
+    ProgramOptions program;
 };
 
 force_model::Device pick_device(const std::string& name) {
@@ -32,8 +34,9 @@ force_model::Device pick_device(const std::string& name) {
 
 void run_predict(const PredictArgs& a) {
     const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
-    const motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
+    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
     if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
+    const ProgramRun program = prepare_program_run(a.program, motion, spec);   // program block names
     force_model::StockPtr base;
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
 
@@ -68,6 +71,7 @@ void run_predict(const PredictArgs& a) {
     }
     std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
                 a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
+    finish_program_run(a.program, program, motion, p, spec, opt);
 }
 
 void add_predict(CLI::App& app) {
@@ -89,6 +93,7 @@ void add_predict(CLI::App& app) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    add_program_options(*cmd, a->program, true);
     add_log_options(*cmd, a->read);
     cmd->callback([a] { run_predict(*a); });
 }

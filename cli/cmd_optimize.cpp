@@ -1,0 +1,120 @@
+// cutload optimize LOG --spec RUN.json --program PROG.nc --target 0.8 --out PROG_OPT.nc
+// Per block, the feed that brings the binding load (peak force, torque, power, chip thickness or
+// bending stress) to the target fraction of its limit; writes the program back with only the F
+// words changed and shows the prediction at the new feeds.
+#include "cli/commands.hpp"
+#include "cli/predict_program.hpp"
+#include "force_model/feed_optimizer.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+
+namespace cutload::cli {
+namespace {
+
+struct OptimizeArgs {
+    std::string log, spec, out, report, device = "auto", basis = "actual";
+    double target = 0.8, min_feed = 10, max_feed = 0;
+    int max_predictions = 8;
+    bool quiet = false;
+    motion_io::ReadOptions read;
+    ProgramOptions program;
+};
+
+void write_report(const force_model::FeedOptimization& r, const std::string& path) {
+    std::ofstream out(path, std::ios::trunc);
+    if (!out) throw UsageError("cannot write " + path, 1);
+    out << "block,programmed_feed_mm_min,recommended_feed_mm_min,binding,ratio_before,ratio_after,at_feed_limit\n";
+    for (const auto& b : r.blocks)
+        out << fmt::format("{},{:.1f},{:.1f},{},{:.4f},{:.4f},{}\n", b.block, b.programmed_feed_mm_min,
+                           b.recommended_feed_mm_min, b.binding, b.ratio_before, b.ratio_after, b.at_feed_limit ? 1 : 0);
+    if (!out) throw UsageError("writing " + path + " failed", 1);
+}
+
+void run_optimize(const OptimizeArgs& a) {
+    const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
+    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
+    const ProgramRun run = prepare_program_run(a.program, motion, spec);
+    print_mapping(run);
+
+    force_model::FeedOptimizerOptions o;
+    o.target = a.target;
+    o.min_feed_mm_min = a.min_feed;
+    o.max_feed_mm_min = a.max_feed;
+    o.max_predictions = a.max_predictions;
+    o.basis = a.basis == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
+    o.commanded = run.commanded;
+    force_model::PredictOptions popt;
+    popt.device = choose_device(a.device);
+    if (!a.quiet) std::fprintf(stderr, "optimizing feeds (a few predictions)...\n");
+    const force_model::FeedOptimization r = force_model::optimize_feeds(run.program, motion, spec, popt, o);
+
+    const std::string text = motion_io::rewrite_feeds(run.program, r.feed_mm_min);
+    {
+        std::ofstream out(a.out, std::ios::binary | std::ios::trunc);
+        if (!out) throw UsageError("cannot write " + a.out, 1);
+        out << text;
+        if (!out) throw UsageError("writing " + a.out + " failed", 1);
+    }
+    if (!a.report.empty()) write_report(r, a.report);
+
+    std::printf("%-8s %9s %9s %-8s %8s %8s\n", "block", "F_prog", "F_new", "binding", "before", "after");
+    std::size_t changed = 0;
+    for (const auto& b : r.blocks) {
+        if (b.recommended_feed_mm_min != b.programmed_feed_mm_min) ++changed;
+        std::printf("%-8s %9.0f %9.0f %-8s %7.1f%% %7.1f%%%s\n", b.block.c_str(), b.programmed_feed_mm_min,
+                    b.recommended_feed_mm_min, b.binding.c_str(), 100 * b.ratio_before, 100 * b.ratio_after,
+                    b.at_feed_limit ? "  (feed range)" : "");
+    }
+    std::size_t in_band = 0, below = 0, over = 0;
+    for (const auto& b : r.blocks) {
+        if (b.ratio_after > a.target + 1e-9) ++over;
+        else if (b.ratio_after >= a.target * (1 - o.tolerance) || b.at_feed_limit) ++in_band;
+        else ++below;
+    }
+    std::printf("%zu of %zu cutting blocks changed; %d predictions (basis: %s)\n", changed, r.blocks.size(), r.predictions,
+                a.basis.c_str());
+    std::printf("target %.0f%%: %zu blocks at it (or at the feed range), %zu below, %zu over; highest load after: %.1f%% of "
+                "its limit; cycle %.3f s -> %.3f s; program -> %s\n",
+                100 * a.target, in_band, below, over, 100 * r.max_ratio_after, r.before.stats.simulated_s,
+                r.after.stats.simulated_s, a.out.c_str());
+}
+
+void add_optimize(CLI::App& app) {
+    auto a = std::make_shared<OptimizeArgs>();
+    auto* cmd = app.add_subcommand("optimize", "Recommend per-block feeds that load the tool to a target fraction of its limits");
+    cmd->add_option("LOG", a->log, "Dry-run motion log (CSV or SHDR) of the program")->required()->check(CLI::ExistingFile);
+    cmd->add_option("--spec", a->spec, "Run spec (RUN.json) with the limits to aim at")->required()->check(CLI::ExistingFile);
+    cmd->add_option("--out", a->out, "The program with the recommended F words")->required();
+    cmd->add_option("--target", a->target, "Fraction of each limit the binding load is brought to")
+        ->check(CLI::Range(0.05, 1.0))
+        ->capture_default_str();
+    cmd->add_option("--min-feed", a->min_feed, "Lowest feed the machine takes, mm/min")->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--max-feed", a->max_feed, "Highest cutting feed, mm/min (default: 90% of limits.rapid_feed_mm_min)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--basis", a->basis, "Predict from the log's actual motion retimed to the new feeds, or from the program")
+        ->check(CLI::IsMember({"actual", "commanded"}))
+        ->capture_default_str();
+    cmd->add_option("--max-predictions", a->max_predictions, "Force predictions the search may run")
+        ->check(CLI::Range(2, 20))
+        ->capture_default_str();
+    cmd->add_option("--report", a->report, "FEEDS.csv: per block programmed and recommended feed, binding load, before/after");
+    cmd->add_option("--device", a->device, "opencl, cpu, or auto (OpenCL when a device exists)")
+        ->check(CLI::IsMember({"opencl", "cpu", "auto"}))
+        ->capture_default_str();
+    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_flag("-q,--quiet", a->quiet, "No progress note");
+    add_program_options(*cmd, a->program, false);
+    add_log_options(*cmd, a->read);
+    cmd->callback([a] { run_optimize(*a); });
+}
+
+const bool registered = register_command("optimize", &add_optimize);
+
+}  // namespace
+}  // namespace cutload::cli

@@ -1,0 +1,163 @@
+#include "cli/predict_program.hpp"
+
+#include "cli/commands.hpp"
+#include "force_model/program_compare.hpp"
+#include "kernels/opencl_runtime.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <set>
+#include <sstream>
+
+namespace cutload::cli {
+namespace {
+
+std::pair<std::string, std::array<double, 3>> parse_work_offset(const std::string& s) {
+    const auto eq = s.find('=');
+    const std::string name = eq == std::string::npos ? "" : s.substr(0, eq);
+    std::array<double, 3> v{};
+    bool ok = name.size() == 3 && (name[0] == 'G' || name[0] == 'g') && name[1] == '5' && name[2] >= '4' && name[2] <= '9';
+    if (ok) {
+        std::istringstream in(s.substr(eq + 1));
+        char c1 = 0, c2 = 0;
+        in >> v[0] >> c1 >> v[1] >> c2 >> v[2];
+        ok = in && c1 == ',' && c2 == ',' && (in >> std::ws).eof();
+    }
+    if (!ok) throw UsageError(fmt::format("--work-offset '{}': expected G54..G59=X,Y,Z (mm), e.g. G55=200,-300,-350", s));
+    return {"G" + name.substr(1), v};
+}
+
+// The log names blocks, and (nearly) all of them are the program's.
+bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgram& p) {
+    const std::vector<std::string> names = motion_io::program_block_names(p);
+    const std::set<std::string> known(names.begin(), names.end());
+    std::size_t named = 0, matching = 0;
+    for (std::int32_t b : m.block) {
+        if (b < 0) continue;
+        ++named;
+        if (known.count(m.block_names[static_cast<std::size_t>(b)])) ++matching;
+    }
+    return named > 0 && matching >= 0.95 * double(named);
+}
+
+}  // namespace
+
+force_model::Device choose_device(const std::string& name) {
+    if (name == "cpu") return force_model::Device::Cpu;
+    if (name == "opencl") return force_model::Device::OpenCL;
+    try {
+        kernels::OpenClRuntime::instance();
+        return force_model::Device::OpenCL;
+    } catch (const kernels::OpenClError& e) {
+        std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
+        return force_model::Device::Cpu;
+    }
+}
+
+void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
+    auto* program = cmd.add_option("--program", o.program, "NC program (ISO 6983, FANUC dialect) the log is a dry run of")
+                        ->check(CLI::ExistingFile);
+    if (!for_predict) program->required();
+    cmd.add_option("--work-offset", o.work_offsets,
+                   "Work offset as G54..G59=X,Y,Z: machine position of the program's tool-tip zero, mm "
+                   "(default G54 = -setup.offset_mm of the run spec); repeatable");
+    cmd.add_option("--ignore", o.ignore, "NC words to drop before interpretation, e.g. G28 or H (comma-separated)")
+        ->delimiter(',');
+    cmd.add_option("--rapid-feed", o.rapid_mm_min, "G00 rate of the machine, mm/min (commanded motion)")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd.add_option("--block-lead-ms", o.block_lead_ms,
+                   "Block mapping: how far the CNC's block counter runs ahead of the actual position, ms "
+                   "(printed as 'calibrated lead' when a log with blocks is mapped)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd.add_flag("--map-blocks", o.map_blocks, "Attribute samples to blocks by mapping, even if the log names blocks");
+    cmd.add_flag("--no-decimal-is-increment", o.decimal_less_increment,
+                 "X10 without a decimal point means 10 least increments (FANUC parameter 3401#0 = 0)");
+    if (for_predict) {
+        cmd.add_option("--compare", o.compare_csv, "Per-block commanded-vs-actual comparison CSV (with --program)");
+        cmd.add_option("--commanded-out", o.commanded_out, "FORCES.csv of the commanded motion (with --program)");
+    }
+}
+
+ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec) {
+    ProgramRun run;
+    if (o.program.empty()) {
+        if (!o.compare_csv.empty() || !o.commanded_out.empty()) throw UsageError("--compare and --commanded-out need --program");
+        return run;
+    }
+    if (motion.size() < 2) throw UsageError("the log holds fewer than two motion samples");
+    run.active = true;
+    motion_io::NcReadOptions ro;
+    ro.work_offsets_mm = motion_io::default_work_offsets(spec.offset_mm);
+    for (const std::string& w : o.work_offsets) {
+        const auto [name, v] = parse_work_offset(w);
+        ro.work_offsets_mm[name] = v;
+    }
+    ro.ignore_words = o.ignore;
+    ro.decimal_less_is_increment = o.decimal_less_increment;
+    ro.start_mm = std::array<double, 3>{motion.x_mm.front(), motion.y_mm.front(), motion.z_mm.front()};
+    run.program = motion_io::read_nc_program(o.program, ro);
+    run.commanded.step_s = motion.step_s;
+    run.commanded.rapid_mm_min = o.rapid_mm_min;
+
+    motion_io::BlockMappingOptions mo;
+    mo.lead_s = o.block_lead_ms * 1e-3;
+    run.mapped = o.map_blocks || !log_blocks_match(motion, run.program);
+    if (!run.mapped) {
+        // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
+        run.estimated_lead_s = motion_io::estimate_block_lead_s(motion, run.program, mo);
+        mo.lead_s = *run.estimated_lead_s;
+    }
+    run.mapping = motion_io::map_blocks(motion, run.program, mo);
+    if (run.mapping.quality.matched == 0)
+        throw UsageError(fmt::format("{}: no log sample lies within {} mm of the program's path (wrong program or work offset?)",
+                                     o.program, mo.max_distance_mm));
+    if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
+    return run;
+}
+
+void print_mapping(const ProgramRun& run) {
+    if (!run.active) return;
+    const auto& q = run.mapping.quality;
+    std::printf("program: %zu blocks; log blocks %s; matched %.1f%% of samples, deviation mean %.3f / p95 %.3f / max %.3f mm, "
+                "path covered %.1f%%\n",
+                run.program.blocks.size(), run.mapped ? "by mapping" : "from the log", 100 * q.matched_fraction,
+                q.mean_distance_mm, q.p95_distance_mm, q.max_distance_mm, 100 * q.coverage);
+    if (q.agreement) std::printf("  mapping agrees with the log's blocks on %.2f%% of samples\n", 100 * *q.agreement);
+    if (run.estimated_lead_s) std::printf("  calibrated lead of the log's block channel: %.0f ms (--block-lead-ms for logs without blocks)\n", *run.estimated_lead_s * 1e3);
+    if (!q.blocks_without_samples.empty()) {
+        std::string names;
+        for (std::size_t i = 0; i < q.blocks_without_samples.size() && i < 8; ++i) names += " " + q.blocks_without_samples[i];
+        std::printf("  %zu moving blocks got no samples:%s%s\n", q.blocks_without_samples.size(), names.c_str(),
+                    q.blocks_without_samples.size() > 8 ? " ..." : "");
+    }
+}
+
+void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
+                        const force_model::Prediction& actual, const force_model::RunSpec& spec,
+                        const force_model::PredictOptions& opt) {
+    if (!run.active) return;
+    force_model::PredictOptions quiet = opt;
+    quiet.progress = nullptr;
+    const force_model::Prediction commanded = force_model::predict(motion_io::commanded_motion(run.program, run.commanded), spec, quiet);
+    if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
+    const auto rows = force_model::compare_program(run.program, motion, run.mapping, commanded, actual, run.commanded);
+    if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
+    print_mapping(run);
+    std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",
+                "F_cmd_N", "F_act_N", "diff");
+    for (const auto& r : rows) {
+        if (r.commanded_peak_force_N <= 0 && r.actual_peak_force_N <= 0) continue;
+        std::printf("%-8s %8.0f %8.3fmm %8.3fmm %7.1f%% %7.1f%% %10.1f %10.1f %+8.1f%%\n", r.block.c_str(),
+                    r.programmed_feed_mm_min, r.max_deviation_mm, r.mean_deviation_mm, r.feed_deficit_pct, r.feed_surge_pct,
+                    r.commanded_peak_force_N, r.actual_peak_force_N, r.force_difference_pct);
+    }
+    std::printf("commanded prediction: %.3f s simulated%s%s%s%s\n", commanded.stats.simulated_s,
+                o.commanded_out.empty() ? "" : "; forces -> ", o.commanded_out.c_str(),
+                o.compare_csv.empty() ? "" : "; comparison -> ", o.compare_csv.c_str());
+}
+
+}  // namespace cutload::cli

@@ -1,0 +1,59 @@
+// NC program support shared by `cutload predict --program` and `cutload optimize`: reading the
+// program against the run spec and the log, giving the log the program's block names (its own
+// block channel, or block mapping), and the commanded-vs-actual comparison.
+#pragma once
+
+#include "force_model/force_model.hpp"
+#include "motion_io/block_mapping.hpp"
+#include "motion_io/commanded.hpp"
+#include "motion_io/nc_program.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cutload::cli {
+
+struct ProgramOptions {
+    std::string program;                      // empty: no program (predict without --program)
+    std::vector<std::string> work_offsets;    // "G55=x,y,z" (mm, machine position of the tool-tip zero)
+    std::vector<std::string> ignore;          // words to drop, e.g. G28, H
+    double rapid_mm_min = 30000;
+    double block_lead_ms = 0;
+    bool map_blocks = false;                  // attribute blocks by mapping even if the log has them
+    bool decimal_less_increment = false;
+    std::string compare_csv, commanded_out;   // predict only
+};
+
+// --program and its companions; `for_predict` adds --compare and --commanded-out.
+void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict);
+
+struct ProgramRun {
+    bool active = false;
+    motion_io::NcProgram program;
+    motion_io::BlockMapping mapping;          // always computed: it gives the path deviations
+    motion_io::CommandedOptions commanded;
+    bool mapped = false;                      // the motion's blocks come from the mapping
+    std::optional<double> estimated_lead_s;   // logs with their own block channel
+};
+
+// Without --program: inactive, motion untouched. With it: reads the program (G54 = -setup offset
+// unless --work-offset says otherwise; start = the log's first position) and relabels `motion`'s
+// blocks with the program's names when the log has none that match (or --map-blocks).
+ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec);
+
+// Prints the block mapping's quality (and the calibrated lead when the log had blocks).
+void print_mapping(const ProgramRun& run);
+
+// Predicts the commanded motion, writes --commanded-out and --compare, prints the cutting blocks'
+// comparison. No-op when inactive.
+void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
+                        const force_model::Prediction& actual, const force_model::RunSpec& spec,
+                        const force_model::PredictOptions& opt);
+
+// The device choice of `--device opencl|cpu|auto` (auto: OpenCL when a device exists).
+force_model::Device choose_device(const std::string& name);
+
+}  // namespace cutload::cli
