@@ -1,0 +1,130 @@
+// cutload compare --predicted FORCES.csv --measured FILE [--axes MATRIX] [--offset-s S] [--json] ...
+// Aligns a dynamometer record with a prediction and prints error metrics per axis, overall and per
+// NC block (docs/compare_calibrate.md).
+#include "cli/commands.hpp"
+#include "force_model/compare.hpp"
+#include "force_model/measurement.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <memory>
+#include <optional>
+
+namespace cutload::cli {
+namespace {
+
+struct CompareArgs {
+    std::string predicted, measured, axes, measured_on = "workpiece", average = "none", report_csv, trace_csv;
+    std::optional<double> offset_s, t_start_s, t_end_s;
+    double cutoff_Hz = 1000;
+    int flutes = 0;
+    bool json = false, keep_zero = false;
+};
+
+force_model::Averaging averaging_of(const std::string& s) {
+    if (s == "tooth") return force_model::Averaging::ToothPeriod;
+    if (s == "rev") return force_model::Averaging::Revolution;
+    return force_model::Averaging::None;
+}
+
+void print_scope(const force_model::ScopeMetrics& m) {
+    static const char* axes[4] = {"x", "y", "z", "|F|"};
+    for (int ax = 0; ax < 4; ++ax) {
+        const auto& a = m.axes[ax];
+        std::printf("%-12s %-3s %8zu %10.3f %9.3f %7.4f %10.3f %7.4f\n", ax == 0 ? m.scope.c_str() : "", axes[ax],
+                    m.samples, a.mean_error_N, a.rmse_N, a.nrmse, a.peak_error_N, a.correlation);
+    }
+}
+
+void run_compare(const CompareArgs& a) {
+    try {
+        const force_model::PredictedTrace predicted = force_model::read_forces_csv(a.predicted);
+        force_model::Measurement m = force_model::read_measurement(a.measured);
+        const force_model::AxisMatrix axes =
+            a.axes.empty() ? force_model::kIdentityAxes : force_model::parse_axis_matrix(a.axes);
+        force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
+
+        force_model::CompareOptions opt;
+        opt.offset_s = a.offset_s;
+        if (a.t_start_s) opt.t_start_s = *a.t_start_s;
+        if (a.t_end_s) opt.t_end_s = *a.t_end_s;
+        opt.cutoff_Hz = a.cutoff_Hz;
+        opt.averaging = averaging_of(a.average);
+        opt.flutes = a.flutes;
+        opt.remove_zero = !a.keep_zero;
+        const force_model::Comparison c = force_model::compare(predicted, m, opt);
+
+        if (!a.report_csv.empty()) force_model::write_comparison_csv(c, a.report_csv);
+        if (!a.trace_csv.empty()) force_model::write_comparison_trace_csv(c, predicted.block_names, a.trace_csv);
+        if (a.json) {
+            nlohmann::json j = force_model::to_json(c);
+            j["measured"] = {{"file", m.source}, {"format", m.format}, {"rate_Hz", m.rate_Hz}, {"samples", m.size()}};
+            j["predicted"] = {{"file", a.predicted}, {"rows", predicted.samples.size()}};
+            std::printf("%s\n", j.dump(2).c_str());
+            return;
+        }
+        std::printf("measured: %s (%s, %.6g Hz, %zu samples, %.4f to %.4f s)\n", m.source.c_str(), m.format.c_str(),
+                    m.rate_Hz, m.size(), m.t_s(0), m.t_s(m.size() - 1));
+        if (c.offset_found)
+            std::printf("offset: %+.6f s (cross-correlation, score %.4f): prediction time = measured time + offset\n",
+                        c.offset_s, c.alignment_score);
+        else
+            std::printf("offset: %+.6f s (given)\n", c.offset_s);
+        if (c.cutoff_Hz > 0)
+            std::printf("filter: 4th-order Butterworth low-pass at %.6g Hz, forward and backward; ", c.cutoff_Hz);
+        else
+            std::printf("filter: none; ");
+        std::printf("averaging: %s\n", force_model::averaging_name(c.averaging));
+        if (c.zero_removed)
+            std::printf("zero offset removed: (%.3f, %.3f, %.3f) N (measured mean where the prediction is in air)\n",
+                        c.zero_N[0], c.zero_N[1], c.zero_N[2]);
+        else
+            std::printf("zero offset: not removed\n");
+        std::printf("%-12s %-3s %8s %10s %9s %7s %10s %7s\n", "scope", "ax", "samples", "mean_err_N", "rmse_N", "nrmse",
+                    "peak_err_N", "corr");
+        print_scope(c.overall);
+        for (const auto& b : c.blocks) print_scope(b);
+    } catch (const force_model::MeasurementError& e) {
+        throw UsageError(e.what());
+    }
+}
+
+void add_compare(CLI::App& app) {
+    auto a = std::make_shared<CompareArgs>();
+    auto* cmd = app.add_subcommand("compare", "Compare predicted forces with a dynamometer measurement");
+    cmd->add_option("--predicted", a->predicted, "FORCES.csv written by cutload predict")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--measured", a->measured, "Dynamometer record: DynoWare CSV export or plain CSV t,fx,fy,fz")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--axes", a->axes,
+                    "Dynamometer-to-machine axis matrix, nine comma-separated numbers, row-major (default identity)");
+    cmd->add_option("--measured-on", a->measured_on,
+                    "What the dynamometer carries: workpiece (its force is minus the tool's) or tool")
+        ->check(CLI::IsMember({"workpiece", "tool"}))
+        ->capture_default_str();
+    cmd->add_option("--offset-s", a->offset_s,
+                    "Time offset, prediction time = measured time + offset (default: by cross-correlation)");
+    cmd->add_option("--from-s", a->t_start_s, "Start of the comparison window (prediction time)");
+    cmd->add_option("--to-s", a->t_end_s, "End of the comparison window (prediction time)");
+    cmd->add_option("--cutoff-hz", a->cutoff_Hz, "Zero-phase low-pass cut-off in Hz applied to both; 0: none")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("--average", a->average, "Compare means per tooth period or per revolution")
+        ->check(CLI::IsMember({"none", "tooth", "rev"}))
+        ->capture_default_str();
+    cmd->add_option("--flutes", a->flutes, "Number of flutes (for --average tooth)")->check(CLI::Range(1, 16));
+    cmd->add_option("--report-csv", a->report_csv, "Write the metrics as CSV (scope, axis, metrics)");
+    cmd->add_option("--trace-csv", a->trace_csv, "Write the compared series (for plots)");
+    cmd->add_flag("--keep-zero", a->keep_zero,
+                  "Keep the measured zero offset (default: subtract the measured mean where the prediction is in air)");
+    cmd->add_flag("--json", a->json, "Print the report as JSON");
+    cmd->callback([a] { run_compare(*a); });
+}
+
+const bool registered = register_command("compare", &add_compare);
+
+}  // namespace
+}  // namespace cutload::cli

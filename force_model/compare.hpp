@@ -1,0 +1,101 @@
+// Prediction against measurement: time alignment by cross-correlation, zero-phase low-pass,
+// per-tooth / per-revolution averaging and error metrics per axis, overall and per NC block.
+//
+// Both traces are compared on the measurement's sampling grid, as forces on the tool in machine axes.
+// Offsets follow one convention everywhere: prediction time = measured time + offset_s.
+#pragma once
+
+#include "force_model/force_model.hpp"
+#include "force_model/measurement.hpp"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cutload::force_model {
+
+// The rows compare() needs from a prediction (all of Prediction::samples, or FORCES.csv read back).
+struct PredictedTrace {
+    std::vector<ForceSample> samples;   // sorted by time
+    std::vector<std::string> block_names;
+};
+
+PredictedTrace predicted_trace(const Prediction& p);
+// Reads FORCES.csv as written by write_forces_csv (columns t_s, spindle_angle_deg, block, fx_N, fy_N,
+// fz_N at least); throws MeasurementError naming line and column.
+PredictedTrace read_forces_csv(const std::string& path);
+
+// Zero-phase low-pass: a Butterworth filter run forward and backward (squared magnitude response,
+// no phase shift), with odd-reflection padding at both ends. cutoff_Hz must be below rate_Hz / 2.
+void lowpass_zero_phase(std::vector<float>& x, double rate_Hz, double cutoff_Hz, int order = 4);
+
+enum class Averaging { None, ToothPeriod, Revolution };
+const char* averaging_name(Averaging a);
+
+struct CompareOptions {
+    std::optional<double> offset_s;              // empty: found by cross-correlation
+    double t_start_s = -1e300, t_end_s = 1e300;  // window in prediction time
+    // Default cut-off: below the first resonance of common table dynamometers (a few kHz) and above
+    // the first harmonics of the tooth-passing frequency of typical aluminium cuts. 0: no filter.
+    double cutoff_Hz = 1000;
+    Averaging averaging = Averaging::None;
+    int flutes = 0;   // needed for Averaging::ToothPeriod
+    // Subtract the measured mean over the samples where the prediction is exactly zero (the tool in
+    // air): the dynamometer's zero offset. Needs at least 100 such samples, else nothing is removed.
+    bool remove_zero = true;
+};
+
+// Metrics of predicted minus measured. nrmse = rmse / measured peak-to-peak; peak_error_N =
+// max |predicted| - max |measured|; correlation is Pearson's r (NaN when a signal is constant).
+struct AxisMetrics {
+    double mean_error_N = 0, rmse_N = 0, nrmse = 0, peak_error_N = 0, correlation = 0;
+    double peak_measured_N = 0, peak_predicted_N = 0;
+};
+
+// axes[0..2] = x, y, z; axes[3] = resultant |F|.
+struct ScopeMetrics {
+    std::string scope;   // "overall" or a block name
+    double t_start_s = 0, t_end_s = 0;
+    std::size_t samples = 0;
+    AxisMetrics axes[4];
+};
+
+struct Comparison {
+    double offset_s = 0;
+    bool offset_found = false;         // true: by cross-correlation; false: given
+    double alignment_score = 0;        // Pearson correlation over the overlap at the found offset
+    double rate_Hz = 0, cutoff_Hz = 0;
+    Averaging averaging = Averaging::None;
+    bool zero_removed = false;
+    double zero_N[3] = {0, 0, 0};      // the measured zero offset removed (tool / machine axes)
+    ScopeMetrics overall;
+    std::vector<ScopeMetrics> blocks;
+    // The compared series (after filtering and averaging), for plots: prediction time.
+    std::vector<double> t_s;
+    std::vector<float> predicted[3], measured[3];
+    std::vector<std::int32_t> block;
+};
+
+// The measurement must already be in tool / machine axes (map_to_tool_machine_axes).
+// Throws MeasurementError when the window or the overlap is empty.
+Comparison compare(const PredictedTrace& predicted, const Measurement& measured, const CompareOptions& opt);
+
+// Offset (prediction time = measured time + offset) maximising the Pearson correlation of the three
+// axes over their overlap: a coarse search over every lag on anti-aliased signals at about 2 kHz
+// (FFT), then a full-rate search around every coarse peak within 0.05 of the best (at most 64; the
+// cost is about 3 n (2 f + 1) per peak for n samples decimated by f) with parabolic sub-sample
+// refinement. score: that correlation at the offset found.
+double find_offset_s(const PredictedTrace& predicted, const Measurement& measured, double* score = nullptr);
+
+// The report without the series: offset, settings, overall and per-block metrics.
+nlohmann::json to_json(const Comparison& c);
+// One row per scope and axis: scope,axis,samples,t_start_s,t_end_s,mean_error_N,rmse_N,nrmse,
+// peak_error_N,peak_measured_N,peak_predicted_N,correlation.
+void write_comparison_csv(const Comparison& c, const std::string& path);
+// The compared series: t_s,block,fx_pred_N,fy_pred_N,fz_pred_N,fx_meas_N,fy_meas_N,fz_meas_N.
+void write_comparison_trace_csv(const Comparison& c, const std::vector<std::string>& block_names,
+                                const std::string& path);
+
+}  // namespace cutload::force_model
