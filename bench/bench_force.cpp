@@ -2,8 +2,10 @@
 // depth 1 mm, axial depth 3 mm, 6000 mm/min at 10000 rpm (0.3 mm/tooth) on a 105 x 90 x 30 mm block,
 // at 2 deg / 0.1 mm axial / 0.1 mm grid. Path: rapid approach, then a down-cut contour pass around
 // the block (about 4.4 s of cutting). Prints the real-time factor (simulated machining seconds per
-// wall second, median of several runs) for each device, their ratio, and peak memory.
-#include "force_model/force_model.hpp"
+// wall second, median of several runs) for each device, their ratio, peak memory, the median time
+// of each engine phase, the process CPU time per run (all threads; steadier than wall time on a
+// shared machine) and the load average when the runs started.
+#include "force_model/engine.hpp"
 
 #include <sys/resource.h>
 
@@ -11,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -101,22 +104,46 @@ double peak_rss_mb() {
     return double(u.ru_maxrss) / 1024.0;
 }
 
+double cpu_seconds() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+std::string load_average() {
+    std::ifstream in("/proc/loadavg");
+    std::string one, five, fifteen;
+    in >> one >> five >> fifteen;
+    return one.empty() ? "unknown" : one + " " + five + " " + fifteen;
+}
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
 struct Result {
     bool ok = false;
-    double rtf = 0, wall_s = 0, peak_N = 0;
+    double rtf = 0, wall_s = 0, cpu_s = 0, peak_N = 0;
     std::size_t steps = 0, cutting = 0;
     std::string device;
+    force_model::EnginePhases phases;   // medians
 };
 
 Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec, force_model::Device d, int runs) {
     Result r;
-    std::vector<double> walls;
+    std::vector<double> walls, cpus;
+    std::vector<force_model::EnginePhases> phases;
     try {
         for (int i = 0; i < runs; ++i) {
             force_model::PredictOptions o;
             o.device = d;
-            const auto p = force_model::predict(m, spec, o);
+            force_model::EnginePhases ph;
+            const double cpu0 = cpu_seconds();
+            const auto p = force_model::predict_with(m, spec, o, force_model::EngineSettings{}, &ph);
+            cpus.push_back(cpu_seconds() - cpu0);
             walls.push_back(p.stats.wall_s);
+            phases.push_back(ph);
             r.steps = p.stats.steps;
             r.cutting = p.stats.cutting_steps;
             r.device = p.stats.device;
@@ -128,30 +155,51 @@ Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec
         std::printf("  %s: unavailable (%s)\n", d == force_model::Device::Cpu ? "cpu" : "opencl", e.what());
         return r;
     }
-    std::sort(walls.begin(), walls.end());
-    r.wall_s = walls[walls.size() / 2];
+    r.wall_s = median(walls);
+    r.cpu_s = median(cpus);
     r.rtf /= r.wall_s;
+    using P = force_model::EnginePhases;
+    for (double P::*f : {&P::setup_s, &P::walk_s, &P::queue_s, &P::wait_s, &P::rows_s, &P::removal_s, &P::holder_s,
+                         &P::finish_s, &P::total_s}) {
+        std::vector<double> v;
+        for (const P& p : phases) v.push_back(p.*f);
+        r.phases.*f = median(v);
+    }
+    r.phases.batches = phases.back().batches;
+    r.phases.sweeps = phases.back().sweeps;
     r.ok = true;
     return r;
+}
+
+void print_phases(const force_model::EnginePhases& p) {
+    std::printf("      phases (median ms): setup %.1f  walk %.1f  queue %.1f  wait %.1f  rows %.1f  removal %.1f  "
+                "holder %.1f  finish %.1f  (total %.1f); %zu batches, %zu removal calls\n",
+                1e3 * p.setup_s, 1e3 * p.walk_s, 1e3 * p.queue_s, 1e3 * p.wait_s, 1e3 * p.rows_s, 1e3 * p.removal_s,
+                1e3 * p.holder_s, 1e3 * p.finish_s, 1e3 * p.total_s, p.batches, p.sweeps);
 }
 
 }  // namespace
 
 // Usage: bench_force [RUNS] [opencl|cpu]
 int main(int argc, char** argv) {
-    const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;
+    const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 9;
     const auto m = contour_motion();
     const auto spec = seed_spec();
     std::printf("bench_force: seed 001 experiment, contour pass, %.2f s of motion, resolution %.0f deg / %.1f mm / %.1f mm\n",
                 m.t_s.back(), spec.resolution.angle_step_deg, spec.resolution.axial_step_mm, spec.resolution.grid_mm);
+    std::printf("  load average at start: %s\n", load_average().c_str());
     const std::string only = argc > 2 ? argv[2] : "";   // "opencl" or "cpu": profile one path
     const Result cl = only == "cpu" ? Result{} : measure(m, spec, force_model::Device::OpenCL, runs);
     const Result cpu = only == "opencl" ? Result{} : measure(m, spec, force_model::Device::Cpu, std::max(1, runs / 2 + 1));
     for (const Result* r : {&cl, &cpu})
-        if (r->ok)
-            std::printf("  %-40s median wall %.3f s  real-time factor %7.1fx  (%zu steps, %zu cutting, peak %.0f N)\n",
-                        r->device.c_str(), r->wall_s, r->rtf, r->steps, r->cutting, r->peak_N);
+        if (r->ok) {
+            std::printf("  %-40s median wall %.4f s  real-time factor %7.1fx  CPU %.4f s/run  (%zu steps, %zu cutting, "
+                        "peak %.0f N)\n",
+                        r->device.c_str(), r->wall_s, r->rtf, r->cpu_s, r->steps, r->cutting, r->peak_N);
+            print_phases(r->phases);
+        }
     if (cl.ok && cpu.ok) std::printf("  ratio opencl / cpu: %.2fx\n", cl.rtf / cpu.rtf);
     std::printf("  peak memory (max RSS): %.0f MB\n", peak_rss_mb());
+    std::printf("  load average at end: %s\n", load_average().c_str());
     return 0;
 }

@@ -1,4 +1,5 @@
-// The scalar path: the kernels' C++ twins on the host stock, one thread.
+// The scalar path: the kernels' C++ twins on the host stock, one thread. Work runs when it is
+// queued, so wait() has nothing to wait for.
 #include "force_model/engine.hpp"
 
 namespace cutload::force_model {
@@ -10,12 +11,16 @@ public:
     CpuBackend(Stock& stock, const ToolGeometry& tool) : stock_(stock), tool_(tool) {}
     std::string name() const override { return "cpu (scalar C++ twins)"; }
     void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
-        kernels::engage_twin(steps, tool_.edges, p, stock_.cells.data(), stock_.grid, out);
+        kernels::engage_twin(steps, tool_.edges, p, stock_.view(), out);
     }
-    void sweep(const std::vector<kernels::SweepSegment>& segs, const kernels::SweepParams& p,
-               kernels::SweepCellResult* out) override {
-        kernels::sweep_twin(segs, p, stock_.cells.data(), stock_.grid, out);
+    void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
+               const kernels::SweepParams& p, kernels::SweepCellResult* out) override {
+        for (const kernels::SweepCall& call : calls) {
+            kernels::sweep_twin(segs.data(), call, p, stock_.view(), out);
+            out += call.cells();
+        }
     }
+    void wait() override {}
     void download(Stock&) override {}
 
 private:

@@ -1,9 +1,14 @@
-// The OpenCL path: engage.cl and remove.cl on the runtime's device. Buffers are created once and
-// grown by doubling; on CPU devices (PoCL) the stock buffer wraps the host array (no copy).
+// The OpenCL path: engage.cl and remove.cl on the runtime's device, on one in-order queue, so an
+// engagement always sees the removals queued before it. Nothing blocks until wait(): writes and
+// result reads are non-blocking, the host staging arrays stay untouched until the driver's next
+// wait(). Buffers are created once and grown by doubling; on CPU devices (PoCL) the stock buffer
+// wraps the host array (no copy).
 #include "force_model/engine.hpp"
 #include "kernels/opencl_runtime.hpp"
 
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 
 namespace cutload::force_model {
@@ -13,6 +18,10 @@ namespace {
 using kernels::check_cl;
 using kernels::ClMem;
 
+// Work-group size on CPU devices: small groups keep both cores busy when the cutting steps of a
+// batch are bunched together (PoCL would otherwise pick groups of up to 4096 steps).
+constexpr std::size_t kCpuGroupSize = 64;
+
 class OpenClBackend final : public Backend {
 public:
     OpenClBackend(Stock& stock, const ToolGeometry& tool)
@@ -21,17 +30,26 @@ public:
         engage_ = rt_.make_kernel("engage.cl", "engage");
         remove_ = rt_.make_kernel("remove.cl", "remove_sweep");
         wrap_host_ = rt_.host_unified_memory();
+        group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
         cells_ = buffer((wrap_host_ ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR) | CL_MEM_READ_WRITE,
-                        stock.cells.size() * sizeof(float), stock.cells.data());
+                        stock.storage.bytes(), stock.stored());
+        for (int k = 0; k < 4; ++k) {
+            base_lo_.s[k] = stock.codec.base[k];
+            base_hi_.s[k] = stock.codec.base[4 + k];
+        }
+        base_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof stock.codec.base,
+                       const_cast<std::uint32_t*>(stock.codec.base.data()));
 
         // Structure-of-arrays element table padded to whole float8 lanes (padding never cuts: nr = nz = 0).
         const auto& e = tool.edges;
         const std::size_t E = e.size();
         stride_ = (std::max<std::size_t>(E, 1) + 7) / 8 * 8;
-        std::vector<float> elems(7 * stride_, 0.0f);
+        std::vector<float> elems(8 * stride_, 0.0f);
         for (std::size_t k = 0; k < E; ++k) {
-            const double row[7] = {e.r_mm[k], e.z_mm[k], e.nr[k], e.nz[k], e.db_mm[k], e.z_lo_mm[k], e.z_hi_mm[k]};
-            for (int f = 0; f < 7; ++f) elems[f * stride_ + k] = float(row[f]);
+            const double span = e.z_hi_mm[k] - e.z_lo_mm[k];
+            const double row[8] = {e.r_mm[k],    e.z_mm[k],    e.nr[k],      e.nz[k],
+                                   e.db_mm[k],   e.z_lo_mm[k], e.z_hi_mm[k], span > 0 ? 1 / span : 0.0};
+            for (int f = 0; f < 8; ++f) elems[f * stride_ + k] = float(row[f]);
         }
         elems_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, elems.size() * sizeof(float), elems.data());
         std::vector<float> rot(2 * 2 * std::size_t(e.flutes) * stride_, 0.0f);
@@ -55,16 +73,15 @@ public:
     void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
         const std::size_t n = steps.size();
         if (n == 0) return;
-        const float coef[8] = {float(p.k.Ktc), float(p.k.Krc), float(p.k.Kac), float(p.k.Kte),
-                               float(p.k.Kre), float(p.k.Kae), float(p.holder_face_z_mm), float(p.min_chip_mm)};
-        check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef, coef, 0, nullptr, nullptr),
+        coef_host_ = {float(p.k.Ktc), float(p.k.Krc), float(p.k.Kac), float(p.k.Kte),
+                      float(p.k.Kre), float(p.k.Kae), float(p.holder_face_z_mm), float(p.min_chip_mm)};
+        check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(), 0,
+                                      nullptr, nullptr),
                  "write coefficients");
         grow(steps_buf_, steps_cap_, n, 8 * sizeof(float), CL_MEM_READ_ONLY);
         grow(out_buf_, out_cap_, n, sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
         host_steps_.resize(8 * n);
         for (std::size_t i = 0; i < n; ++i) {
-            // Reduce the angle in double: float cannot hold an unwrapped angle of many revolutions.
-            const double A = std::remainder(std::numbers::pi / 2 - steps.theta_rad[i], 2 * std::numbers::pi);
             float* s = host_steps_.data() + 8 * i;
             s[0] = float(steps.tip_x[i]);
             s[1] = float(steps.tip_y[i]);
@@ -72,20 +89,22 @@ public:
             s[3] = float(steps.feed_x[i]);
             s[4] = float(steps.feed_y[i]);
             s[5] = float(steps.feed_z[i]);
-            s[6] = float(A);
-            s[7] = float(steps.spin[i]);
+            s[6] = float(steps.cos_a[i]);
+            s[7] = float(steps.sin_a[i]);
         }
         check_cl(clEnqueueWriteBuffer(queue_.get(), steps_buf_.get(), CL_FALSE, 0, 8 * n * sizeof(float),
                                       host_steps_.data(), 0, nullptr, nullptr),
                  "write steps");
         const auto& e = tool_.edges;
-        const cl_int n_steps = cl_int(n), n_elems = cl_int(stride_), n_flutes = e.flutes,
-                     bottom = e.bottom_count, end = p.element_end, nx = stock_.grid.nx, ny = stock_.grid.ny;
+        const cl_int n_steps = cl_int(n), n_elems = cl_int(stride_), n_flutes = e.flutes, bottom = e.bottom_count,
+                     end = p.element_end, nx = stock_.grid.nx, ny = stock_.grid.ny;
         const float x0 = float(stock_.grid.x0_mm), y0 = float(stock_.grid.y0_mm), inv = float(1.0 / stock_.grid.cell_mm);
+        const float spin = float(steps.spin);
         cl_kernel k = engage_.get();
         int a = 0;
         arg(k, a++, n_steps);
         arg(k, a++, steps_buf_.get());
+        arg(k, a++, spin);
         arg(k, a++, elems_.get());
         arg(k, a++, rot_.get());
         arg(k, a++, n_elems);
@@ -93,6 +112,8 @@ public:
         arg(k, a++, bottom);
         arg(k, a++, end);
         arg(k, a++, cells_.get());
+        arg(k, a++, base_lo_);
+        arg(k, a++, base_hi_);
         arg(k, a++, x0);
         arg(k, a++, y0);
         arg(k, a++, inv);
@@ -101,14 +122,15 @@ public:
         arg(k, a++, coef_.get());
         arg(k, a++, out_buf_.get());
         launch(k, n);
-        check_cl(clEnqueueReadBuffer(queue_.get(), out_buf_.get(), CL_TRUE, 0, n * sizeof(kernels::StepResult), out, 0,
+        check_cl(clEnqueueReadBuffer(queue_.get(), out_buf_.get(), CL_FALSE, 0, n * sizeof(kernels::StepResult), out, 0,
                                      nullptr, nullptr),
                  "read step results");
     }
 
-    void sweep(const std::vector<kernels::SweepSegment>& segs, const kernels::SweepParams& p,
-               kernels::SweepCellResult* out) override {
-        const std::size_t cells = std::size_t(p.width) * p.height;
+    void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
+               const kernels::SweepParams& p, kernels::SweepCellResult* out) override {
+        std::size_t cells = 0;
+        for (const kernels::SweepCall& c : calls) cells += c.cells();
         if (cells == 0 || segs.empty()) return;
         grow(segs_buf_, segs_cap_, segs.size(), 6 * sizeof(float), CL_MEM_READ_ONLY);
         grow(sweep_buf_, sweep_cap_, cells, sizeof(kernels::SweepCellResult), CL_MEM_WRITE_ONLY);
@@ -121,47 +143,57 @@ public:
         check_cl(clEnqueueWriteBuffer(queue_.get(), segs_buf_.get(), CL_FALSE, 0, host_segs_.size() * sizeof(float),
                                       host_segs_.data(), 0, nullptr, nullptr),
                  "write segments");
-        const cl_int nx = stock_.grid.nx, i0 = p.i0, j0 = p.j0, w = p.width, h = p.height, n_segs = cl_int(segs.size()),
-                     n_lower = cl_int(tool_.lower_mm.size());
+        const cl_int nx = stock_.grid.nx, n_lower = cl_int(tool_.lower_mm.size());
         const float x0 = float(stock_.grid.x0_mm), y0 = float(stock_.grid.y0_mm), cell = float(stock_.grid.cell_mm),
                     radius = float(p.radius_mm), cut = float(p.cut_length_mm);
         cl_kernel k = remove_.get();
-        int a = 0;
-        arg(k, a++, cells_.get());
-        arg(k, a++, nx);
-        arg(k, a++, x0);
-        arg(k, a++, y0);
-        arg(k, a++, cell);
-        arg(k, a++, i0);
-        arg(k, a++, j0);
-        arg(k, a++, w);
-        arg(k, a++, h);
-        arg(k, a++, segs_buf_.get());
-        arg(k, a++, n_segs);
-        arg(k, a++, lower_.get());
-        arg(k, a++, n_lower);
-        arg(k, a++, radius);
-        arg(k, a++, cut);
-        arg(k, a++, sweep_buf_.get());
-        launch(k, cells);
-        check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_TRUE, 0,
-                                     cells * sizeof(kernels::SweepCellResult), out, 0, nullptr, nullptr),
+        std::size_t out_first = 0;
+        for (const kernels::SweepCall& c : calls) {
+            const cl_int i0 = c.i0, j0 = c.j0, w = c.width, h = c.height, seg_first = cl_int(c.first_segment),
+                         n_segs = cl_int(c.segments), first = cl_int(out_first);
+            int a = 0;
+            arg(k, a++, cells_.get());
+            arg(k, a++, base_.get());
+            arg(k, a++, nx);
+            arg(k, a++, x0);
+            arg(k, a++, y0);
+            arg(k, a++, cell);
+            arg(k, a++, i0);
+            arg(k, a++, j0);
+            arg(k, a++, w);
+            arg(k, a++, h);
+            arg(k, a++, segs_buf_.get());
+            arg(k, a++, seg_first);
+            arg(k, a++, n_segs);
+            arg(k, a++, lower_.get());
+            arg(k, a++, n_lower);
+            arg(k, a++, radius);
+            arg(k, a++, cut);
+            arg(k, a++, sweep_buf_.get());
+            arg(k, a++, first);
+            launch(k, c.cells());
+            out_first += c.cells();
+        }
+        check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, cells * sizeof(kernels::SweepCellResult),
+                                     out, 0, nullptr, nullptr),
                  "read sweep results");
     }
 
+    void wait() override { check_cl(clFinish(queue_.get()), "clFinish"); }
+
     void download(Stock& stock) override {
-        const std::size_t bytes = stock.cells.size() * sizeof(float);
+        const std::size_t bytes = stock.storage.bytes();
         if (wrap_host_) {
             // Mapping makes the host array current; PoCL maps a USE_HOST_PTR buffer in place.
             cl_int e = CL_SUCCESS;
             void* p = clEnqueueMapBuffer(queue_.get(), cells_.get(), CL_TRUE, CL_MAP_READ, 0, bytes, 0, nullptr,
                                          nullptr, &e);
             check_cl(e, "map stock");
-            if (p != stock.cells.data()) std::copy_n(static_cast<const float*>(p), stock.cells.size(), stock.cells.data());
+            if (p != stock.stored()) std::memcpy(stock.stored(), p, bytes);
             check_cl(clEnqueueUnmapMemObject(queue_.get(), cells_.get(), p, 0, nullptr, nullptr), "unmap stock");
             check_cl(clFinish(queue_.get()), "finish");
         } else {
-            check_cl(clEnqueueReadBuffer(queue_.get(), cells_.get(), CL_TRUE, 0, bytes, stock.cells.data(), 0, nullptr,
+            check_cl(clEnqueueReadBuffer(queue_.get(), cells_.get(), CL_TRUE, 0, bytes, stock.stored(), 0, nullptr,
                                          nullptr),
                      "read stock");
         }
@@ -175,6 +207,8 @@ private:
         return m;
     }
 
+    // Growing replaces the buffer; commands already queued keep the old one alive (OpenCL reference
+    // counting), so this is safe between waits.
     void grow(ClMem& buf, std::size_t& cap, std::size_t n, std::size_t elem_bytes, cl_mem_flags flags) {
         if (buf && n <= cap) return;
         cap = std::max<std::size_t>(n, 2 * cap);
@@ -187,10 +221,12 @@ private:
     }
 
     void launch(cl_kernel k, std::size_t n) {
-        // Let the runtime choose the work-group size (PoCL vectorises across it); pad the global
-        // size to a multiple of 64, the kernels ignore the padding items.
-        const std::size_t global = (n + 63) / 64 * 64;
-        check_cl(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, nullptr, 0, nullptr, nullptr),
+        // Pad the global size to whole groups; the kernels ignore the padding items. On GPUs the
+        // runtime chooses the group size.
+        const std::size_t pad = std::max<std::size_t>(64, group_);
+        const std::size_t global = (n + pad - 1) / pad * pad;
+        check_cl(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, group_ ? &group_ : nullptr, 0, nullptr,
+                                        nullptr),
                  "clEnqueueNDRangeKernel");
     }
 
@@ -200,10 +236,13 @@ private:
     kernels::ClQueue queue_;
     kernels::ClKernel engage_, remove_;
     bool wrap_host_ = false;
+    std::size_t group_ = 0;
     std::size_t stride_ = 8;
-    ClMem cells_, elems_, rot_, lower_, coef_;
+    ClMem cells_, base_, elems_, rot_, lower_, coef_;
+    cl_uint4 base_lo_{}, base_hi_{};
     ClMem steps_buf_, out_buf_, segs_buf_, sweep_buf_;
     std::size_t steps_cap_ = 0, out_cap_ = 0, segs_cap_ = 0, sweep_cap_ = 0;
+    std::array<float, 8> coef_host_{};
     std::vector<float> host_steps_, host_segs_;
 };
 

@@ -14,8 +14,6 @@
 namespace cutload::force_model {
 
 struct EngineSettings {
-    // A move at or above this feed counts as a rapid (G0); cutting at it is flagged rapid_in_material.
-    double rapid_feed_mm_min = 20000;
     // Stock removal trails the engagement test by this much travel, in grid cells (see
     // docs/force_model.md, "Stock lag"): front edge points then sit clearly inside the stock.
     double removal_lag_cells = 4;
@@ -28,20 +26,41 @@ struct EngineSettings {
     double min_chip_mm = 5e-4;
 };
 
-// Same as predict(), with explicit engine settings.
+// Where a prediction's wall time went (bench_force prints these). The backend works asynchronously:
+// `queue` is the time spent handing it work (for the scalar twins, the work itself), `wait` the time
+// the driver blocked on it, which is what the host's own work did not hide.
+struct EnginePhases {
+    double setup_s = 0;     // tool geometry, stock, backend (buffers, kernels)
+    double walk_s = 0;      // motion walk: step times, positions, batching, air checks
+    double queue_s = 0;     // backend calls that queue engagement and removal
+    double wait_s = 0;      // blocked until the backend finished
+    double rows_s = 0;      // step results to rows
+    double removal_s = 0;   // pending path, chords, top map and tile updates (host side of removal)
+    double holder_s = 0;    // shank and holder contact checks
+    double finish_s = 0;    // stock download, block summaries, releasing the backend
+    double total_s = 0;
+    std::size_t batches = 0, sweeps = 0;   // engagement batches and removal calls queued
+};
+
+// Same as predict(), with explicit engine settings; fills `phases` when given.
 Prediction predict_with(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
-                        const EngineSettings& settings);
+                        const EngineSettings& settings, EnginePhases* phases = nullptr);
 
 // The two heavy loops behind one interface: engage() evaluates a batch of time steps against the
-// current stock, sweep() removes the tool's swept volume along path segments from it.
+// stock, sweep() removes the tool's swept volume along path segments from it. Both only queue the
+// work, in order (an engagement sees every removal queued before it); the results are valid after
+// wait(). The inputs may be reused as soon as the call returns; the outputs must stay in place
+// until wait(). At most one engage() and one sweep() call may be outstanding between waits.
 class Backend {
 public:
     virtual ~Backend() = default;
     virtual std::string name() const = 0;
     virtual void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p,
                         kernels::StepResult* out) = 0;
-    virtual void sweep(const std::vector<kernels::SweepSegment>& segs, const kernels::SweepParams& p,
-                       kernels::SweepCellResult* out) = 0;
+    // Call k writes its calls[k].cells() results after those of the calls before it.
+    virtual void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
+                       const kernels::SweepParams& p, kernels::SweepCellResult* out) = 0;
+    virtual void wait() = 0;
     // Copies the backend's stock into the host stock (end of run).
     virtual void download(Stock& stock) = 0;
 };

@@ -129,7 +129,7 @@ struct BlockSummary {
 };
 
 struct PredictStats {
-    double simulated_s = 0;       // duration of motion simulated
+    double simulated_s = 0;       // motion simulated: the sum of the sessions' spans
     double wall_s = 0;
     std::size_t steps = 0, cutting_steps = 0;
     std::string device;           // device name actually used

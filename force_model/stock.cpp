@@ -1,11 +1,19 @@
 #include "force_model/stock.hpp"
 
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cutload::force_model {
 
@@ -34,6 +42,44 @@ struct Header {
 
 }  // namespace
 
+ZeroPages::ZeroPages(std::size_t bytes) : bytes_(bytes) {
+    if (bytes == 0) return;
+    void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = p;
+}
+
+ZeroPages::ZeroPages(const ZeroPages& other) : ZeroPages(other.bytes_) {
+    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    const auto* src = static_cast<const unsigned char*>(other.data_);
+    auto* dst = static_cast<unsigned char*>(data_);
+    for (std::size_t at = 0; at < bytes_; at += page) {
+        const std::size_t n = std::min(page, bytes_ - at);
+        if (std::any_of(src + at, src + at + n, [](unsigned char b) { return b != 0; })) std::memcpy(dst + at, src + at, n);
+    }
+}
+
+ZeroPages::ZeroPages(ZeroPages&& other) noexcept
+    : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
+
+ZeroPages& ZeroPages::operator=(ZeroPages&& other) noexcept {
+    if (this != &other) {
+        if (data_) munmap(data_, bytes_);
+        data_ = std::exchange(other.data_, nullptr);
+        bytes_ = std::exchange(other.bytes_, 0);
+    }
+    return *this;
+}
+
+ZeroPages::~ZeroPages() {
+    if (data_) munmap(data_, bytes_);
+}
+
+bool Stock::untouched(std::size_t r) const {
+    const float* s = stored() + r * kernels::kDexelFloats;
+    return std::all_of(s, s + kernels::kDexelFloats, [](float v) { return std::bit_cast<std::uint32_t>(v) == 0; });
+}
+
 void StockDeleter::operator()(Stock* s) const { delete s; }
 
 StockPtr make_stock(const StockBox& box, double grid_mm) {
@@ -50,14 +96,8 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     s->grid.ny = std::max(1, int(std::lround((box.max_mm[1] - box.min_mm[1]) / grid_mm)));
     const std::size_t rays = std::size_t(s->grid.nx) * s->grid.ny;
     if (rays > 400'000'000ull) throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
-    s->cells.assign(rays * kernels::kDexelFloats, 0.0f);
-    for (std::size_t r = 0; r < rays; ++r) {
-        float* ray = s->cells.data() + r * kernels::kDexelFloats;
-        for (int k = 0; k < kernels::kDexelIntervals; ++k) {
-            ray[k] = k == 0 ? float(box.min_mm[2]) : kernels::kEmptyLo;
-            ray[kernels::kDexelIntervals + k] = k == 0 ? float(box.max_mm[2]) : kernels::kEmptyHi;
-        }
-    }
+    s->codec = kernels::RayCodec::for_column(float(box.min_mm[2]), float(box.max_mm[2]));
+    s->storage = ZeroPages(rays * kernels::kDexelFloats * sizeof(float));   // all rays: the full box column
     return s;
 }
 
@@ -65,8 +105,8 @@ StockPtr copy_stock(const Stock& s) { return StockPtr(new Stock(s)); }
 
 double stock_volume_mm3(const Stock& s) {
     double len = 0;
-    const std::size_t rays = s.cells.size() / kernels::kDexelFloats;
-    for (std::size_t r = 0; r < rays; ++r) len += kernels::ray_length(s.cells.data() + r * kernels::kDexelFloats);
+    const double full = kernels::ray_length(s.codec.decode(kernels::Ray{}.data()));
+    for (std::size_t r = 0; r < s.rays(); ++r) len += s.untouched(r) ? full : kernels::ray_length(s.ray(r));
     return len * s.grid.cell_mm * s.grid.cell_mm;
 }
 
@@ -84,15 +124,18 @@ void save_stock(const Stock& s, const std::string& path) {
         h.box_min[k] = s.box.min_mm[k];
         h.box_max[k] = s.box.max_mm[k];
     }
-    const std::size_t bytes = s.cells.size() * sizeof(float);
-    std::uint64_t sum = fnv1a(&h, sizeof h);
-    sum = fnv1a(s.cells.data(), bytes, sum);
+    // The file holds plain (decoded) rays, so it does not depend on the in-memory encoding.
     const std::string tmp = path + ".tmp";
     {
         std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
         if (!out) throw std::runtime_error("cannot write stock file " + tmp);
         out.write(reinterpret_cast<const char*>(&h), sizeof h);
-        out.write(reinterpret_cast<const char*>(s.cells.data()), std::streamsize(bytes));
+        std::uint64_t sum = fnv1a(&h, sizeof h);
+        for (std::size_t r = 0; r < s.rays(); ++r) {
+            const kernels::Ray ray = s.ray(r);
+            out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
+            sum = fnv1a(ray.data(), sizeof ray, sum);
+        }
         out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
         if (!out) throw std::runtime_error("writing stock file " + tmp + " failed");
     }
@@ -121,15 +164,22 @@ StockPtr load_stock(const std::string& path) {
         s->box.min_mm[k] = h.box_min[k];
         s->box.max_mm[k] = h.box_max[k];
     }
-    s->cells.resize(std::size_t(h.nx) * h.ny * kernels::kDexelFloats);
-    const std::size_t bytes = s->cells.size() * sizeof(float);
-    in.read(reinterpret_cast<char*>(s->cells.data()), std::streamsize(bytes));
+    s->codec = kernels::RayCodec::for_column(float(h.box_min[2]), float(h.box_max[2]));
+    s->storage = ZeroPages(s->rays() * kernels::kDexelFloats * sizeof(float));
+    std::uint64_t sum = fnv1a(&h, sizeof h);
+    const kernels::Ray full = s->codec.decode(kernels::Ray{}.data());
+    std::vector<kernels::Ray> row(std::size_t(h.nx));
+    for (std::size_t r = 0; r < s->rays() && in; r += row.size()) {
+        in.read(reinterpret_cast<char*>(row.data()), std::streamsize(row.size() * sizeof(kernels::Ray)));
+        if (!in) break;
+        sum = fnv1a(row.data(), row.size() * sizeof(kernels::Ray), sum);
+        for (std::size_t k = 0; k < row.size(); ++k)
+            if (row[k] != full) s->codec.encode(row[k], s->stored() + (r + k) * kernels::kDexelFloats);
+    }
     std::uint64_t stored = 0;
     in.read(reinterpret_cast<char*>(&stored), sizeof stored);
     if (!in) throw std::runtime_error(path + ": stock file is truncated");
     if (in.peek() != std::char_traits<char>::eof()) throw std::runtime_error(path + ": stock file has trailing bytes");
-    std::uint64_t sum = fnv1a(&h, sizeof h);
-    sum = fnv1a(s->cells.data(), bytes, sum);
     if (sum != stored) throw std::runtime_error(path + ": stock file checksum mismatch (corrupt)");
     return s;
 }

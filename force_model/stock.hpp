@@ -1,23 +1,51 @@
 // Internal: the in-process workpiece behind the opaque force_model::Stock.
+//
+// The rays are stored encoded (kernels::RayCodec: XOR-ed with the box's full column), so a ray that
+// was never cut is zero bytes, in anonymous zero pages from the OS (ZeroPages). A fresh stock then
+// costs neither a fill nor page faults: a run only touches the pages of the rays it cuts.
 #pragma once
 
 #include "force_model/force_model.hpp"
 #include "kernels/engine_kernels.hpp"
 
-#include <vector>
+#include <cstddef>
 
 namespace cutload::force_model {
+
+// Page-aligned, zero-filled memory mapped from the OS; pages are faulted in on first write. Copies
+// copy only the pages that are not all zero, so a copy stays as lazy as its source.
+class ZeroPages {
+public:
+    ZeroPages() = default;
+    explicit ZeroPages(std::size_t bytes);
+    ZeroPages(const ZeroPages& other);
+    ZeroPages& operator=(const ZeroPages&) = delete;
+    ZeroPages(ZeroPages&& other) noexcept;
+    ZeroPages& operator=(ZeroPages&& other) noexcept;
+    ~ZeroPages();
+
+    void* data() const { return data_; }
+    std::size_t bytes() const { return bytes_; }
+
+private:
+    void* data_ = nullptr;
+    std::size_t bytes_ = 0;
+};
 
 class Stock {
 public:
     StockBox box;
     kernels::GridInfo grid;
-    std::vector<float> cells;   // kDexelFloats per ray, row-major (j * nx + i)
+    kernels::RayCodec codec;   // base column: the box's full height
+    ZeroPages storage;         // encoded rays, kDexelFloats floats each, row-major (j * nx + i)
 
-    float* ray(int i, int j) { return cells.data() + (std::size_t(j) * grid.nx + i) * kernels::kDexelFloats; }
-    const float* ray(int i, int j) const {
-        return cells.data() + (std::size_t(j) * grid.nx + i) * kernels::kDexelFloats;
-    }
+    std::size_t rays() const { return std::size_t(grid.nx) * std::size_t(grid.ny); }
+    float* stored() const { return static_cast<float*>(storage.data()); }
+    kernels::DexelView view() const { return {stored(), grid, codec}; }
+    kernels::Ray ray(std::size_t r) const { return codec.decode(stored() + r * kernels::kDexelFloats); }
+    kernels::Ray ray(int i, int j) const { return ray(std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)); }
+    // True when ray r was never cut (still the box's full column).
+    bool untouched(std::size_t r) const;
 };
 
 }  // namespace cutload::force_model

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 namespace cutload::force_model {
 
@@ -17,24 +16,28 @@ void trip(BlockSummary& b, const char* flag, double t_s, double value) {
 }  // namespace
 
 std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
-                                           const std::vector<RowExtra>& extra, const Limits& limits,
-                                           const EngineSettings& settings) {
+                                           const std::vector<RowExtra>& extra, const Limits& limits) {
     // One summary per block in order of first appearance in the motion; rows without a block
-    // (index -1) are summarised as "(none)".
+    // (a negative index) are summarised as "(none)". Block indices are small: a flat table maps
+    // them to summaries.
     std::vector<BlockSummary> out;
-    std::map<std::int32_t, std::size_t> index;
-    auto slot = [&](std::int32_t block, double t_s) -> BlockSummary& {
-        auto [it, fresh] = index.try_emplace(block, out.size());
-        if (fresh) {
+    std::int32_t max_block = -1;
+    for (std::int32_t b : motion.block) max_block = std::max(max_block, b);
+    for (const ForceSample& s : rows) max_block = std::max(max_block, s.block);
+    std::vector<std::ptrdiff_t> index(std::size_t(max_block) + 2, -1);
+    auto slot_index = [&](std::int32_t block, double t_s) -> std::size_t {
+        std::ptrdiff_t& at = index[std::size_t(std::max(block, std::int32_t(-1)) + 1)];
+        if (at < 0) {
+            at = std::ptrdiff_t(out.size());
             BlockSummary b;
             b.block = block >= 0 && std::size_t(block) < motion.block_names.size() ? motion.block_names[block] : "(none)";
             b.t_start_s = b.t_end_s = t_s;
             out.push_back(std::move(b));
         }
-        return out[it->second];
+        return std::size_t(at);
     };
     for (std::size_t i = 0; i < motion.size(); ++i) {
-        BlockSummary& b = slot(motion.block[i], motion.t_s[i]);
+        BlockSummary& b = out[slot_index(motion.block[i], motion.t_s[i])];
         b.t_start_s = std::min(b.t_start_s, motion.t_s[i]);
         b.t_end_s = std::max(b.t_end_s, motion.t_s[i]);
     }
@@ -43,8 +46,8 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
     for (std::size_t r = 0; r < rows.size(); ++r) {
         const ForceSample& s = rows[r];
         const RowExtra& x = extra[r];
-        BlockSummary& b = slot(s.block, s.t_s);
-        const std::size_t bi = index[s.block];
+        const std::size_t bi = slot_index(s.block, s.t_s);
+        BlockSummary& b = out[bi];
         if (force_sum.size() < out.size()) {
             force_sum.resize(out.size(), 0.0);
             cutting_rows.resize(out.size(), 0);
@@ -68,7 +71,7 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
         if (limits.chip_mm > 0 && s.chip_mm > limits.chip_mm) trip(b, "chip_load_limit", s.t_s, s.chip_mm);
         if (limits.bending_MPa > 0 && s.bending_MPa > limits.bending_MPa)
             trip(b, "bending_limit", s.t_s, s.bending_MPa);
-        if (x.feed_mm_min >= settings.rapid_feed_mm_min && (x.engaged > 0 || s.removed_mm3 > 0))
+        if (limits.rapid_feed_mm_min > 0 && x.feed_mm_min >= limits.rapid_feed_mm_min && (x.engaged > 0 || s.removed_mm3 > 0))
             trip(b, "rapid_in_material", s.t_s, x.feed_mm_min);
         if (s.holder_contact) trip(b, "holder_contact", s.t_s, 1.0);
         if (x.stopped_in_material) trip(b, "spindle_stopped", s.t_s, x.spindle_rpm);

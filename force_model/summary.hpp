@@ -16,7 +16,6 @@ struct RowExtra {
 };
 
 std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
-                                           const std::vector<RowExtra>& extra, const Limits& limits,
-                                           const EngineSettings& settings);
+                                           const std::vector<RowExtra>& extra, const Limits& limits);
 
 }  // namespace cutload::force_model

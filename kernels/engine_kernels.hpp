@@ -6,6 +6,7 @@
 // agree to float rounding (tests require 0.5 % on forces).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -14,16 +15,42 @@ namespace cutload::kernels {
 
 // ---- Dexel (multi-interval Z-map) grid -----------------------------------------------------------
 // Cell (i, j) is the vertical ray at x = x0 + (i + 0.5) g, y = y0 + (j + 0.5) g. Each ray holds up to
-// kDexelIntervals material intervals [lo, hi), stored as lo[4] then hi[4] (8 floats per cell), sorted
-// by lo; unused slots are empty ([kEmptyLo, kEmptyHi)), so "inside" needs no count.
+// kDexelIntervals material intervals [lo, hi), as lo[4] then hi[4] (8 floats per cell), sorted by
+// lo; unused slots are empty ([kEmptyLo, kEmptyHi)), so "inside" needs no count. In memory the rays
+// are encoded (RayCodec below).
 constexpr int kDexelIntervals = 4;
 constexpr int kDexelFloats = 2 * kDexelIntervals;
 constexpr float kEmptyLo = 1e30f;
 constexpr float kEmptyHi = -1e30f;
+// Material thinner than this is numerical dust from float round-off and repeated sweeps: removal
+// drops such leftovers and engagement ignores overlaps this short.
+constexpr double kSliverMm = 1e-4;
 
 struct GridInfo {
     double x0_mm = 0, y0_mm = 0, cell_mm = 0.1;
     int nx = 0, ny = 0;
+};
+
+using Ray = std::array<float, kDexelFloats>;
+
+// Rays are stored with each float's bits XOR-ed with a base column (the stock box's full column),
+// so a ray that was never cut is all zero bytes: a fresh stock needs no fill, and its memory can
+// come straight from zeroed OS pages that are only faulted in where the tool cuts.
+struct RayCodec {
+    std::array<std::uint32_t, kDexelFloats> base{};
+    static RayCodec for_column(float z_lo_mm, float z_hi_mm);
+    Ray decode(const float* stored) const;
+    void encode(const Ray& ray, float* stored) const;
+    float base_top() const;
+};
+
+// The stored dexel grid as the kernels and twins see it.
+struct DexelView {
+    float* cells = nullptr;   // kDexelFloats per ray, row-major (j * nx + i), encoded with codec
+    GridInfo grid;
+    RayCodec codec;
+    Ray load(std::size_t r) const { return codec.decode(cells + r * kDexelFloats); }
+    void store(std::size_t r, const Ray& ray) const { codec.encode(ray, cells + r * kDexelFloats); }
 };
 
 // ---- Tool edge elements --------------------------------------------------------------------------
@@ -34,7 +61,8 @@ struct EdgeTable {
     std::vector<double> r_mm, z_mm;          // edge point: radius, height above the tip
     std::vector<double> nr, nz;              // outward surface normal (radial, axial components)
     std::vector<double> db_mm;               // chip width (element length along the profile)
-    std::vector<double> z_lo_mm, z_hi_mm;    // axial extent of the element
+    std::vector<double> z_lo_mm, z_hi_mm;    // axial extent of the element; an element with z_hi > z_lo cuts
+                                             // with the fraction of it inside material (axial weighting)
     std::vector<double> lag_rad;             // helix lag behind the flute's tip
     int flutes = 2;
     int bottom_count = 0;
@@ -55,7 +83,10 @@ struct StepBatch {
     std::vector<double> tip_x, tip_y, tip_z;       // tool tip in stock coordinates, mm
     std::vector<double> feed_x, feed_y, feed_z;    // feed per tooth vector, mm
     std::vector<double> theta_rad;                 // spindle angle
-    std::vector<double> spin;                      // +1 M03, -1 M04
+    // cos and sin of A = pi/2 - theta (flute 0's tip direction), for the kernels; the twins take
+    // the trigonometry of theta_rad per element instead, as the reference.
+    std::vector<double> cos_a, sin_a;
+    double spin = 1;                               // +1 M03, -1 M04, for the whole batch
     std::size_t size() const { return tip_x.size(); }
     void clear();
     void reserve(std::size_t n);
@@ -91,7 +122,14 @@ struct SweepParams {
     std::vector<double> lower_mm;   // lower surface height over radius, lower_mm.size() >= 2
     double radius_mm = 4;           // cutting radius (last table entry)
     double cut_length_mm = 20;      // flute length: material above it is not cut (shank contact)
-    int i0 = 0, j0 = 0, width = 0, height = 0;   // cell rectangle to update
+};
+
+// One removal call: segments [first_segment, first_segment + segments) of a shared list, applied to
+// the rays of a cell rectangle. Calls run in order; each writes width * height results.
+struct SweepCall {
+    std::size_t first_segment = 0, segments = 0;
+    int i0 = 0, j0 = 0, width = 0, height = 0;
+    std::size_t cells() const { return std::size_t(width) * std::size_t(height); }
 };
 
 struct SweepCellResult {
@@ -100,9 +138,9 @@ struct SweepCellResult {
 };
 
 // Scalar twins.
-void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const float* cells,
-                 const GridInfo& grid, StepResult* out);
-void sweep_twin(const std::vector<SweepSegment>& segs, const SweepParams& p, float* cells, const GridInfo& grid,
+void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const DexelView& stock,
+                 StepResult* out);
+void sweep_twin(const SweepSegment* segs, const SweepCall& call, const SweepParams& p, const DexelView& stock,
                 SweepCellResult* out);
 
 // Shared interval arithmetic (also used to build and check stocks): removes [a, b) from one ray;
@@ -112,6 +150,11 @@ double subtract_interval(float* ray, double a_mm, double b_mm);
 double ray_length(const float* ray);
 float ray_top(const float* ray);
 bool ray_contains(const float* ray, double z_mm);
+inline double ray_length(const Ray& ray) { return ray_length(ray.data()); }
+inline float ray_top(const Ray& ray) { return ray_top(ray.data()); }
+// Length of [a, b) inside the ray's material (pieces over kSliverMm), and the lowest and highest
+// material point in it.
+double ray_overlap(const float* ray, double a_mm, double b_mm, double& lo_mm, double& hi_mm);
 
 // Height of the tabulated lower surface at radius d (linear interpolation).
 double lower_surface(const SweepParams& p, double d_mm);

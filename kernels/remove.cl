@@ -4,11 +4,13 @@
 //
 // segs:  6 floats per segment: a x, y, z, b x, y, z (tool tip)
 // lower: lower surface height above the tip at radius d = k * radius / (n_lower - 1)
+// cells: 8 floats per ray (lo[4], hi[4]), each XOR-ed with base[8] (RayCodec); a ray is written back
+//        only when it changes, so the pages of rays the tool misses stay untouched
 // out:   per ray: removed length, new top
 #define K 4
 #define EMPTY_LO 1e30f
 #define EMPTY_HI -1e30f
-#define SLIVER 1e-4f
+#define SLIVER 1e-4f   // kSliverMm in engine_kernels.hpp
 
 float lower_at(__global const float* lower, const int n_lower, const float radius, const float d) {
     const float u = clamp(d / radius, 0.0f, 1.0f) * (float)(n_lower - 1);
@@ -23,12 +25,15 @@ float height_at(const float A, const float B, const float C, const float az, con
     return az + uz * t + lower_at(lower, n_lower, radius, d);
 }
 
-__kernel void remove_sweep(__global float* cells, const int nx, const float x0, const float y0, const float cell,
-                           const int i0, const int j0, const int width, const int height,
-                           __global const float* segs, const int n_segs, __global const float* lower,
-                           const int n_lower, const float radius, const float cut_length, __global float2* out) {
+__kernel void remove_sweep(__global uint* cells, __constant uint* base, const int nx, const float x0, const float y0,
+                           const float cell, const int i0, const int j0, const int width, const int height,
+                           __global const float* all_segs, const int seg_first, const int n_segs,
+                           __global const float* lower, const int n_lower, const float radius,
+                           const float cut_length, __global float2* all_out, const int out_first) {
     const int g = get_global_id(0);
     if (g >= width * height) return;
+    __global const float* segs = all_segs + 6 * seg_first;
+    __global float2* out = all_out + out_first;
     const int ii = g % width, jj = g / width;
     const int i = i0 + ii, j = j0 + jj;
     const float cx = x0 + ((float)i + 0.5f) * cell, cy = y0 + ((float)j + 0.5f) * cell;
@@ -75,11 +80,14 @@ __kernel void remove_sweep(__global float* cells, const int nx, const float x0, 
         zb = fmin(zb, best);
         zt = fmax(zt, fmax(sg[2] + uz * t0, sg[2] + uz * t1) + cut_length);
     }
-    __global float* ray = cells + 8 * (j * nx + i);
+    __global uint* stored = cells + 8 * (j * nx + i);
+    float ray[2 * K];
+    for (int k = 0; k < 2 * K; ++k) ray[k] = as_float(stored[k] ^ base[k]);
     float before = 0.0f, after = 0.0f, top = EMPTY_HI;
     if (zb < zt) {
         float plo[K + 1], phi[K + 1];
         int n = 0;
+        bool changed = false;
         for (int k = 0; k < K; ++k) {
             const float lo = ray[k], hi = ray[K + k];
             if (!(hi > lo)) continue;
@@ -88,6 +96,7 @@ __kernel void remove_sweep(__global float* cells, const int nx, const float x0, 
                 plo[n] = lo; phi[n] = hi; ++n;
                 continue;
             }
+            changed = true;
             if (zb - lo > SLIVER) { plo[n] = lo; phi[n] = zb; ++n; }
             if (hi - zt > SLIVER) { plo[n] = zt; phi[n] = hi; ++n; }
         }
@@ -101,9 +110,12 @@ __kernel void remove_sweep(__global float* cells, const int nx, const float x0, 
             --n;
         }
         for (int k = 0; k < K; ++k) {
-            ray[k] = k < n ? plo[k] : EMPTY_LO;
-            ray[K + k] = k < n ? phi[k] : EMPTY_HI;
-            if (k < n) { after += phi[k] - plo[k]; top = fmax(top, phi[k]); }
+            const float lo = k < n ? plo[k] : EMPTY_LO, hi = k < n ? phi[k] : EMPTY_HI;
+            if (changed) {
+                stored[k] = as_uint(lo) ^ base[k];
+                stored[K + k] = as_uint(hi) ^ base[K + k];
+            }
+            if (k < n) { after += hi - lo; top = fmax(top, hi); }
         }
         out[g] = (float2)(before - after, top);
     } else {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -9,17 +10,52 @@
 namespace cutload::kernels {
 
 void StepBatch::clear() {
-    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &spin}) v->clear();
+    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &cos_a, &sin_a}) v->clear();
 }
 
 void StepBatch::reserve(std::size_t n) {
-    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &spin}) v->reserve(n);
+    for (auto* v : {&tip_x, &tip_y, &tip_z, &feed_x, &feed_y, &feed_z, &theta_rad, &cos_a, &sin_a}) v->reserve(n);
 }
+
+RayCodec RayCodec::for_column(float z_lo_mm, float z_hi_mm) {
+    RayCodec c;
+    for (int k = 0; k < kDexelIntervals; ++k) {
+        c.base[k] = std::bit_cast<std::uint32_t>(k == 0 ? z_lo_mm : kEmptyLo);
+        c.base[kDexelIntervals + k] = std::bit_cast<std::uint32_t>(k == 0 ? z_hi_mm : kEmptyHi);
+    }
+    return c;
+}
+
+Ray RayCodec::decode(const float* stored) const {
+    Ray r;
+    for (int k = 0; k < kDexelFloats; ++k) r[k] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(stored[k]) ^ base[k]);
+    return r;
+}
+
+void RayCodec::encode(const Ray& ray, float* stored) const {
+    for (int k = 0; k < kDexelFloats; ++k) stored[k] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(ray[k]) ^ base[k]);
+}
+
+float RayCodec::base_top() const { return std::bit_cast<float>(base[kDexelIntervals]); }
 
 bool ray_contains(const float* ray, double z_mm) {
     for (int k = 0; k < kDexelIntervals; ++k)
         if (z_mm >= ray[k] && z_mm < ray[kDexelIntervals + k]) return true;
     return false;
+}
+
+double ray_overlap(const float* ray, double a_mm, double b_mm, double& lo_mm, double& hi_mm) {
+    double len = 0;
+    lo_mm = std::numeric_limits<double>::infinity();
+    hi_mm = -lo_mm;
+    for (int k = 0; k < kDexelIntervals; ++k) {
+        const double a = std::max(a_mm, double(ray[k])), b = std::min(b_mm, double(ray[kDexelIntervals + k]));
+        if (!(b - a > kSliverMm)) continue;
+        len += b - a;
+        lo_mm = std::min(lo_mm, a);
+        hi_mm = std::max(hi_mm, b);
+    }
+    return len;
 }
 
 double ray_length(const float* ray) {
@@ -37,8 +73,6 @@ float ray_top(const float* ray) {
 }
 
 double subtract_interval(float* ray, double a_mm, double b_mm) {
-    // Thinner leftovers than this are numerical dust from repeated sweeps, not material.
-    constexpr double kSliver_mm = 1e-4;
     std::array<std::pair<double, double>, kDexelIntervals + 1> piece{};
     int n = 0;
     const double before = ray_length(ray);
@@ -49,8 +83,8 @@ double subtract_interval(float* ray, double a_mm, double b_mm) {
             piece[n++] = {lo, hi};
             continue;
         }
-        if (a_mm - lo > kSliver_mm) piece[n++] = {lo, a_mm};
-        if (hi - b_mm > kSliver_mm) piece[n++] = {b_mm, hi};
+        if (a_mm - lo > kSliverMm) piece[n++] = {lo, a_mm};
+        if (hi - b_mm > kSliverMm) piece[n++] = {b_mm, hi};
     }
     // Pieces come out ordered: the rays are sorted and a split yields its lower piece first.
     if (n > kDexelIntervals) {
@@ -131,36 +165,42 @@ bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParam
 
 }  // namespace
 
-void sweep_twin(const std::vector<SweepSegment>& segs, const SweepParams& p, float* cells, const GridInfo& grid,
+void sweep_twin(const SweepSegment* segs, const SweepCall& call, const SweepParams& p, const DexelView& stock,
                 SweepCellResult* out) {
-    for (int jj = 0; jj < p.height; ++jj) {
-        for (int ii = 0; ii < p.width; ++ii) {
-            const int i = p.i0 + ii, j = p.j0 + jj;
-            float* ray = cells + (std::size_t(j) * grid.nx + i) * kDexelFloats;
+    const GridInfo& grid = stock.grid;
+    for (int jj = 0; jj < call.height; ++jj) {
+        for (int ii = 0; ii < call.width; ++ii) {
+            const int i = call.i0 + ii, j = call.j0 + jj;
+            const std::size_t index = std::size_t(j) * grid.nx + i;
             const double cx = grid.x0_mm + (i + 0.5) * grid.cell_mm, cy = grid.y0_mm + (j + 0.5) * grid.cell_mm;
             double zb = std::numeric_limits<double>::infinity(), zt = -zb;
-            for (const SweepSegment& s : segs) {
+            for (std::size_t k = 0; k < call.segments; ++k) {
                 double b, t;
-                if (segment_cover(s, cx, cy, p, b, t)) {
+                if (segment_cover(segs[call.first_segment + k], cx, cy, p, b, t)) {
                     zb = std::min(zb, b);
                     zt = std::max(zt, t);
                 }
             }
-            SweepCellResult& r = out[std::size_t(jj) * p.width + ii];
-            r.removed_mm = zb < zt ? float(subtract_interval(ray, zb, zt)) : 0.0f;
+            SweepCellResult& r = out[std::size_t(jj) * call.width + ii];
+            const Ray before = stock.load(index);
+            Ray ray = before;
+            r.removed_mm = zb < zt ? float(subtract_interval(ray.data(), zb, zt)) : 0.0f;
+            // Unchanged rays are not written back: their pages stay untouched.
+            if (ray != before) stock.store(index, ray);
             r.top_mm = ray_top(ray);
         }
     }
 }
 
-void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const float* cells,
-                 const GridInfo& grid, StepResult* out) {
+void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const DexelView& stock,
+                 StepResult* out) {
+    const GridInfo& grid = stock.grid;
     const double pitch = 2 * std::numbers::pi / tool.flutes;
     const CuttingCoefficients& k = p.k;
     for (std::size_t i = 0; i < steps.size(); ++i) {
         const double tx = steps.tip_x[i], ty = steps.tip_y[i], tz = steps.tip_z[i];
         const double fx = steps.feed_x[i], fy = steps.feed_y[i], fz = steps.feed_z[i];
-        const double s = steps.spin[i];
+        const double s = steps.spin;
         const double fxy = std::hypot(fx, fy);
         const double px = fxy > 1e-12 ? -fy / fxy : 1.0, py = fxy > 1e-12 ? fx / fxy : 0.0;
         double Fx = 0, Fy = 0, Fz = 0, T = 0, Mx = 0, My = 0, chip = 0;
@@ -178,9 +218,17 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 const double ci = std::floor((x - grid.x0_mm) / grid.cell_mm);
                 const double cj = std::floor((y - grid.y0_mm) / grid.cell_mm);
                 if (ci < 0 || cj < 0 || ci >= grid.nx || cj >= grid.ny) continue;
-                const float* ray = cells + (std::size_t(cj) * grid.nx + std::size_t(ci)) * kDexelFloats;
-                if (!ray_contains(ray, z)) continue;
-                const double db = tool.db_mm[e];
+                const Ray stored = stock.load(std::size_t(cj) * grid.nx + std::size_t(ci));
+                const float* ray = stored.data();
+                const double span = tool.z_hi_mm[e] - tool.z_lo_mm[e];
+                double weight = 0, clip_lo = z, clip_hi = z;
+                if (span > 0) {
+                    weight = ray_overlap(ray, tz + tool.z_lo_mm[e], tz + tool.z_hi_mm[e], clip_lo, clip_hi) / span;
+                } else if (ray_contains(ray, z)) {
+                    weight = 1;
+                }
+                if (weight <= 0) continue;
+                const double db = tool.db_mm[e] * weight;
                 const double dFt = (k.Ktc * h + k.Kte) * db;
                 const double dFr = (k.Krc * h + k.Kre) * db;
                 const double dFa = (k.Kac * h + k.Kae) * db;
@@ -199,8 +247,8 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 const double q = r * (cu * px + su * py);
                 qmin = std::min(qmin, q);
                 qmax = std::max(qmax, q);
-                zmin = std::min(zmin, tool.z_lo_mm[e]);
-                zmax = std::max(zmax, tool.z_hi_mm[e]);
+                zmin = std::min(zmin, clip_lo - tz);
+                zmax = std::max(zmax, clip_hi - tz);
                 ++engaged;
             }
         }

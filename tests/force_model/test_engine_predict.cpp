@@ -187,3 +187,19 @@ TEST_CASE("OpenCL device selection errors are clear") {
         CHECK_THROWS_WITH(run(m, spec, Device::OpenCL), Catch::Contains("OpenCL"));
     }
 }
+
+TEST_CASE("the rapid threshold comes from the run spec's limits") {
+    auto spec = base_spec();
+    const auto through = legs_motion({-10, 10, 8}, {{{50, 10, 8}, 30000, "G0 through"}});
+    const auto cut = legs_motion({-10, 10, 8}, {{{50, 10, 8}, 6000, "G1 cut"}});
+    CHECK_FALSE(has_flag(run(cut, spec).blocks[0], "rapid_in_material"));   // default 20000 mm/min
+    // The fixture stops dead at the end of a leg: the Hermite speed overshoots by a third there.
+    spec.limits.rapid_feed_mm_min = 60000;
+    CHECK_FALSE(has_flag(run(through, spec).blocks[0], "rapid_in_material"));
+    spec.limits.rapid_feed_mm_min = 5000;
+    const auto p = run(cut, spec);
+    const auto& b = p.blocks[0];
+    REQUIRE(has_flag(b, "rapid_in_material"));
+    for (const auto& f : b.flags)
+        if (f.flag == "rapid_in_material") CHECK(f.value == Approx(6000).epsilon(0.01));
+}

@@ -59,7 +59,7 @@ TEST_CASE("a cut below material leaves two intervals per ray") {
     spec.tool.flute_length_mm = 4;   // cuts [3, 7]; the shank rubs the material above
     const auto m = legs_motion({-10, 10, 3}, {{{50, 10, 3}, 3000, "N10"}});
     const auto p = run(m, spec);
-    const float* ray = p.final_stock->ray(200, 100);
+    const kernels::Ray ray = p.final_stock->ray(200, 100);
     CHECK(ray[0] == Approx(0));
     CHECK(ray[kernels::kDexelIntervals] == Approx(3));
     CHECK(ray[1] == Approx(7));
@@ -97,7 +97,10 @@ TEST_CASE("stock save and load round trip; corrupt files are rejected") {
     const std::string path = temp_path("stock.bin");
     force_model::save_stock(*p.final_stock, path);
     const auto back = force_model::load_stock(path);
-    CHECK(back->cells == p.final_stock->cells);
+    REQUIRE(back->rays() == p.final_stock->rays());
+    std::size_t differing = 0;
+    for (std::size_t r = 0; r < back->rays(); ++r) differing += back->ray(r) == p.final_stock->ray(r) ? 0 : 1;
+    CHECK(differing == 0);
     CHECK(back->grid.nx == p.final_stock->grid.nx);
     CHECK(force_model::stock_volume_mm3(*back) == Approx(force_model::stock_volume_mm3(*p.final_stock)));
 
@@ -134,4 +137,27 @@ TEST_CASE("a run can start from another run's stock") {
     CHECK(removed == 0);
     const auto fresh = run(rough, spec);
     CHECK(fresh.blocks[0].peak_force_N > 100);
+}
+
+TEST_CASE("a fresh stock is the full box without a fill; copies keep every ray") {
+    const auto spec = base_spec();
+    const auto fresh = force_model::make_stock(spec.stock, 0.1);
+    // Untouched rays are stored as zero bytes and read back as the box's full column.
+    CHECK(fresh->untouched(0));
+    CHECK(fresh->untouched(fresh->rays() - 1));
+    const kernels::Ray column = fresh->ray(123, 45);
+    CHECK(column[0] == 0.0f);
+    CHECK(column[kernels::kDexelIntervals] == 10.0f);
+    CHECK(column[1] == kernels::kEmptyLo);
+    CHECK(force_model::stock_volume_mm3(*fresh) == Approx(40 * 20 * 10));
+
+    const auto p = run(legs_motion({-10, 10, 7}, {{{50, 10, 7}, 3000, "N10"}}), spec);
+    const auto& cut = *p.final_stock;
+    CHECK_FALSE(cut.untouched(std::size_t(100) * cut.grid.nx + 200));   // slot centre
+    CHECK(cut.untouched(std::size_t(20) * cut.grid.nx + 200));          // y 2: outside the slot
+    const auto copy = force_model::copy_stock(cut);
+    std::size_t differing = 0;
+    for (std::size_t r = 0; r < cut.rays(); ++r) differing += copy->ray(r) == cut.ray(r) ? 0 : 1;
+    CHECK(differing == 0);
+    CHECK(force_model::stock_volume_mm3(*copy) == Approx(force_model::stock_volume_mm3(cut)));
 }
