@@ -1,22 +1,38 @@
-// Load test of the service: forces-window and blocks queries on a run with >= 10^6 force
-// samples under N concurrent keep-alive connections (httplib client threads in this process).
-// Prints p50/p99 latency, requests/s, errors, and the process RSS over time.
+// Load test of the service (issue 4): a `cutload serve` child process holds a run of >= 10^6
+// force samples; N keep-alive connections (client threads in this process) ask it what a plot
+// and a shop MES ask, back to back with no think time (the worst case for that many clients):
 //
-//   bench_server_load [--duration S (30)] [--connections N (32)] [--samples N (1000000)]
-//                     [--channels LIST (all 12; e.g. fx_N,fy_N,fz_N,f_N as a force plot asks)]
+//   70 %  zoom:     forces, a window of log-uniform width 0.05 .. 5 s at a uniform position
+//   10 %  overview: forces, the whole run (what a plot asks when it opens the run)
+//   20 %  blocks:   the per-block summary list (what an MES reads per run)
 //
-// Targets (issue 4): p99 < 50 ms, no errors, memory flat over 5 minutes (--duration 300).
-// Client and server share this process and its cores, so latencies include client work.
+// Forces queries ask max_points=2000 (about a plot's pixel width) and the four force channels a
+// force plot shows (fx_N,fy_N,fz_N,f_N), or every channel with --channels all. --gzip offers
+// "gzip, deflate, br" as a browser does (the client then inflates the answers, as a browser would).
+// Prints per repetition p50/p99 per kind and overall, requests/s, errors, the server's CPU per
+// request and the load average; then the medians over repetitions and the server's RSS at the
+// start and end of the load.
+//
+//   bench_server_load [--duration S (30)] [--repeat N (3)] [--connections N (32)]
+//                     [--samples N (1000000)] [--channels plot|all] [--gzip] [--cache-mb MB (128)]
+//                     [--cutload PATH (the cutload built next to this program)]
+//
+// Targets (issue 4): p99 < 50 ms, no errors, memory flat over 5 minutes (--duration 300 --repeat 1).
 #include "server/server.hpp"
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -27,15 +43,42 @@
 
 namespace {
 
+namespace fs = std::filesystem;
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-long rss_kib() {
-    std::ifstream in("/proc/self/status");
+long rss_kib(pid_t pid) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/status");
     std::string line;
     while (std::getline(in, line))
         if (line.rfind("VmRSS:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
     return 0;
+}
+
+struct CpuTimes {
+    double user_s = 0, sys_s = 0;
+};
+
+// utime and stime of a process.
+CpuTimes cpu_times(pid_t pid) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+    std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::istringstream rest(stat.substr(stat.rfind(')') + 2));
+    std::string field;
+    CpuTimes t;
+    const double tick_s = 1.0 / static_cast<double>(sysconf(_SC_CLK_TCK));
+    for (int i = 3; i <= 15 && rest >> field; ++i) {
+        if (i == 14) t.user_s = std::atof(field.c_str()) * tick_s;
+        if (i == 15) t.sys_s = std::atof(field.c_str()) * tick_s;
+    }
+    return t;
+}
+
+std::string loadavg() {
+    std::ifstream in("/proc/loadavg");
+    std::string a, b, c;
+    in >> a >> b >> c;
+    return a + " " + b + " " + c;
 }
 
 // A slot along X: 10000 rpm and 2 degree steps give 30000 force samples per cutting second.
@@ -60,147 +103,264 @@ json slot_spec(double length_mm) {
     return spec;
 }
 
-double percentile(std::vector<double>& v, double p) {
+double percentile(std::vector<double> v, double p) {
     if (v.empty()) return 0;
     auto k = static_cast<std::size_t>(p * static_cast<double>(v.size() - 1));
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
     return v[k];
 }
 
+double median(std::vector<double> v) { return percentile(std::move(v), 0.5); }
+
+// `cutload serve` as a child process; its first stdout line names the port.
+struct ServerProcess {
+    pid_t pid = -1;
+    int port = 0;
+
+    ServerProcess(const std::string& cutload, const std::vector<std::string>& args) {
+        int out[2];
+        if (::pipe(out) != 0) throw std::runtime_error("pipe failed");
+        pid = ::fork();
+        if (pid == 0) {
+            ::dup2(out[1], STDOUT_FILENO);
+            ::close(out[0]);
+            ::close(out[1]);
+            std::vector<char*> argv{const_cast<char*>(cutload.c_str())};
+            for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+            argv.push_back(nullptr);
+            ::execv(cutload.c_str(), argv.data());
+            std::perror("exec cutload");
+            ::_exit(127);
+        }
+        ::close(out[1]);
+        FILE* f = ::fdopen(out[0], "r");
+        char line[512];
+        while (f && std::fgets(line, sizeof line, f)) {
+            if (const char* at = std::strstr(line, "listening on http://")) {
+                port = std::atoi(std::strrchr(at, ':') + 1);
+                break;
+            }
+        }
+        if (port <= 0) throw std::runtime_error("cutload serve did not start (see its log above)");
+        // Keep reading its stdout so the server never blocks on a full pipe.
+        std::thread([f] {
+            char buf[512];
+            while (std::fgets(buf, sizeof buf, f)) {
+            }
+            std::fclose(f);
+        }).detach();
+    }
+    ~ServerProcess() {
+        if (pid > 0) {
+            ::kill(pid, SIGTERM);
+            ::waitpid(pid, nullptr, 0);
+        }
+    }
+};
+
+enum Kind { Zoom, Overview, Blocks, kKinds };
+const char* kKindNames[kKinds] = {"zoom 0.05-5 s", "overview", "blocks"};
+
+struct Rep {
+    double p50 = 0, p99 = 0, max = 0, rps = 0, server_cpu_ms = 0, server_sys_ms = 0;
+    double kind_p50[kKinds] = {}, kind_p99[kKinds] = {};
+    long requests = 0, errors = 0;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
-    double duration_s = 30;
-    int connections = 32;
-    double samples_wanted = 1e6;
-    std::string channels;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        const std::string a = argv[i];
-        if (a == "--duration") duration_s = std::atof(argv[i + 1]);
-        else if (a == "--connections") connections = std::atoi(argv[i + 1]);
-        else if (a == "--samples") samples_wanted = std::atof(argv[i + 1]);
-        else if (a == "--channels") channels = std::string("&channels=") + argv[i + 1];
+    double duration_s = 30, samples_wanted = 1e6, cache_mb = 128;
+    int connections = 32, repeats = 3;
+    bool gzip = false;
+    std::string channels = "&channels=fx_N,fy_N,fz_N,f_N";
+    fs::path cutload = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "cli" / "cutload";
+    for (int i = 1; i < argc; i += 2) {
+        if (std::string(argv[i]) == "--gzip") {
+            gzip = true;
+            --i;
+            continue;
+        }
+        if (i + 1 >= argc) {
+            std::fprintf(stderr, "%s needs a value\n", argv[i]);
+            return 2;
+        }
+        const std::string a = argv[i], v = argv[i + 1];
+        if (a == "--duration") duration_s = std::atof(v.c_str());
+        else if (a == "--repeat") repeats = std::max(1, std::atoi(v.c_str()));
+        else if (a == "--connections") connections = std::atoi(v.c_str());
+        else if (a == "--samples") samples_wanted = std::atof(v.c_str());
+        else if (a == "--cache-mb") cache_mb = std::atof(v.c_str());
+        else if (a == "--cutload") cutload = v;
+        else if (a == "--channels" && (v == "plot" || v == "all")) channels = v == "all" ? "" : channels;
         else {
-            std::fprintf(stderr, "usage: bench_server_load [--duration S] [--connections N] [--samples N] [--channels LIST]\n");
+            std::fprintf(stderr,
+                         "usage: bench_server_load [--duration S] [--repeat N] [--connections N] [--samples N] "
+                         "[--channels plot|all] [--gzip] [--cache-mb MB] [--cutload PATH]\n");
             return 2;
         }
     }
+    if (!fs::exists(cutload)) {
+        std::fprintf(stderr, "%s not found: build the cutload target or pass --cutload PATH\n", cutload.c_str());
+        return 1;
+    }
 
-    namespace fs = std::filesystem;
     std::string tmpl = (fs::temp_directory_path() / "cutload-bench-XXXXXX").string();
     if (!::mkdtemp(tmpl.data())) return 1;
     const fs::path dir = tmpl;
+    const std::string db = (dir / "bench.db").string();
+    const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Read, "bench reader");
+    const std::string writer = cutload::server::create_api_key(db, cutload::server::Role::Write, "bench writer");
+    int rc = 0;
+    {
+        ServerProcess srv(cutload.string(), {"serve", "--listen", "127.0.0.1:0", "--db", db, "--workers", "1", "--device", "cpu",
+                                             "--http-threads", std::to_string(connections + 8), "--cache-mb",
+                                             std::to_string(cache_mb)});
 
-    cutload::server::ServerOptions opt;
-    opt.port = 0;
-    opt.db_path = (dir / "bench.db").string();
-    opt.workers = 1;
-    opt.use_opencl = false;
-    opt.http_threads = connections + 8;
-    const std::string key = cutload::server::create_api_key(opt.db_path, cutload::server::Role::Read);
-    const std::string writer = cutload::server::create_api_key(opt.db_path, cutload::server::Role::Write);
-    cutload::server::Server srv(opt);
-    srv.start();
-
-    // The run: enough cutting seconds for the samples wanted, plus the 0.3 s approach in air.
-    const double cut_s = samples_wanted / 30000.0 * 1.02;
-    const double duration_log_s = cut_s + 0.3;
-    std::printf("preparing a run of %.1f s of cutting (~%.0f force samples)...\n", cut_s, samples_wanted);
-    std::fflush(stdout);
-    httplib::Client up("127.0.0.1", srv.port());
-    up.set_bearer_token_auth(writer.c_str());
-    up.set_read_timeout(120, 0);
-    httplib::MultipartFormDataItems items{{"log", slot_log(duration_log_s), "bench.csv", "text/csv"},
-                                          {"spec", slot_spec(20.0 * duration_log_s + 10).dump(), "", ""}};
-    const auto t_prep = Clock::now();
-    auto r = up.Post("/api/v1/runs", items);
-    if (!r || r->status != 202) {
-        std::fprintf(stderr, "upload failed: %s\n", r ? r->body.c_str() : "no response");
-        return 1;
-    }
-    const std::string run_path = "/api/v1/runs/" + std::to_string(json::parse(r->body)["id"].get<int>());
-    json run;
-    do {
-        std::this_thread::sleep_for(std::chrono::milliseconds(200));
-        run = json::parse(up.Get(run_path.c_str())->body);
-    } while (run["state"] == "queued" || run["state"] == "running");
-    if (run["state"] != "done") {
-        std::fprintf(stderr, "run %s: %s\n", run["state"].get<std::string>().c_str(), run["error"].dump().c_str());
-        return 1;
-    }
-    const double run_end_s = duration_log_s;
-    std::printf("run ready in %.1f s: %lld force samples, %lld blocks; db %.0f MiB\n",
-                std::chrono::duration<double>(Clock::now() - t_prep).count(),
-                run["summary"]["samples"].get<long long>(), run["summary"]["blocks"].get<long long>(),
-                static_cast<double>(fs::file_size(opt.db_path) + fs::file_size(opt.db_path + "-wal")) / (1 << 20));
-
-    // Query mix: windows from 10 ms (full resolution) to the whole run (decimated to 2000).
-    const double widths_s[] = {0.01, 0.05, 1, 10, 1e9};
-    std::atomic<bool> stop{false};
-    std::atomic<long> errors{0};
-    // Latencies per connection and query kind (0..4: window widths, 5: blocks).
-    constexpr int kKinds = 6;
-    const char* kind_names[kKinds] = {"forces 10 ms", "forces 50 ms", "forces 1 s", "forces 10 s", "forces whole run", "blocks"};
-    std::vector<std::vector<double>> lat_ms(static_cast<std::size_t>(connections) * kKinds);
-    std::vector<std::thread> threads;
-    const long rss_start = rss_kib();
-    const auto t0 = Clock::now();
-    for (int c = 0; c < connections; ++c) {
-        threads.emplace_back([&, c] {
-            httplib::Client cli("127.0.0.1", srv.port());
-            cli.set_bearer_token_auth(key.c_str());
-            cli.set_keep_alive(true);
-            cli.set_tcp_nodelay(true);
-            std::mt19937 rng(static_cast<unsigned>(c));
-            std::uniform_real_distribution<double> u(0, 1);
-            for (long i = 0; !stop; ++i) {
-                std::string path;
-                const int kind = static_cast<int>(i % kKinds);
-                if (kind == 5) {
-                    path = run_path + "/blocks";
-                } else {
-                    const double w = widths_s[kind];
-                    const double from = w >= run_end_s ? 0 : u(rng) * (run_end_s - w);
-                    path = run_path + "/forces?max_points=2000&from_s=" + std::to_string(from) +
-                           "&to_s=" + std::to_string(std::min(run_end_s, from + w)) + channels;
-                }
-                const auto q0 = Clock::now();
-                auto res = cli.Get(path.c_str());
-                lat_ms[static_cast<std::size_t>(c * kKinds + kind)].push_back(std::chrono::duration<double, std::milli>(Clock::now() - q0).count());
-                if (!res || res->status != 200) ++errors;
-            }
-        });
-    }
-    std::printf("%8s %10s %10s\n", "t_s", "RSS_MiB", "requests");
-    for (double t = 0; t < duration_s;) {
-        const double step = std::min(5.0, duration_s - t);
-        std::this_thread::sleep_for(std::chrono::duration<double>(step));
-        t += step;
-        std::size_t n = 0;
-        for (const auto& v : lat_ms) n += v.size();   // racy read of sizes: a progress figure only
-        std::printf("%8.0f %10.1f %10zu\n", t, static_cast<double>(rss_kib()) / 1024, n);
+        // The run: enough cutting seconds for the samples wanted, plus the 0.3 s approach in air.
+        const double cut_s = samples_wanted / 30000.0 * 1.02;
+        const double run_end_s = cut_s + 0.3;
+        std::printf("preparing a run of %.1f s of cutting (~%.0f force samples)...\n", cut_s, samples_wanted);
         std::fflush(stdout);
-    }
-    stop = true;
-    for (auto& t : threads) t.join();
-    const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
+        httplib::Client up("127.0.0.1", srv.port);
+        up.set_bearer_token_auth(writer.c_str());
+        up.set_read_timeout(300, 0);
+        httplib::MultipartFormDataItems items{{"log", slot_log(run_end_s), "bench.csv", "text/csv"},
+                                              {"spec", slot_spec(20.0 * run_end_s + 10).dump(), "", ""}};
+        const auto t_prep = Clock::now();
+        auto r = up.Post("/api/v1/runs", items);
+        if (!r || r->status != 202) {
+            std::fprintf(stderr, "upload failed: %s\n", r ? r->body.c_str() : "no response");
+            return 1;
+        }
+        const std::string run_path = "/api/v1/runs/" + std::to_string(json::parse(r->body)["id"].get<int>());
+        json run;
+        do {
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+            run = json::parse(up.Get(run_path.c_str())->body);
+        } while (run["state"] == "queued" || run["state"] == "running");
+        if (run["state"] != "done") {
+            std::fprintf(stderr, "run %s: %s\n", run["state"].get<std::string>().c_str(), run["error"].dump().c_str());
+            return 1;
+        }
+        std::printf("run ready in %.1f s: %lld force samples, %lld blocks; db %.0f MiB\n",
+                    std::chrono::duration<double>(Clock::now() - t_prep).count(),
+                    run["summary"]["samples"].get<long long>(), run["summary"]["blocks"].get<long long>(),
+                    static_cast<double>(fs::file_size(db) + fs::file_size(db + "-wal")) / (1 << 20));
+        std::printf("%d connections, %s channels, max_points=2000, %s, %d x %.0f s, cache %.0f MiB\n", connections,
+                    channels.empty() ? "all 12" : "4 force", gzip ? "gzip offered" : "no compression", repeats,
+                    duration_s, cache_mb);
 
-    std::vector<double> all;
-    for (const auto& v : lat_ms) all.insert(all.end(), v.begin(), v.end());
-    const double n = static_cast<double>(all.size());
-    const double p50 = percentile(all, 0.50), p99 = percentile(all, 0.99);
-    const double max_ms = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
-    std::printf("\nconnections %d, duration %.0f s, requests %.0f, errors %ld\n", connections, elapsed_s, n, errors.load());
-    std::printf("latency p50 %.2f ms, p99 %.2f ms, max %.1f ms; %.0f requests/s\n", p50, p99, max_ms, n / elapsed_s);
-    for (int k = 0; k < kKinds; ++k) {
-        std::vector<double> v;
-        for (int c = 0; c < connections; ++c) v.insert(v.end(), lat_ms[static_cast<std::size_t>(c * kKinds + k)].begin(), lat_ms[static_cast<std::size_t>(c * kKinds + k)].end());
-        std::printf("  %-18s p50 %7.2f ms  p99 %7.2f ms\n", kind_names[k], percentile(v, 0.5), percentile(v, 0.99));
+        const long rss_start = rss_kib(srv.pid);
+        std::vector<Rep> reps;
+        for (int rep = 0; rep < repeats; ++rep) {
+            std::atomic<bool> stop{false};
+            std::atomic<long> errors{0}, done{0};
+            std::vector<std::vector<double>> lat_ms(static_cast<std::size_t>(connections) * kKinds);
+            std::vector<std::thread> threads;
+            const std::string load_before = loadavg();
+            const CpuTimes cpu0 = cpu_times(srv.pid);
+            const auto t0 = Clock::now();
+            for (int c = 0; c < connections; ++c) {
+                threads.emplace_back([&, c] {
+                    httplib::Client cli("127.0.0.1", srv.port);
+                    cli.set_bearer_token_auth(key.c_str());
+                    cli.set_keep_alive(true);
+                    cli.set_tcp_nodelay(true);
+                    httplib::Headers headers;
+                    if (gzip) headers.emplace("Accept-Encoding", "gzip, deflate, br");
+                    std::mt19937 rng(static_cast<unsigned>(1000 * rep + c));
+                    std::uniform_real_distribution<double> u(0, 1);
+                    char path[512];
+                    while (!stop) {
+                        const double pick = u(rng);
+                        const Kind kind = pick < 0.7 ? Zoom : pick < 0.8 ? Overview : Blocks;
+                        if (kind == Blocks) {
+                            std::snprintf(path, sizeof path, "%s/blocks", run_path.c_str());
+                        } else if (kind == Overview) {
+                            std::snprintf(path, sizeof path, "%s/forces?max_points=2000%s", run_path.c_str(), channels.c_str());
+                        } else {
+                            const double w = 0.05 * std::pow(100.0, u(rng));
+                            const double from = u(rng) * (run_end_s - w);
+                            std::snprintf(path, sizeof path, "%s/forces?max_points=2000&from_s=%.6f&to_s=%.6f%s",
+                                          run_path.c_str(), from, from + w, channels.c_str());
+                        }
+                        const auto q0 = Clock::now();
+                        auto res = cli.Get(path, headers);
+                        lat_ms[static_cast<std::size_t>(c * kKinds + kind)].push_back(
+                            std::chrono::duration<double, std::milli>(Clock::now() - q0).count());
+                        if (!res || res->status != 200) ++errors;
+                        ++done;
+                    }
+                });
+            }
+            const double report_every_s = std::max(5.0, duration_s / 10);
+            for (double t = 0; t < duration_s;) {
+                const double step = std::min(report_every_s, duration_s - t);
+                std::this_thread::sleep_for(std::chrono::duration<double>(step));
+                t += step;
+                std::printf("  t %5.0f s  server RSS %7.1f MiB  requests %ld\n", t,
+                            static_cast<double>(rss_kib(srv.pid)) / 1024, done.load());
+                std::fflush(stdout);
+            }
+            stop = true;
+            for (auto& t : threads) t.join();
+            const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
+
+            Rep out;
+            std::vector<double> all;
+            for (int k = 0; k < kKinds; ++k) {
+                std::vector<double> v;
+                for (int c = 0; c < connections; ++c) {
+                    const auto& l = lat_ms[static_cast<std::size_t>(c * kKinds + k)];
+                    v.insert(v.end(), l.begin(), l.end());
+                }
+                out.kind_p50[k] = percentile(v, 0.5);
+                out.kind_p99[k] = percentile(v, 0.99);
+                all.insert(all.end(), v.begin(), v.end());
+            }
+            out.requests = static_cast<long>(all.size());
+            out.errors = errors;
+            out.p50 = percentile(all, 0.5);
+            out.p99 = percentile(all, 0.99);
+            out.max = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
+            out.rps = static_cast<double>(all.size()) / elapsed_s;
+            const CpuTimes cpu1 = cpu_times(srv.pid);
+            const double per_request_ms = 1000 / std::max<double>(1, static_cast<double>(all.size()));
+            out.server_cpu_ms = (cpu1.user_s - cpu0.user_s + cpu1.sys_s - cpu0.sys_s) * per_request_ms;
+            out.server_sys_ms = (cpu1.sys_s - cpu0.sys_s) * per_request_ms;
+            std::printf("rep %d: %ld requests, %ld errors, %.0f requests/s, p50 %.2f ms, p99 %.2f ms, max %.1f ms, "
+                        "server CPU %.3f ms/request (%.3f in the kernel); load average %s -> %s\n",
+                        rep + 1, out.requests, out.errors, out.rps, out.p50, out.p99, out.max, out.server_cpu_ms,
+                        out.server_sys_ms,
+                        load_before.c_str(), loadavg().c_str());
+            for (int k = 0; k < kKinds; ++k)
+                std::printf("    %-14s p50 %7.2f ms  p99 %7.2f ms\n", kKindNames[k], out.kind_p50[k], out.kind_p99[k]);
+            std::fflush(stdout);
+            reps.push_back(out);
+        }
+        const long rss_end = rss_kib(srv.pid);
+
+        auto med = [&](auto field) {
+            std::vector<double> v;
+            for (const auto& r2 : reps) v.push_back(field(r2));
+            return median(v);
+        };
+        long errors = 0;
+        for (const auto& r2 : reps) errors += r2.errors;
+        const double p99 = med([](const Rep& r2) { return r2.p99; });
+        std::printf("\nmedian of %d: p50 %.2f ms, p99 %.2f ms, %.0f requests/s, server CPU %.3f ms/request; errors %ld\n",
+                    repeats, med([](const Rep& r2) { return r2.p50; }), p99, med([](const Rep& r2) { return r2.rps; }),
+                    med([](const Rep& r2) { return r2.server_cpu_ms; }), errors);
+        for (int k = 0; k < kKinds; ++k)
+            std::printf("    %-14s p50 %7.2f ms  p99 %7.2f ms\n", kKindNames[k],
+                        med([k](const Rep& r2) { return r2.kind_p50[k]; }), med([k](const Rep& r2) { return r2.kind_p99[k]; }));
+        std::printf("server RSS at load start %.1f MiB, at end %.1f MiB\n", static_cast<double>(rss_start) / 1024,
+                    static_cast<double>(rss_end) / 1024);
+        std::printf("targets: p99 < 50 ms %s, no errors %s\n", p99 < 50 ? "met" : "MISSED", errors == 0 ? "met" : "MISSED");
+        rc = errors == 0 ? 0 : 1;
     }
-    std::printf("RSS start %.1f MiB, end %.1f MiB\n", static_cast<double>(rss_start) / 1024, static_cast<double>(rss_kib()) / 1024);
-    std::printf("targets: p99 < 50 ms %s, no errors %s\n", p99 < 50 ? "met" : "MISSED", errors == 0 ? "met" : "MISSED");
-    srv.stop();
     std::error_code ec;
     fs::remove_all(dir, ec);
-    return 0;
+    return rc;
 }

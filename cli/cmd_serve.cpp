@@ -14,6 +14,7 @@ struct ServeArgs {
     server::ServerOptions opt;
     std::string listen = "127.0.0.1:8080";
     double max_body_mb = 256;
+    double cache_mb = 128;
     std::string device = "opencl";
 };
 
@@ -37,6 +38,7 @@ void split_listen(const std::string& listen, server::ServerOptions& opt) {
 void run_serve(ServeArgs& a) {
     split_listen(a.listen, a.opt);
     a.opt.max_body_bytes = static_cast<std::size_t>(a.max_body_mb * 1024 * 1024);
+    a.opt.cache_bytes = static_cast<std::size_t>(a.cache_mb * 1024 * 1024);
     a.opt.use_opencl = a.device == "opencl";
 
     // Signals go to this thread only, via sigwait: no work in a signal handler.
@@ -83,6 +85,9 @@ void add_serve(CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--max-points", a->opt.max_points, "Largest max_points of forces/motion queries")
         ->check(CLI::Range(2, 1000000))
+        ->capture_default_str();
+    sub->add_option("--cache-mb", a->cache_mb, "Memory for decoded forces/motion chunks, MiB (least recently used out)")
+        ->check(CLI::Range(0.0, 65536.0))
         ->capture_default_str();
     sub->add_flag("--anonymous-loopback-reads", a->opt.anonymous_loopback_reads,
                   "Allow GET requests without an API key from 127.0.0.1 / ::1");

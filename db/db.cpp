@@ -23,9 +23,21 @@ Stmt::Stmt(sqlite3* db, std::string_view sql) : db_(db), st_(nullptr) {
     if (rc != SQLITE_OK) fail(db, rc, fmt::format("prepare \"{}\"", sql));
 }
 
-Stmt::Stmt(Stmt&& o) noexcept : db_(o.db_), st_(o.st_) { o.st_ = nullptr; }
+Stmt::Stmt(sqlite3* db, sqlite3_stmt* st, bool* in_use) : db_(db), st_(st), in_use_(in_use) {}
 
-Stmt::~Stmt() { sqlite3_finalize(st_); }
+Stmt::Stmt(Stmt&& o) noexcept : db_(o.db_), st_(o.st_), in_use_(o.in_use_) { o.st_ = nullptr; }
+
+Stmt::~Stmt() {
+    if (!st_) return;
+    if (!in_use_) {
+        sqlite3_finalize(st_);
+        return;
+    }
+    // A statement left un-reset keeps its read transaction open, which would stop WAL checkpoints.
+    sqlite3_reset(st_);
+    sqlite3_clear_bindings(st_);
+    *in_use_ = false;
+}
 
 Stmt& Stmt::bind(int i, std::int64_t v) {
     if (int rc = sqlite3_bind_int64(st_, i, v); rc != SQLITE_OK) fail(db_, rc, "bind");
@@ -105,7 +117,25 @@ Connection::Connection(const std::string& path, int busy_timeout_ms) {
     exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
 }
 
-Connection::~Connection() { sqlite3_close_v2(db_); }
+Connection::~Connection() {
+    for (auto& [sql, c] : cache_) sqlite3_finalize(c.st);
+    sqlite3_close_v2(db_);
+}
+
+Stmt Connection::prepare(std::string_view sql) {
+    auto it = cache_.find(std::string(sql));
+    if (it != cache_.end()) {
+        if (it->second.in_use) return Stmt(db_, sql);   // nested use of the same text
+        it->second.in_use = true;
+        return Stmt(db_, it->second.st, &it->second.in_use);
+    }
+    if (cache_.size() >= kMaxCached) return Stmt(db_, sql);
+    sqlite3_stmt* st = nullptr;
+    int rc = sqlite3_prepare_v3(db_, sql.data(), static_cast<int>(sql.size()), SQLITE_PREPARE_PERSISTENT, &st, nullptr);
+    if (rc != SQLITE_OK) fail(db_, rc, fmt::format("prepare \"{}\"", sql));
+    auto& c = cache_.emplace(std::string(sql), Cached{st, true}).first->second;
+    return Stmt(db_, st, &c.in_use);
+}
 
 void Connection::exec(std::string_view sql) {
     std::string s(sql);
@@ -117,6 +147,8 @@ void Connection::exec(std::string_view sql) {
         throw Error(fmt::format("sqlite: {}", msg), sqlite3_extended_errcode(db_));
     }
 }
+
+void Connection::set_busy_timeout(int ms) { sqlite3_busy_timeout(db_, ms); }
 
 std::int64_t Connection::last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
 int Connection::changes() const { return sqlite3_changes(db_); }

@@ -10,12 +10,14 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 struct sqlite3;
 struct sqlite3_stmt;
 
 namespace cutload::db {
+
 
 class Error : public std::runtime_error {
 public:
@@ -29,6 +31,8 @@ private:
 class Stmt {
 public:
     Stmt(sqlite3* db, std::string_view sql);
+    // A statement borrowed from a connection's cache: reset, and *in_use cleared, when destroyed.
+    Stmt(sqlite3* db, sqlite3_stmt* st, bool* in_use);
     Stmt(Stmt&& o) noexcept;
     Stmt(const Stmt&) = delete;
     Stmt& operator=(const Stmt&) = delete;
@@ -63,24 +67,38 @@ public:
 private:
     sqlite3* db_;
     sqlite3_stmt* st_;
+    bool* in_use_ = nullptr;   // set: borrowed from a connection's cache
 };
+
+// How long a connection waits for another writer before SQLITE_BUSY.
+constexpr int kBusyTimeoutMs = 10000;
 
 class Connection {
 public:
     // Opens (creating if needed), sets WAL, foreign keys and the busy timeout.
-    explicit Connection(const std::string& path, int busy_timeout_ms = 10000);
+    explicit Connection(const std::string& path, int busy_timeout_ms = kBusyTimeoutMs);
     Connection(const Connection&) = delete;
     Connection& operator=(const Connection&) = delete;
     ~Connection();
 
     void exec(std::string_view sql);   // one or more statements, no rows
-    Stmt prepare(std::string_view sql) { return Stmt(db_, sql); }
+    // Compiled once per connection and reused: the same SQL text gets the cached statement
+    // (reset, bindings cleared) unless it is still in use, then a fresh one.
+    Stmt prepare(std::string_view sql);
+    void set_busy_timeout(int ms);
     std::int64_t last_insert_id() const;
     int changes() const;
     sqlite3* handle() { return db_; }
 
 private:
+    struct Cached {
+        sqlite3_stmt* st = nullptr;
+        bool in_use = false;
+    };
+    // Bounded: every statement cutload runs is one of a few dozen fixed texts.
+    static constexpr std::size_t kMaxCached = 128;
     sqlite3* db_ = nullptr;
+    std::unordered_map<std::string, Cached> cache_;
 };
 
 // Rolls back unless commit() was called.

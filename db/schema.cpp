@@ -156,7 +156,13 @@ CREATE TABLE api_keys (
 );
 )SQL";
 
-constexpr std::array<const char*, 1> kMigrations{kV1};
+// When each key last authenticated a request, for `cutload keys list`; written at most once a
+// minute per key so reads stay free of writes.
+constexpr const char* kV2 = R"SQL(
+ALTER TABLE api_keys ADD COLUMN last_used_at TEXT;
+)SQL";
+
+constexpr std::array<const char*, 2> kMigrations{kV1, kV2};
 
 int user_version(Connection& c) {
     auto st = c.prepare("PRAGMA user_version");

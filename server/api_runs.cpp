@@ -3,8 +3,10 @@
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
 #include "server/core.hpp"
+#include "server/gzip.hpp"
 #include "server/jobs.hpp"
 #include "server/library.hpp"
+#include "server/number_text.hpp"
 #include "server/series.hpp"
 
 #include <fcntl.h>
@@ -15,7 +17,6 @@
 #include <charconv>
 #include <fstream>
 #include <regex>
-#include <set>
 #include <sstream>
 
 namespace cutload::server {
@@ -367,6 +368,7 @@ void delete_run(Core& core, Ctx& x) {
     const fs::path dir = core.data_dir / st.text(1);
     c->prepare("DELETE FROM runs WHERE id = ?").bind(1, id).run();
     tx.commit();
+    core.series_cache.forget_run(id);
     std::error_code ec;
     fs::remove_all(dir, ec);
     x.res.status = 204;
@@ -389,13 +391,13 @@ void cancel_run(Core& core, Ctx& x) {
 }
 
 // Results exist only for finished runs; anything else is a conflict, not an empty answer.
-json require_done(db::Connection& c, std::int64_t id) {
-    auto st = c.prepare("SELECT state, block_names FROM runs WHERE id = ?");
+RunRef require_done(db::Connection& c, std::int64_t id) {
+    auto st = c.prepare("SELECT state, finished_at FROM runs WHERE id = ?");
     st.bind(1, id);
     if (!st.step()) not_found(fmt::format("run {} does not exist", id));
     if (st.text(0) != "done")
         throw ApiError(409, "not_done", fmt::format("run {} is {}: results exist once it is done", id, st.text(0)));
-    return column_json(st, 1);
+    return RunRef{id, st.opt_text(1).value_or("")};
 }
 
 void list_blocks(Core& core, Ctx& x) {
@@ -414,24 +416,200 @@ void list_blocks(Core& core, Ctx& x) {
     else
         st.bind_null(3);
     st.bind(4, limit + 1);
-    json items = json::array();
-    std::int64_t last = -1;
+    // The stored bodies are JSON written by store_result: joined as they are, not parsed again.
+    std::string out = fmt::format(R"({{"run_id":{},"items":[)", id);
+    std::int64_t rows = 0, last = -1;
     while (st.step()) {
+        if (++rows > limit) break;   // one more than a page: there is a next page
         last = st.i64(0);
-        items.push_back(json::parse(st.text(1)));
+        if (rows > 1) out += ',';
+        out += st.text(1);
     }
-    json next = nullptr;
-    if (static_cast<std::int64_t>(items.size()) > limit) {
-        items.erase(items.end() - 1);
-        next = std::to_string(last);
-    }
-    x.reply(200, {{"run_id", id}, {"items", items}, {"next_cursor", next}});
+    out += rows > limit ? fmt::format(R"(],"next_cursor":"{}"}})", last + 1) : std::string(R"(],"next_cursor":null})");
+    x.res.status = 200;
+    x.res.body = std::move(out);
+    x.res.set_header("Content-Type", "application/json");
 }
 
-std::string csv_number(float v) {
-    char buf[32];
-    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-    return std::string(buf, ec == std::errc() ? end : buf);
+// Block names of a finished run, raw (CSV) and as JSON strings, decoded once per run.
+struct BlockNames {
+    std::vector<std::string> raw, json;
+};
+
+std::shared_ptr<const BlockNames> block_names(db::Connection& c, SeriesCache& cache, const RunRef& run) {
+    const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::BlockNames, 0, 0, 0};
+    return cache.get<BlockNames>(key, [&] {
+        auto st = c.prepare("SELECT block_names FROM runs WHERE id = ?");
+        st.bind(1, run.id);
+        auto names = std::make_shared<BlockNames>();
+        std::size_t bytes = sizeof(BlockNames);
+        if (st.step() && !st.is_null(0)) {
+            for (const auto& n : json::parse(st.text(0))) {
+                names->raw.push_back(n.get<std::string>());
+                names->json.push_back(n.dump());
+                bytes += 2 * (sizeof(std::string) + names->raw.back().size());
+            }
+        }
+        return std::pair{std::shared_ptr<const BlockNames>(std::move(names)), bytes};
+    });
+}
+
+// channels=a,b selects what is written (default all); unknown names are an error.
+std::vector<bool> wanted_channels(const Ctx& x, const std::vector<std::string>& ch) {
+    std::vector<bool> wanted(ch.size(), !x.param("channels"));
+    if (auto list = x.param("channels")) {
+        std::stringstream ss(*list);
+        for (std::string name; std::getline(ss, name, ',');) {
+            auto pos = std::find(ch.begin(), ch.end(), name);
+            if (pos == ch.end()) bad_request(fmt::format("query parameter channels: unknown channel '{}'", name));
+            wanted[static_cast<std::size_t>(pos - ch.begin())] = true;
+        }
+    }
+    return wanted;
+}
+
+// Writes into a buffer sized for the worst case, then trims: no reallocation, no per-number
+// string. Numbers come from number_text.hpp.
+class TextOut {
+public:
+    explicit TextOut(std::size_t max_chars) { s_.resize(max_chars); p_ = s_.data(); }
+    TextOut& operator<<(const char* text) {
+        p_ = detail::write_text(p_, text);
+        return *this;
+    }
+    TextOut& operator<<(const std::string& text) {
+        std::memcpy(p_, text.data(), text.size());
+        p_ += text.size();
+        return *this;
+    }
+    TextOut& operator<<(char ch) {
+        *p_++ = ch;
+        return *this;
+    }
+    void value(float v, const char* nonfinite) { p_ = write_float(p_, v, nonfinite); }
+    void time(double t_s) { p_ = write_time(p_, t_s); }
+    std::string done() && {
+        s_.resize(static_cast<std::size_t>(p_ - s_.data()));
+        return std::move(s_);
+    }
+
+private:
+    std::string s_;
+    char* p_;
+};
+
+std::string series_csv(const Window& w, const std::vector<std::string>& ch, const std::vector<bool>& wanted,
+                       std::size_t block_col, const BlockNames& names) {
+    const std::size_t n = w.t_s.size();
+    std::size_t longest_name = 0;
+    for (const auto& b : names.raw) longest_name = std::max(longest_name, b.size());
+    std::size_t header = 32, per_row = 2 * kTimeChars + 2;
+    for (std::size_t j = 0; j < ch.size(); ++j)
+        if (wanted[j]) {
+            header += 2 * ch[j].size() + 10;
+            per_row += 2 * kValueChars + 2 + longest_name;
+        }
+    TextOut out(header + n * per_row);
+    out << (w.decimated ? "t_s,t_end_s" : "t_s");
+    for (std::size_t j = 0; j < ch.size(); ++j)
+        if (wanted[j]) out << ',' << ch[j] << (w.decimated ? "_min," : "") << (w.decimated ? ch[j] + "_max" : "");
+    out << '\n';
+    for (std::size_t i = 0; i < n; ++i) {
+        out.time(w.t_s[i]);
+        if (w.decimated) {
+            out << ',';
+            out.time(w.t_end_s[i]);
+        }
+        for (std::size_t j = 0; j < ch.size(); ++j) {
+            if (!wanted[j]) continue;
+            out << ',';
+            if (w.decimated) {
+                out.value(w.lo[j][i], "");
+                out << ',';
+                out.value(w.hi[j][i], "");
+            } else if (j == block_col) {
+                const auto b = static_cast<std::size_t>(std::max(0.0f, w.lo[j][i]));
+                out << (b < names.raw.size() ? names.raw[b] : std::string());
+            } else {
+                out.value(w.lo[j][i], "");
+            }
+        }
+        out << '\n';
+    }
+    return std::move(out).done();
+}
+
+std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t max_points, const Window& w,
+                        const std::vector<std::string>& ch, const std::vector<bool>& wanted, std::size_t block_col,
+                        const BlockNames& names) {
+    const std::size_t n = w.t_s.size();
+    // Block indices that occur in the window, for block_names.
+    std::vector<char> seen(names.json.size(), 0);
+    const auto& blo = w.lo[block_col];
+    const auto& bhi = w.decimated ? w.hi[block_col] : w.lo[block_col];
+    for (std::size_t i = 0; i < blo.size(); ++i) {
+        const auto first = static_cast<std::int64_t>(blo[i]), last = static_cast<std::int64_t>(bhi[i]);
+        for (auto b = std::max<std::int64_t>(first, 0); b <= last && b < static_cast<std::int64_t>(seen.size()); ++b)
+            seen[static_cast<std::size_t>(b)] = 1;
+    }
+    std::size_t names_chars = 2;
+    for (std::size_t b = 0; b < seen.size(); ++b)
+        if (seen[b]) names_chars += names.json[b].size() + 24;
+    std::size_t value_arrays = 0;
+    for (std::size_t j = 0; j < ch.size(); ++j)
+        if (wanted[j]) value_arrays += w.decimated ? 2 : 1;
+    const std::size_t time_arrays = w.decimated ? 2 : 1;
+    TextOut out(512 + names_chars + time_arrays * n * (kTimeChars + 1) + value_arrays * (n * (kValueChars + 1) + 32));
+
+    // from_s and to_s go through the same rounding as the times, so every time lies between them.
+    out << fmt::format(R"({{"run_id":{},"from_s":)", id);
+    out.time(from_s);
+    out << ",\"to_s\":";
+    out.time(to_s);
+    out << fmt::format(R"(,"decimated":{},"level":{},"count":{})", w.decimated, w.level, n);
+    auto times = [&](const char* key, const std::vector<double>& t) {
+        out << ",\"" << key << "\":[";
+        for (std::size_t i = 0; i < n; ++i) {
+            if (i) out << ',';
+            out.time(t[i]);
+        }
+        out << ']';
+    };
+    auto values = [&](const std::vector<float>& v) {
+        out << '[';
+        for (std::size_t i = 0; i < n; ++i) {
+            if (i) out << ',';
+            out.value(v[i], "null");
+        }
+        out << ']';
+    };
+    times("t_s", w.t_s);
+    if (w.decimated) {
+        out << fmt::format(R"(,"bucket_s":{})", (to_s - from_s) / static_cast<double>(max_points));
+        times("t_end_s", w.t_end_s);
+    }
+    for (std::size_t j = 0; j < ch.size(); ++j) {
+        if (!wanted[j]) continue;
+        out << ",\"" << ch[j] << "\":";
+        if (w.decimated) {
+            out << "{\"min\":";
+            values(w.lo[j]);
+            out << ",\"max\":";
+            values(w.hi[j]);
+            out << '}';
+        } else {
+            values(w.lo[j]);
+        }
+    }
+    out << ",\"block_names\":{";
+    bool first = true;
+    for (std::size_t b = 0; b < seen.size(); ++b) {
+        if (!seen[b]) continue;
+        out << (first ? "\"" : ",\"") << std::to_string(b) << "\":" << names.json[b];
+        first = false;
+    }
+    out << "}}";
+    return std::move(out).done();
 }
 
 void series_route(Core& core, Ctx& x, SeriesId s) {
@@ -440,114 +618,49 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
     if (max_points < 2 || max_points > core.opt.max_points)
         throw ApiError(400, "bad_request",
                        fmt::format("query parameter max_points: {} is outside 2..{}", max_points, core.opt.max_points));
-    auto c = core.pool.get();
-    const json block_names = require_done(*c, id);
-    double t0 = 0, t1 = 0;
-    if (!series_extent(*c, id, s, &t0, &t1)) t0 = t1 = 0;
-    const double from_s = x.param_double("from_s").value_or(t0);
-    const double to_s = x.param_double("to_s").value_or(t1);
-    if (to_s < from_s) bad_request(fmt::format("to_s ({}) is before from_s ({})", to_s, from_s));
-    const Window w = query_window(*c, id, s, from_s, to_s, static_cast<std::size_t>(max_points));
     const auto& ch = series_channels(s);
-    // channels=a,b selects what is written (default all); unknown names are an error.
-    std::vector<bool> wanted(ch.size(), !x.param("channels"));
-    if (auto list = x.param("channels")) {
-        std::stringstream ss(*list);
-        for (std::string name; std::getline(ss, name, ',');) {
-            auto pos = std::find(ch.begin(), ch.end(), name);
-            if (pos == ch.end())
-                bad_request(fmt::format("query parameter channels: unknown channel '{}'", name));
-            wanted[static_cast<std::size_t>(pos - ch.begin())] = true;
-        }
-    }
-    const std::size_t k = ch.size();
-    const std::size_t n = w.t_s.size();
-    const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
-    auto block_name = [&](float v) -> std::string {
-        const auto i = static_cast<std::int64_t>(v);
-        if (i >= 0 && block_names.is_array() && i < static_cast<std::int64_t>(block_names.size()))
-            return block_names[static_cast<std::size_t>(i)].get<std::string>();
-        return "";
-    };
+    std::vector<bool> wanted = wanted_channels(x, ch);
+    auto c = core.pool.get();
+    const RunRef run = require_done(*c, id);
+    const bool csv = x.wants_csv();
+    const bool gzip = accepts_gzip(x.req);
+    const bool whole_run = !x.param("from_s") && !x.param("to_s");
+    std::int64_t mask = 0;
+    for (std::size_t j = 0; j < ch.size(); ++j)
+        if (wanted[j]) mask |= std::int64_t{1} << j;
+    const SeriesCache::Key answer_key{id, run.version, SeriesCache::Kind::Answer, static_cast<int>(s),
+                                      static_cast<int>(max_points), (mask << 2) | (csv ? 2 : 0) | (gzip ? 1 : 0)};
+    auto answer = [&]() -> std::string {
+        double t0 = 0, t1 = 0;
+        if (!series_extent(*c, core.series_cache, run, s, &t0, &t1)) t0 = t1 = 0;
+        const double from_s = x.param_double("from_s").value_or(t0);
+        const double to_s = x.param_double("to_s").value_or(t1);
+        if (to_s < from_s) bad_request(fmt::format("to_s ({}) is before from_s ({})", to_s, from_s));
 
-    if (x.wants_csv()) {
-        std::string out = w.decimated ? "t_s,t_end_s" : "t_s";
-        for (std::size_t j = 0; j < k; ++j)
-            if (wanted[j]) out += w.decimated ? "," + ch[j] + "_min," + ch[j] + "_max" : "," + ch[j];
-        out += '\n';
-        for (std::size_t i = 0; i < n; ++i) {
-            out += fmt::format("{:.6f}", w.t_s[i]);
-            if (w.decimated) out += fmt::format(",{:.6f}", w.t_end_s[i]);
-            for (std::size_t j = 0; j < k; ++j) {
-                if (!wanted[j]) continue;
-                if (!w.decimated) {
-                    out += ',';
-                    out += j == block_col ? block_name(w.values[i * k + j]) : csv_number(w.values[i * k + j]);
-                } else {
-                    out += ',' + csv_number(w.mins[i * k + j]) + ',' + csv_number(w.maxs[i * k + j]);
-                }
-            }
-            out += '\n';
-        }
-        x.res.status = 200;
-        x.res.set_content(out, "text/csv");
-        return;
-    }
-
-    // Written by hand rather than through json: numbers print in their shortest round-trip form
-    // with std::to_chars, several times faster than a json tree for a wide window.
-    std::string out;
-    out.reserve(64 + n * (w.decimated ? 2 * k + 2 : k + 1) * 12);
-    auto num = [&out](auto v) {
-        char buf[32];
-        auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-        out.append(buf, ec == std::errc() ? end : buf);
+        // The block channel is read even when not written: block_names lists the blocks in the window.
+        const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
+        std::vector<bool> read = wanted;
+        read[block_col] = true;
+        const Window w =
+            query_window(*c, core.series_cache, run, s, from_s, to_s, static_cast<std::size_t>(max_points), read);
+        const auto names = block_names(*c, core.series_cache, run);
+        std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
+                               : series_json(id, from_s, to_s, static_cast<std::size_t>(max_points), w, ch, wanted,
+                                             block_col, *names);
+        if (gzip) return gzip_fast(text);
+        return text;
     };
-    auto array = [&](const char* key, auto&& get) {
-        out += ",\"";
-        out += key;
-        out += "\":[";
-        for (std::size_t i = 0; i < n; ++i) {
-            if (i) out += ',';
-            num(get(i));
-        }
-        out += ']';
+    // Only the whole-run answer repeats often enough to keep: zoom windows hardly ever recur.
+    auto kept_answer = [&] {
+        auto text = std::make_shared<const std::string>(answer());
+        return std::pair{text, sizeof(std::string) + text->size()};
     };
-    fmt::format_to(std::back_inserter(out), R"({{"run_id":{},"from_s":{},"to_s":{},"decimated":{},"level":{},"count":{})", id,
-                   from_s, to_s, w.decimated, w.level, n);
-    array("t_s", [&](std::size_t i) { return w.t_s[i]; });
-    std::set<std::int64_t> blocks_seen;
-    if (w.decimated) {
-        fmt::format_to(std::back_inserter(out), R"(,"bucket_s":{})", (to_s - from_s) / static_cast<double>(max_points));
-        array("t_end_s", [&](std::size_t i) { return w.t_end_s[i]; });
-        for (std::size_t c2 = 0; c2 < k; ++c2) {
-            if (!wanted[c2]) continue;
-            out += ",\"" + ch[c2] + "\":{\"min\":[";
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i) out += ',';
-                num(w.mins[i * k + c2]);
-            }
-            out += R"(],"max":[)";
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i) out += ',';
-                num(w.maxs[i * k + c2]);
-            }
-            out += "]}";
-        }
-        for (std::size_t i = 0; i < n; ++i)
-            for (auto b = static_cast<std::int64_t>(w.mins[i * k + block_col]); b <= static_cast<std::int64_t>(w.maxs[i * k + block_col]); ++b)
-                blocks_seen.insert(b);
-    } else {
-        for (std::size_t c2 = 0; c2 < k; ++c2)
-            if (wanted[c2]) array(ch[c2].c_str(), [&](std::size_t i) { return w.values[i * k + c2]; });
-        for (std::size_t i = 0; i < n; ++i) blocks_seen.insert(static_cast<std::int64_t>(w.values[i * k + block_col]));
-    }
-    json names = json::object();
-    for (auto b : blocks_seen)
-        if (b >= 0) names[std::to_string(b)] = block_name(static_cast<float>(b));
-    out += ",\"block_names\":" + names.dump() + "}";
+    std::string body = whole_run ? *core.series_cache.get<std::string>(answer_key, kept_answer) : answer();
+    // Gzipped here rather than after routing, so the kept whole-run answer is kept compressed.
+    if (gzip) x.res.set_header("Content-Encoding", "gzip");
+    x.res.body = std::move(body);
     x.res.status = 200;
-    x.res.set_content(out, "application/json");
+    x.res.set_header("Content-Type", csv ? "text/csv" : "application/json");
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <openssl/rand.h>
 
 #include <chrono>
+#include <filesystem>
 #include <stdexcept>
 
 namespace cutload::server {
@@ -83,11 +84,83 @@ std::string insert_api_key(db::Connection& c, Role role, const std::string& name
     return key;
 }
 
-std::optional<Role> lookup_api_key(db::Connection& c, const std::string& key) {
-    auto st = c.prepare("SELECT role FROM api_keys WHERE hash = ? AND revoked_at IS NULL");
+std::optional<KeyMatch> lookup_api_key(db::Connection& c, const std::string& key) {
+    auto st = c.prepare(
+        "SELECT role, prefix, revoked_at, last_used_at IS NULL OR "
+        "last_used_at < strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-60 seconds') FROM api_keys WHERE hash = ?");
     st.bind(1, sha256_hex(key));
     if (!st.step()) return std::nullopt;
-    return parse_role(st.text(0));
+    return KeyMatch{parse_role(st.text(0)), st.text(1), st.opt_text(2), st.i64(3) != 0};
+}
+
+void touch_api_key(db::Connection& c, const std::string& key) {
+    // A read request must never wait behind a job's long result transaction for this.
+    c.set_busy_timeout(0);
+    try {
+        c.prepare("UPDATE api_keys SET last_used_at = ? WHERE hash = ?").bind(1, db::now_iso()).bind(2, sha256_hex(key)).run();
+    } catch (const db::Error&) {
+        // Busy: a later request records the use.
+    }
+    c.set_busy_timeout(db::kBusyTimeoutMs);
+}
+
+namespace {
+
+ApiKeyInfo key_info(const db::Stmt& st) {
+    return ApiKeyInfo{st.text(0), parse_role(st.text(1)), st.opt_text(2).value_or(""), st.text(3), st.opt_text(4),
+                      st.opt_text(5)};
+}
+
+constexpr const char* kKeyColumns = "prefix, role, name, created_at, last_used_at, revoked_at";
+
+// Listing or revoking must not create a database because of a typo in its path.
+void require_database(const std::string& db_path) {
+    if (!std::filesystem::exists(db_path)) throw std::invalid_argument(fmt::format("no database at {}", db_path));
+}
+
+}  // namespace
+
+std::vector<ApiKeyInfo> list_api_keys(const std::string& db_path) {
+    require_database(db_path);
+    db::Connection c(db_path);
+    db::migrate(c);
+    auto st = c.prepare(fmt::format("SELECT {} FROM api_keys ORDER BY id", kKeyColumns));
+    std::vector<ApiKeyInfo> out;
+    while (st.step()) out.push_back(key_info(st));
+    return out;
+}
+
+ApiKeyInfo revoke_api_key(const std::string& db_path, const std::string& prefix_or_key, bool* already_revoked) {
+    if (prefix_or_key.size() < 6)
+        throw std::invalid_argument(fmt::format("key prefix '{}' is too short: give the prefix `cutload keys list` shows",
+                                                prefix_or_key));
+    require_database(db_path);
+    db::Connection c(db_path);
+    db::migrate(c);
+    db::Transaction tx(c);
+    // A whole key matches by its hash; anything shorter by the stored prefix.
+    auto st = c.prepare(fmt::format("SELECT {}, id FROM api_keys WHERE hash = ?1 OR substr(prefix, 1, length(?2)) = ?2 "
+                                    "OR substr(?2, 1, length(prefix)) = prefix ORDER BY id",
+                                    kKeyColumns));
+    st.bind(1, sha256_hex(prefix_or_key)).bind(2, prefix_or_key);
+    std::vector<std::pair<ApiKeyInfo, std::int64_t>> found;
+    while (st.step()) found.emplace_back(key_info(st), st.i64(6));
+    if (found.empty()) throw std::invalid_argument(fmt::format("no API key with prefix '{}' in {}", prefix_or_key, db_path));
+    if (found.size() > 1) {
+        std::string which;
+        for (const auto& [k, id] : found) which += (which.empty() ? "" : ", ") + k.prefix + " (" + k.name + ")";
+        throw std::invalid_argument(
+            fmt::format("prefix '{}' matches {} keys: {}; give the whole key to revoke one", prefix_or_key,
+                        found.size(), which));
+    }
+    ApiKeyInfo k = found[0].first;
+    if (already_revoked) *already_revoked = k.revoked_at.has_value();
+    if (!k.revoked_at) {
+        k.revoked_at = db::now_iso();
+        c.prepare("UPDATE api_keys SET revoked_at = ? WHERE id = ?").bind(1, *k.revoked_at).bind(2, found[0].second).run();
+    }
+    tx.commit();
+    return k;
 }
 
 std::string create_api_key(const std::string& db_path, Role role, const std::string& name) {

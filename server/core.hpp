@@ -4,6 +4,7 @@
 
 #include "server/common.hpp"
 #include "server/metrics.hpp"
+#include "server/series.hpp"
 
 #include <httplib.h>
 
@@ -45,6 +46,7 @@ struct Core {
     DbPool pool;
     httplib::Server http;
     Metrics metrics;
+    SeriesCache series_cache;
     std::unique_ptr<Jobs> jobs;
     std::unique_ptr<Webhooks> hooks;
     std::vector<std::pair<std::string, std::string>> route_list;

@@ -1,9 +1,12 @@
 #include "server/series.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 namespace cutload::server {
 namespace {
@@ -96,94 +99,247 @@ void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const Seri
     }
 }
 
-bool series_extent(db::Connection& c, std::int64_t run_id, SeriesId s, double* t0_s, double* t1_s) {
-    auto st = c.prepare(
-        "SELECT min(t0_s), max(t1_s) FROM series_chunks WHERE run_id = ? AND series = ? AND level = 0");
-    st.bind(1, run_id).bind(2, static_cast<int>(s));
-    if (!st.step() || st.is_null(0)) return false;
-    *t0_s = st.real(0);
-    *t1_s = st.real(1);
+std::size_t SeriesCache::KeyHash::operator()(const Key& k) const {
+    std::size_t h = std::hash<std::int64_t>()(k.run_id);
+    for (std::size_t v : {std::hash<std::string>()(k.version), static_cast<std::size_t>(k.kind),
+                          static_cast<std::size_t>(k.series), static_cast<std::size_t>(k.level),
+                          std::hash<std::int64_t>()(k.chunk)})
+        h ^= v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2);
+    return h;
+}
+
+SeriesCache::Stats SeriesCache::stats() const {
+    std::lock_guard lk(mu_);
+    return Stats{bytes_, limit_bytes_, lru_.size(), hits_, misses_, evictions_};
+}
+
+std::shared_ptr<const void> SeriesCache::find(const Key& key) {
+    std::lock_guard lk(mu_);
+    auto it = where_.find(key);
+    if (it == where_.end()) {
+        ++misses_;
+        return nullptr;
+    }
+    ++hits_;
+    lru_.splice(lru_.begin(), lru_, it->second);
+    return it->second->value;
+}
+
+void SeriesCache::put(const Key& key, std::shared_ptr<const void> value, std::size_t bytes) {
+    if (bytes > limit_bytes_) return;
+    std::lock_guard lk(mu_);
+    if (where_.count(key)) return;   // a concurrent miss stored it first
+    lru_.push_front(Entry{key, std::move(value), bytes});
+    where_.emplace(key, lru_.begin());
+    bytes_ += bytes;
+    while (bytes_ > limit_bytes_) {
+        bytes_ -= lru_.back().bytes;
+        where_.erase(lru_.back().key);
+        lru_.pop_back();
+        ++evictions_;
+    }
+}
+
+void SeriesCache::forget_run(std::int64_t run_id) {
+    std::lock_guard lk(mu_);
+    for (auto it = lru_.begin(); it != lru_.end();) {
+        if (it->key.run_id != run_id) {
+            ++it;
+            continue;
+        }
+        bytes_ -= it->bytes;
+        where_.erase(it->key);
+        it = lru_.erase(it);
+    }
+}
+
+namespace {
+
+// Where each chunk of each level lies in time, from the covering index (no blob is read).
+struct ChunkIndex {
+    struct Level {
+        std::vector<std::int64_t> chunk, n;
+        std::vector<double> t0, t1;
+    };
+    std::vector<Level> levels;
+};
+
+// One chunk decoded into channel-major arrays, so a query touches only the channels it answers.
+struct Chunk {
+    std::size_t n = 0;
+    std::vector<double> t0, t1;   // t1 stays empty at level 0: a raw row is a point in time
+    std::vector<float> lo, hi;    // lo[j * n + i]; hi stays empty at level 0 (equal to lo)
+};
+
+std::shared_ptr<const ChunkIndex> load_index(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s) {
+    const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::Index, static_cast<int>(s), 0, 0};
+    return cache.get<ChunkIndex>(key, [&] {
+        auto idx = std::make_shared<ChunkIndex>();
+        auto st = c.prepare(
+            "SELECT level, chunk, t0_s, t1_s, n FROM series_chunks WHERE run_id = ? AND series = ? ORDER BY level, chunk");
+        st.bind(1, run.id).bind(2, static_cast<int>(s));
+        std::size_t bytes = sizeof(ChunkIndex);
+        while (st.step()) {
+            const auto level = static_cast<std::size_t>(st.i64(0));
+            if (idx->levels.size() <= level) idx->levels.resize(level + 1);
+            auto& l = idx->levels[level];
+            l.chunk.push_back(st.i64(1));
+            l.t0.push_back(st.real(2));
+            l.t1.push_back(st.real(3));
+            l.n.push_back(st.i64(4));
+            bytes += 2 * sizeof(std::int64_t) + 2 * sizeof(double);
+        }
+        return std::pair{std::shared_ptr<const ChunkIndex>(std::move(idx)), bytes};
+    });
+}
+
+std::shared_ptr<const Chunk> load_chunk(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, int level,
+                                        std::int64_t chunk) {
+    const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::Chunk, static_cast<int>(s), level, chunk};
+    return cache.get<Chunk>(key, [&] {
+        const std::size_t k = series_channels(s).size();
+        auto st = c.prepare("SELECT n, data FROM series_chunks WHERE run_id = ? AND series = ? AND level = ? AND chunk = ?");
+        st.bind(1, run.id).bind(2, static_cast<int>(s)).bind(3, level).bind(4, chunk);
+        if (!st.step()) throw std::runtime_error(fmt::format("run {}: series chunk {}/{} is missing", run.id, level, chunk));
+        auto out = std::make_shared<Chunk>();
+        const auto n = static_cast<std::size_t>(st.i64(0));
+        std::size_t bytes = 0;
+        const auto* p = static_cast<const unsigned char*>(st.blob(1, &bytes));
+        const std::size_t stride = elem_bytes(static_cast<std::size_t>(level), k);
+        if (bytes != n * stride)
+            throw std::runtime_error(fmt::format("run {}: series chunk {}/{} holds {} bytes, not {} elements", run.id, level,
+                                                 chunk, bytes, n));
+        out->n = n;
+        out->t0.resize(n);
+        out->lo.resize(n * k);
+        if (level > 0) {
+            out->t1.resize(n);
+            out->hi.resize(n * k);
+        }
+        const std::size_t lo_at = level == 0 ? sizeof(double) : 2 * sizeof(double);
+        for (std::size_t i = 0; i < n; ++i, p += stride) {
+            std::memcpy(&out->t0[i], p, sizeof(double));
+            if (level > 0) std::memcpy(&out->t1[i], p + sizeof(double), sizeof(double));
+            for (std::size_t j = 0; j < k; ++j) {
+                std::memcpy(&out->lo[j * n + i], p + lo_at + j * sizeof(float), sizeof(float));
+                if (level > 0) std::memcpy(&out->hi[j * n + i], p + lo_at + (k + j) * sizeof(float), sizeof(float));
+            }
+        }
+        const std::size_t size = sizeof(Chunk) + (out->t0.size() + out->t1.size()) * sizeof(double) +
+                                 (out->lo.size() + out->hi.size()) * sizeof(float);
+        return std::pair{std::shared_ptr<const Chunk>(std::move(out)), size};
+    });
+}
+
+// Estimated raw rows in the window: whole chunks inside, pro rata for the two at the edges.
+double rows_in(const ChunkIndex::Level& l0, double from_s, double to_s) {
+    double rows = 0;
+    for (std::size_t i = 0; i < l0.t0.size(); ++i) {
+        const double t0 = l0.t0[i], t1 = l0.t1[i];
+        if (t1 < from_s || t0 > to_s) continue;
+        const double span = t1 - t0;
+        const double inside = span > 0 ? (std::min(t1, to_s) - std::max(t0, from_s)) / span : 1.0;
+        rows += static_cast<double>(l0.n[i]) * std::clamp(inside, 0.0, 1.0);
+    }
+    return rows;
+}
+
+}  // namespace
+
+bool series_extent(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s) {
+    const auto idx = load_index(c, cache, run, s);
+    if (idx->levels.empty() || idx->levels[0].t0.empty()) return false;
+    const auto& l0 = idx->levels[0];
+    *t0_s = *std::min_element(l0.t0.begin(), l0.t0.end());
+    *t1_s = *std::max_element(l0.t1.begin(), l0.t1.end());
     return true;
 }
 
-Window query_window(db::Connection& c, std::int64_t run_id, SeriesId s, double from_s, double to_s,
-                    std::size_t max_points) {
+Window query_window(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
+                    std::size_t max_points, const std::vector<bool>& channels) {
     const std::size_t k = series_channels(s).size();
     Window w;
-    w.channels = k;
+    w.lo.resize(k);
+    w.hi.resize(k);
+    const auto idx = load_index(c, cache, run, s);
+    if (idx->levels.empty()) return w;
 
-    // Estimated raw rows in the window: whole chunks inside, pro rata for the two at the edges.
-    auto meta = c.prepare(
-        "SELECT t0_s, t1_s, n FROM series_chunks WHERE run_id = ? AND series = ? AND level = ? "
-        "AND t1_s >= ? AND t0_s <= ? ORDER BY chunk");
-    meta.bind(1, run_id).bind(2, static_cast<int>(s)).bind(3, 0).bind(4, from_s).bind(5, to_s);
-    double rows = 0;
-    while (meta.step()) {
-        const double t0 = meta.real(0), t1 = meta.real(1), n = static_cast<double>(meta.i64(2));
-        const double span = t1 - t0;
-        const double inside = span > 0 ? (std::min(t1, to_s) - std::max(t0, from_s)) / span : 1.0;
-        rows += n * std::clamp(inside, 0.0, 1.0);
-    }
+    const double rows = rows_in(idx->levels[0], from_s, to_s);
     int level = 0;
     if (rows > static_cast<double>(max_points)) {
         // The coarsest level that still gives every output bucket about one element or more.
-        while (rows / std::pow(static_cast<double>(kFanout), level + 1) >= static_cast<double>(max_points)) ++level;
+        while (level + 1 < static_cast<int>(idx->levels.size()) &&
+               rows / std::pow(static_cast<double>(kFanout), level + 1) >= static_cast<double>(max_points))
+            ++level;
     }
     w.level = level;
     w.decimated = rows > static_cast<double>(max_points);
 
-    auto st = c.prepare(
-        "SELECT n, data FROM series_chunks WHERE run_id = ? AND series = ? AND level = ? "
-        "AND t1_s >= ? AND t0_s <= ? ORDER BY chunk");
-    st.bind(1, run_id).bind(2, static_cast<int>(s)).bind(3, level).bind(4, from_s).bind(5, to_s);
-
-    const double bucket_s = (to_s - from_s) / static_cast<double>(std::max<std::size_t>(max_points, 1));
-    std::vector<std::int64_t> bucket_of_out;   // decimated: bucket index of each output element
-    auto add_to_bucket = [&](double t0, double t1, const float* lo, const float* hi) {
-        auto b = static_cast<std::int64_t>(std::floor((t0 - from_s) / bucket_s));
-        b = std::clamp<std::int64_t>(b, 0, static_cast<std::int64_t>(max_points) - 1);
-        if (bucket_of_out.empty() || bucket_of_out.back() != b) {
-            bucket_of_out.push_back(b);
-            w.t_s.push_back(t0);
-            w.t_end_s.push_back(t1);
-            w.mins.insert(w.mins.end(), lo, lo + k);
-            w.maxs.insert(w.maxs.end(), hi, hi + k);
-            return;
-        }
-        w.t_end_s.back() = std::max(w.t_end_s.back(), t1);
-        float* mn = &w.mins[w.mins.size() - k];
-        float* mx = &w.maxs[w.maxs.size() - k];
-        for (std::size_t j = 0; j < k; ++j) {
-            mn[j] = std::min(mn[j], lo[j]);
-            mx[j] = std::max(mx[j], hi[j]);
-        }
+    // Pass 1, times only: which elements of which chunks fall in the window, and the output
+    // element (bucket, or row when raw) each one goes to.
+    struct Part {
+        std::shared_ptr<const Chunk> chunk;
+        std::vector<std::uint32_t> elem, out;
     };
-
-    std::vector<float> lo(k), hi(k);
-    while (st.step()) {
-        const auto n = static_cast<std::size_t>(st.i64(0));
-        std::size_t bytes = 0;
-        const auto* p = static_cast<const unsigned char*>(st.blob(1, &bytes));
-        if (bytes != n * elem_bytes(static_cast<std::size_t>(level), k)) continue;   // never written that way
-        for (std::size_t i = 0; i < n; ++i, p += elem_bytes(static_cast<std::size_t>(level), k)) {
-            double t0 = 0, t1 = 0;
-            std::memcpy(&t0, p, sizeof(double));
-            if (level == 0) {
-                if (t0 < from_s || t0 > to_s) continue;
-                std::memcpy(lo.data(), p + sizeof(double), k * sizeof(float));
-                if (!w.decimated) {
-                    w.t_s.push_back(t0);
-                    w.values.insert(w.values.end(), lo.begin(), lo.end());
-                } else {
-                    add_to_bucket(t0, t0, lo.data(), lo.data());
-                }
-                continue;
-            }
-            std::memcpy(&t1, p + sizeof(double), sizeof(double));
+    std::vector<Part> parts;
+    const auto& lv = idx->levels[static_cast<std::size_t>(level)];
+    const double bucket_s = (to_s - from_s) / static_cast<double>(std::max<std::size_t>(max_points, 1));
+    std::int64_t last_bucket = -1;
+    for (std::size_t ci = 0; ci < lv.chunk.size(); ++ci) {
+        if (lv.t1[ci] < from_s || lv.t0[ci] > to_s) continue;
+        Part part{load_chunk(c, cache, run, s, level, lv.chunk[ci]), {}, {}};
+        const Chunk& ch = *part.chunk;
+        part.elem.reserve(ch.n);
+        part.out.reserve(ch.n);
+        for (std::size_t i = 0; i < ch.n; ++i) {
+            const double t0 = ch.t0[i];
+            const double t1 = level == 0 ? t0 : ch.t1[i];
             if (t1 < from_s || t0 > to_s) continue;
-            std::memcpy(lo.data(), p + 2 * sizeof(double), k * sizeof(float));
-            std::memcpy(hi.data(), p + 2 * sizeof(double) + k * sizeof(float), k * sizeof(float));
-            add_to_bucket(std::max(t0, from_s), std::min(t1, to_s), lo.data(), hi.data());
+            if (!w.decimated) {
+                w.t_s.push_back(t0);
+            } else {
+                const double a = std::max(t0, from_s), b = std::min(t1, to_s);
+                auto bucket = static_cast<std::int64_t>((a - from_s) / bucket_s);   // a >= from_s: floor
+                bucket = std::clamp<std::int64_t>(bucket, 0, static_cast<std::int64_t>(max_points) - 1);
+                if (bucket != last_bucket) {
+                    last_bucket = bucket;
+                    w.t_s.push_back(a);
+                    w.t_end_s.push_back(b);
+                } else {
+                    w.t_end_s.back() = std::max(w.t_end_s.back(), b);
+                }
+            }
+            part.elem.push_back(static_cast<std::uint32_t>(i));
+            part.out.push_back(static_cast<std::uint32_t>(w.t_s.size() - 1));
+        }
+        if (!part.elem.empty()) parts.push_back(std::move(part));
+    }
+
+    // Pass 2, per wanted channel.
+    const std::size_t n_out = w.t_s.size();
+    for (std::size_t j = 0; j < k; ++j) {
+        if (!channels[j]) continue;
+        auto& lo = w.lo[j];
+        if (!w.decimated) {
+            lo.reserve(n_out);
+            for (const auto& part : parts) {
+                const float* v = &part.chunk->lo[j * part.chunk->n];
+                for (auto i : part.elem) lo.push_back(v[i]);
+            }
+            continue;
+        }
+        auto& hi = w.hi[j];
+        lo.assign(n_out, std::numeric_limits<float>::infinity());
+        hi.assign(n_out, -std::numeric_limits<float>::infinity());
+        for (const auto& part : parts) {
+            const Chunk& ch = *part.chunk;
+            const float* src_lo = &ch.lo[j * ch.n];
+            const float* src_hi = level == 0 ? src_lo : &ch.hi[j * ch.n];
+            for (std::size_t e = 0; e < part.elem.size(); ++e) {
+                const auto i = part.elem[e], o = part.out[e];
+                lo[o] = std::min(lo[o], src_lo[i]);
+                hi[o] = std::max(hi[o], src_hi[i]);
+            }
         }
     }
     return w;

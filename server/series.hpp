@@ -1,5 +1,6 @@
 // Internal to server: time series (forces, motion) stored as chunked blobs with a min/max
-// envelope pyramid, and window queries that decimate wide windows to at most max_points buckets.
+// envelope pyramid, window queries that decimate wide windows to at most max_points buckets, and
+// the in-memory cache of decoded chunks those queries read from.
 //
 // Level 0 elements are raw rows: t_s (double) + K float channels. Level L > 0 elements cover
 // kFanout^L raw rows: t0_s, t1_s (double) + K minima + K maxima (float). Blobs are host-endian
@@ -9,7 +10,12 @@
 #include "db/db.hpp"
 
 #include <cstdint>
+#include <functional>
+#include <list>
+#include <memory>
+#include <mutex>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace cutload::server {
@@ -31,20 +37,85 @@ struct SeriesData {
 // Inside an open transaction.
 void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const SeriesData& d);
 
-struct Window {
-    bool decimated = false;
-    std::size_t channels = 0;
-    std::vector<double> t_s;       // raw: sample times; decimated: first time in each bucket
-    std::vector<double> t_end_s;   // decimated only: last time in each bucket
-    std::vector<float> values;     // raw only: row-major
-    std::vector<float> mins, maxs; // decimated only: row-major
-    int level = 0;                 // pyramid level read
+// A finished run's results never change, but a deleted run's id can be given to the next upload:
+// `version` (the run's finished_at) keeps the two apart in the cache.
+struct RunRef {
+    std::int64_t id = 0;
+    std::string version;
 };
 
-Window query_window(db::Connection& c, std::int64_t run_id, SeriesId s, double from_s, double to_s,
-                    std::size_t max_points);
+// Decoded pieces of finished runs (chunk index, chunks, block names) shared by every request and
+// bounded in bytes, least recently used out first. Thread-safe.
+class SeriesCache {
+public:
+    explicit SeriesCache(std::size_t limit_bytes) : limit_bytes_(limit_bytes) {}
+
+    struct Stats {
+        std::size_t bytes = 0, limit_bytes = 0, entries = 0;
+        std::uint64_t hits = 0, misses = 0, evictions = 0;
+    };
+    Stats stats() const;
+    // Drops every entry of the run (on delete).
+    void forget_run(std::int64_t run_id);
+
+    // Answer: a whole-run series answer, the one every plot asks first; its level holds
+    // max_points and its chunk the bit mask of channels asked, shifted left twice, | 2 for CSV,
+    // | 1 when gzipped.
+    enum class Kind : int { Index, Chunk, BlockNames, Answer };
+    struct Key {
+        std::int64_t run_id;
+        std::string version;
+        Kind kind;
+        int series, level;
+        std::int64_t chunk;
+        bool operator==(const Key&) const = default;
+    };
+
+    // The cached value, or load()'s (cached when it fits). load returns the value and its size.
+    // Concurrent misses of one key may both load; the values are equal, either is kept.
+    template <class T>
+    std::shared_ptr<const T> get(const Key& key, const std::function<std::pair<std::shared_ptr<const T>, std::size_t>()>& load) {
+        if (auto hit = find(key)) return std::static_pointer_cast<const T>(hit);
+        auto [value, bytes] = load();
+        put(key, value, bytes);
+        return value;
+    }
+
+private:
+    struct KeyHash {
+        std::size_t operator()(const Key& k) const;
+    };
+    struct Entry {
+        Key key;
+        std::shared_ptr<const void> value;
+        std::size_t bytes;
+    };
+    std::shared_ptr<const void> find(const Key& key);
+    void put(const Key& key, std::shared_ptr<const void> value, std::size_t bytes);
+
+    const std::size_t limit_bytes_;
+    mutable std::mutex mu_;
+    std::list<Entry> lru_;   // most recently used first
+    std::unordered_map<Key, std::list<Entry>::iterator, KeyHash> where_;
+    std::size_t bytes_ = 0;
+    std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0;
+};
+
+struct Window {
+    bool decimated = false;
+    int level = 0;                 // pyramid level read
+    std::vector<double> t_s;       // raw: sample times; decimated: first time in each bucket
+    std::vector<double> t_end_s;   // decimated only: last time in each bucket
+    // Per channel (series_channels order), empty for channels not asked for. Raw: lo holds the
+    // values and hi stays empty; decimated: minimum and maximum of each bucket.
+    std::vector<std::vector<float>> lo, hi;
+};
 
 // First and last time stored, or false when the run has no rows in this series.
-bool series_extent(db::Connection& c, std::int64_t run_id, SeriesId s, double* t0_s, double* t1_s);
+bool series_extent(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s);
+
+// channels[j]: whether channel j is wanted in the answer.
+Window query_window(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
+                    std::size_t max_points, const std::vector<bool>& channels);
 
 }  // namespace cutload::server

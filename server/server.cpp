@@ -4,6 +4,7 @@
 #include "motion_io/motion_io.hpp"
 #include "server/auth.hpp"
 #include "server/core.hpp"
+#include "server/gzip.hpp"
 #include "server/jobs.hpp"
 #include "server/webhooks.hpp"
 
@@ -120,7 +121,8 @@ std::optional<bool> Ctx::param_bool(const char* name) const {
     bad_request(fmt::format("query parameter {}: '{}' is not true or false", name, *s));
 }
 
-Core::Core(ServerOptions o) : opt(std::move(o)), data_dir(default_data_dir(opt)), pool(opt.db_path) {}
+Core::Core(ServerOptions o)
+    : opt(std::move(o)), data_dir(default_data_dir(opt)), pool(opt.db_path), series_cache(opt.cache_bytes) {}
 
 Core::~Core() {
     if (lock_fd >= 0) ::close(lock_fd);
@@ -135,14 +137,18 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
     }
     if (auth.rfind("Bearer ", 0) != 0)
         throw ApiError(401, "unauthorized", "Authorization header must be 'Bearer <key>'");
+    const std::string key = auth.substr(7);
     auto c = pool.get();
-    auto role = lookup_api_key(*c, auth.substr(7));
-    if (!role) throw ApiError(401, "unauthorized", "unknown or revoked API key");
-    *actor = auth.substr(7, 10);
-    if (static_cast<int>(*role) < static_cast<int>(need))
-        throw ApiError(403, "forbidden",
-                       fmt::format("this request needs the {} role; the key has {}", role_name(need), role_name(*role)));
-    return *role;
+    auto found = lookup_api_key(*c, key);
+    if (!found) throw ApiError(401, "unauthorized", "unknown API key");
+    if (found->revoked_at)
+        throw ApiError(401, "unauthorized", fmt::format("API key {} was revoked at {}", found->prefix, *found->revoked_at));
+    if (found->last_use_stale) touch_api_key(*c, key);
+    *actor = found->prefix;
+    if (static_cast<int>(found->role) < static_cast<int>(need))
+        throw ApiError(403, "forbidden", fmt::format("this request needs the {} role; the key has {}", role_name(need),
+                                                     role_name(found->role)));
+    return found->role;
 }
 
 void Core::route(const std::string& method, const std::string& path, std::optional<Role> need, Handler h) {
@@ -175,6 +181,7 @@ void Core::route(const std::string& method, const std::string& path, std::option
             res.status = 500;
             res.set_content(error_body("internal", e.what()).dump(), "application/json");
         }
+        compress_answer(req, res);
         metrics.request(method, path, res.status,
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     };

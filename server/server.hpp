@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,6 +23,7 @@ struct ServerOptions {
     std::size_t max_log_rows = 20'000'000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429
     int max_points = 20000;                // cap of forces/motion max_points
+    std::size_t cache_bytes = 128u << 20;  // decoded series chunks kept in memory (LRU)
     bool anonymous_loopback_reads = false; // GET without a key from 127.0.0.1 / ::1
     bool use_opencl = true;                // force engine device
     double drain_s = 10;                   // on stop: running jobs get this long, then re-queue
@@ -60,6 +62,25 @@ const char* role_name(Role r);
 // Creates an API key in the database (migrating it if new) and returns the key; only its
 // SHA-256 is stored.
 std::string create_api_key(const std::string& db_path, Role role, const std::string& name = "");
+
+// An API key as `cutload keys list` shows it; the key itself is never stored.
+struct ApiKeyInfo {
+    std::string prefix;   // first 10 characters of the key
+    Role role = Role::Read;
+    std::string name;
+    std::string created_at;
+    std::optional<std::string> last_used_at;   // to the minute: updated at most once a minute
+    std::optional<std::string> revoked_at;
+};
+
+// Keys of an existing database, oldest first. Throws std::invalid_argument when there is no
+// database at db_path.
+std::vector<ApiKeyInfo> list_api_keys(const std::string& db_path);
+
+// Revokes the one key whose prefix starts with prefix_or_key (or that is this whole key); a
+// revoked key is answered 401 from the next request on. Throws std::invalid_argument when no key
+// or several keys match. Revoking a revoked key changes nothing (*already_revoked tells).
+ApiKeyInfo revoke_api_key(const std::string& db_path, const std::string& prefix_or_key, bool* already_revoked = nullptr);
 
 // The OpenAPI 3 document served at /api/v1/openapi.json.
 const std::string& openapi_json();

@@ -1,0 +1,142 @@
+// API key management through the real binary: `cutload keys list` shows what a key is without
+// the key, `cutload keys revoke` shuts a key out with a 401 at once.
+#include "db/db.hpp"
+#include "harness.hpp"
+
+#include <sqlite3.h>
+
+#include <cstdio>
+#include <sys/wait.h>
+
+using namespace cutload::test;
+
+namespace {
+
+struct CliResult {
+    int status = -1;
+    std::string out;   // stdout and stderr
+};
+
+CliResult run_cli(const std::string& args) {
+    CliResult r;
+    FILE* p = ::popen((std::string(CUTLOAD_BINARY) + " " + args + " 2>&1").c_str(), "r");
+    REQUIRE(p);
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.out.append(buf, n);
+    const int st = ::pclose(p);
+    r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return r;
+}
+
+const cutload::server::ApiKeyInfo& key_with_prefix(const std::vector<cutload::server::ApiKeyInfo>& keys,
+                                                   const std::string& key) {
+    for (const auto& k : keys)
+        if (k.prefix == key.substr(0, 10)) return k;
+    FAIL("no key listed with the prefix of " << key.substr(0, 10));
+    throw std::logic_error("unreachable");
+}
+
+}  // namespace
+
+TEST_CASE("keys: list shows prefix role name and last use but never the key, and revoke answers 401 with a JSON error") {
+    TestServer ts;
+    const std::string db = ts.opt.db_path;
+
+    auto keys = cutload::server::list_api_keys(db);
+    REQUIRE(keys.size() == 3);
+    const auto& reader = key_with_prefix(keys, ts.read_key);
+    REQUIRE(reader.role == cutload::server::Role::Read);
+    REQUIRE(reader.name == "test reader");
+    REQUIRE_FALSE(reader.last_used_at);
+    REQUIRE_FALSE(reader.revoked_at);
+
+    auto rc = ts.client(ts.read_key);
+    REQUIRE(rc.Get("/api/v1/runs")->status == 200);
+    keys = cutload::server::list_api_keys(db);
+    REQUIRE(key_with_prefix(keys, ts.read_key).last_used_at);
+    REQUIRE_FALSE(key_with_prefix(keys, ts.write_key).last_used_at);
+
+    CliResult list = run_cli("keys list --db " + db);
+    INFO(list.out);
+    REQUIRE(list.status == 0);
+    for (const auto& k : {ts.admin_key, ts.write_key, ts.read_key}) {
+        REQUIRE(list.out.find(k.substr(0, 10)) != std::string::npos);
+        REQUIRE(list.out.find(k) == std::string::npos);   // the secret part never appears
+    }
+    REQUIRE(list.out.find("test writer") != std::string::npos);
+    REQUIRE(list.out.find("LAST USED") != std::string::npos);
+
+    CliResult revoke = run_cli("keys revoke " + ts.read_key.substr(0, 10) + " --db " + db);
+    INFO(revoke.out);
+    REQUIRE(revoke.status == 0);
+    REQUIRE(revoke.out.find("revoked") != std::string::npos);
+    // The running server refuses the key from the next request on; the other keys still work.
+    require_error(rc.Get("/api/v1/runs"), 401, "unauthorized", "revoked");
+    REQUIRE(ts.client(ts.write_key).Get("/api/v1/runs")->status == 200);
+    REQUIRE(key_with_prefix(cutload::server::list_api_keys(db), ts.read_key).revoked_at);
+
+    // Revoking it again changes nothing and says so without failing.
+    CliResult again = run_cli("keys revoke " + ts.read_key + " --db " + db);
+    INFO(again.out);
+    REQUIRE(again.status == 0);
+    REQUIRE(again.out.find("already revoked") != std::string::npos);
+}
+
+TEST_CASE("keys: revoke refuses an unknown or too short or ambiguous prefix and list refuses a missing database") {
+    TempDir dir;
+    const std::string db = (dir.path() / "k.db").string();
+    cutload::server::create_api_key(db, cutload::server::Role::Admin, "a");
+    {
+        // Two keys whose stored prefixes share their first characters.
+        sqlite3* h = nullptr;
+        REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
+        REQUIRE(sqlite3_exec(h,
+                             "INSERT INTO api_keys(hash, prefix, role, name, created_at) VALUES "
+                             "('h1', 'clk_abc123', 'read', 'one', '2024-01-01T00:00:00.000Z'), "
+                             "('h2', 'clk_abc456', 'read', 'two', '2024-01-01T00:00:00.000Z')",
+                             nullptr, nullptr, nullptr) == SQLITE_OK);
+        sqlite3_close(h);
+    }
+    CliResult ambiguous = run_cli("keys revoke clk_abc --db " + db);
+    REQUIRE(ambiguous.status != 0);
+    REQUIRE(ambiguous.out.find("matches 2 keys") != std::string::npos);
+    CliResult unknown = run_cli("keys revoke clk_ffffff --db " + db);
+    REQUIRE(unknown.status != 0);
+    REQUIRE(unknown.out.find("no API key with prefix 'clk_ffffff'") != std::string::npos);
+    CliResult short_prefix = run_cli("keys revoke clk --db " + db);
+    REQUIRE(short_prefix.status != 0);
+    REQUIRE(short_prefix.out.find("too short") != std::string::npos);
+    for (const auto& k : cutload::server::list_api_keys(db)) REQUIRE_FALSE(k.revoked_at);
+
+    CliResult one = run_cli("keys revoke clk_abc4 --db " + db);
+    INFO(one.out);
+    REQUIRE(one.status == 0);
+    for (const auto& k : cutload::server::list_api_keys(db)) REQUIRE(k.revoked_at.has_value() == (k.name == "two"));
+
+    CliResult missing = run_cli("keys list --db " + (dir.path() / "nope.db").string());
+    REQUIRE(missing.status != 0);
+    REQUIRE(missing.out.find("no database at") != std::string::npos);
+    REQUIRE_FALSE(fs::exists(dir.path() / "nope.db"));
+}
+
+TEST_CASE("keys: a schema 1 database upgrades in place and keeps its keys") {
+    TempDir dir;
+    const std::string db = (dir.path() / "old.db").string();
+    const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Write, "old");
+    {
+        // Back to schema 1: api_keys without last_used_at.
+        sqlite3* h = nullptr;
+        REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
+        REQUIRE(sqlite3_exec(h, "ALTER TABLE api_keys DROP COLUMN last_used_at; PRAGMA user_version=1", nullptr, nullptr,
+                             nullptr) == SQLITE_OK);
+        sqlite3_close(h);
+    }
+    const auto keys = cutload::server::list_api_keys(db);
+    REQUIRE(keys.size() == 1);
+    REQUIRE(keys[0].prefix == key.substr(0, 10));
+    REQUIRE_FALSE(keys[0].last_used_at);
+    cutload::db::Connection c(db);
+    auto st = c.prepare("PRAGMA user_version");
+    REQUIRE(st.step());
+    REQUIRE(st.i64(0) == cutload::db::schema_version());
+}
