@@ -185,7 +185,10 @@ void add_calibrate(CLI::App& app) {
     cmd->add_option("--device", a->device, "Engine device for the regressors")
         ->check(CLI::IsMember({"cpu", "opencl"}))
         ->capture_default_str();
-    cmd->callback([a] { run_calibrate(*a); });
+    cmd->callback([a] {
+        check_output_path(a->out, "--out");
+        run_calibrate(*a);
+    });
 }
 
 const bool registered = register_command("calibrate", &add_calibrate);

@@ -121,7 +121,11 @@ void add_compare(CLI::App& app) {
     cmd->add_flag("--keep-zero", a->keep_zero,
                   "Keep the measured zero offset (default: subtract the measured mean where the prediction is in air)");
     cmd->add_flag("--json", a->json, "Print the report as JSON");
-    cmd->callback([a] { run_compare(*a); });
+    cmd->callback([a] {
+        if (!a->report_csv.empty()) check_output_path(a->report_csv, "--report-csv");
+        if (!a->trace_csv.empty()) check_output_path(a->trace_csv, "--trace-csv");
+        run_compare(*a);
+    });
 }
 
 const bool registered = register_command("compare", &add_compare);

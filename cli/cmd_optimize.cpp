@@ -111,7 +111,11 @@ void add_optimize(CLI::App& app) {
     cmd->add_flag("-q,--quiet", a->quiet, "No progress note");
     add_program_options(*cmd, a->program, false);
     add_log_options(*cmd, a->read);
-    cmd->callback([a] { run_optimize(*a); });
+    cmd->callback([a] {
+        check_output_path(a->out, "--out");
+        if (!a->report.empty()) check_output_path(a->report, "--report");
+        run_optimize(*a);
+    });
 }
 
 const bool registered = register_command("optimize", &add_optimize);

@@ -4,10 +4,10 @@
 #include "cli/commands.hpp"
 #include "cli/predict_program.hpp"
 #include "force_model/force_model.hpp"
-#include "kernels/opencl_runtime.hpp"
 
 #include <cstdio>
 #include <memory>
+#include <unistd.h>
 
 namespace cutload::cli {
 namespace {
@@ -19,20 +19,11 @@ struct PredictArgs {
     ProgramOptions program;
 };
 
-force_model::Device pick_device(const std::string& name) {
-    if (name == "cpu") return force_model::Device::Cpu;
-    if (name == "opencl") return force_model::Device::OpenCL;
-    // auto: OpenCL when a device exists, else the scalar path (said on stderr).
-    try {
-        kernels::OpenClRuntime::instance();
-        return force_model::Device::OpenCL;
-    } catch (const kernels::OpenClError& e) {
-        std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
-        return force_model::Device::Cpu;
-    }
-}
-
 void run_predict(const PredictArgs& a) {
+    // A long prediction must not end in "cannot write": check every output place first.
+    for (const auto& [path, option] : {std::pair{a.out, "--out"}, {a.blocks, "--blocks"}, {a.save_stock, "--save-stock"},
+                                       {a.program.compare_csv, "--compare"}, {a.program.commanded_out, "--commanded-out"}})
+        if (!path.empty()) check_output_path(path, option);
     const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
     motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
     if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
@@ -41,17 +32,18 @@ void run_predict(const PredictArgs& a) {
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
 
     force_model::PredictOptions opt;
-    opt.device = pick_device(a.device);
+    opt.device = choose_device(a.device);
     opt.base_stock = base.get();
     int last_pct = -1;
-    if (!a.quiet)
+    const bool show_progress = !a.quiet && isatty(STDERR_FILENO);
+    if (show_progress)
         opt.progress = [&last_pct](double f) {
             const int pct = int(f * 100);
             if (pct / 10 != last_pct / 10) std::fprintf(stderr, "\rpredicting... %3d%%", pct);
             last_pct = pct;
         };
     const force_model::Prediction p = force_model::predict(motion, spec, opt);
-    if (!a.quiet) std::fprintf(stderr, "\r                    \r");
+    if (show_progress) std::fprintf(stderr, "\r                    \r");
 
     force_model::write_forces_csv(p, a.out);
     if (!a.blocks.empty()) force_model::write_blocks_csv(p, a.blocks);
@@ -89,8 +81,8 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--start-stock", a->start_stock, "Start from a stock saved by an earlier run (--save-stock)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--save-stock", a->save_stock, "Save the final in-process stock (binary) for a later run");
-    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms")
-        ->check(CLI::PositiveNumber)
+    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
+        ->check(CLI::Range(0.01, 1000.0))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_program_options(*cmd, a->program, true);

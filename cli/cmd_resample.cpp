@@ -23,7 +23,9 @@ void add_resample(CLI::App& app) {
     sub->add_option("--out", args->out, "Output CSV (written only when the whole log was read)")->required();
     add_log_options(*sub, args->opt);
     sub->callback([args] {
-        if (!(args->opt.step_ms > 0)) throw UsageError(fmt::format("--step-ms: must be > 0, got {}", args->opt.step_ms));
+        check_output_path(args->out, "--out");
+        if (!(args->opt.step_ms >= 0.01 && args->opt.step_ms <= 1000))
+            throw UsageError(fmt::format("--step-ms: must be from 0.01 to 1000 ms, got {}", args->opt.step_ms));
         motion_io::IngestReport report;
         const std::size_t rows = motion_io::resample_to_csv(args->log, args->opt, args->out, &report);
         fmt::print("wrote {} rows ({:.3f} s in {} session{}, {} warning code{}) to {}\n", rows, report.duration_s,

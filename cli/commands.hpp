@@ -25,6 +25,10 @@ using AddCommandFn = void (*)(CLI::App& app);
 // Returns a dummy value so it can initialise a namespace-scope constant in each cmd_*.cpp.
 bool register_command(const char* name, AddCommandFn add);
 
+// Throws UsageError when `path` cannot be written as an output file (missing or unwritable
+// folder, or a folder in its place), naming the option; checked before long computations.
+void check_output_path(const std::string& path, const char* option);
+
 // The log-format options shared by inspect, resample and predict:
 //   --format csv|shdr|auto, --map FILE, --units mm|in, --feed-units UNIT
 void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt);

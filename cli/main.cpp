@@ -2,6 +2,10 @@
 #include "force_model/force_model.hpp"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <unistd.h>
 #include <cstdio>
 #include <iostream>
 #include <vector>
@@ -23,11 +27,26 @@ bool register_command(const char* name, AddCommandFn add) {
     return true;
 }
 
+void check_output_path(const std::string& path, const char* option) {
+    namespace fs = std::filesystem;
+    const fs::path target(path);
+    std::error_code ec;
+    if (fs::is_directory(target, ec))
+        throw UsageError(std::string(option) + " " + path + ": is a folder, expected a file name");
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec))
+        throw UsageError(std::string(option) + " " + path + ": folder " + dir.string() + " does not exist");
+    if (::access(dir.c_str(), W_OK) != 0)
+        throw UsageError(std::string(option) + " " + path + ": cannot write in " + dir.string() + " (" +
+                         std::strerror(errno) + ")");
+}
+
 void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt) {
     static const std::map<std::string, motion_io::Format> formats{
         {"auto", motion_io::Format::Auto}, {"csv", motion_io::Format::Csv}, {"shdr", motion_io::Format::Shdr}};
-    sub.add_option("--format", opt.format, "Log format (default: from the file's content)")
-        ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
+    sub.add_option("--format", opt.format, "Log format: csv, shdr or auto (default: from the file's content)")
+        ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case))
+        ->option_text("csv|shdr|auto");
     // The reader checks the map file itself so that a bad path gets the one-line error format.
     sub.add_option("--map", opt.map_file, "SHDR key mapping, JSON (see docs/formats.md)");
     sub.add_option_function<std::string>(
@@ -50,10 +69,28 @@ int main(int argc, char** argv) {
     std::sort(entries.begin(), entries.end(),
               [](const auto& a, const auto& b) { return std::string(a.name) < b.name; });
     for (const auto& e : entries) e.add(app);
+    // CLI11 would only say "A subcommand is required"; name the word that is not a command.
+    if (argc > 1 && argv[1][0] != '-' &&
+        std::none_of(entries.begin(), entries.end(), [&](const auto& e) { return std::string(e.name) == argv[1]; })) {
+        std::string names;
+        for (const auto& e : entries) names += std::string(names.empty() ? "" : ", ") + e.name;
+        std::fprintf(stderr, "cutload: error: unknown command '%s' (commands: %s)\n", argv[1], names.c_str());
+        return 2;
+    }
     try {
         app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::Success& e) {
+        return app.exit(e);   // --help, --version
+    } catch (const CLI::CallForHelp& e) {
         return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        // One line in the same format as every other error, so scripts can rely on it.
+        std::fprintf(stderr, "cutload: error: %s (see cutload --help)\n", e.what());
+        return 2;
     } catch (const cli::UsageError& e) {
         std::fprintf(stderr, "cutload: error: %s\n", e.what());
         return e.code();

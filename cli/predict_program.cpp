@@ -2,7 +2,6 @@
 
 #include "cli/commands.hpp"
 #include "force_model/program_compare.hpp"
-#include "kernels/opencl_runtime.hpp"
 
 #include <fmt/format.h>
 
@@ -47,10 +46,11 @@ bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgra
 force_model::Device choose_device(const std::string& name) {
     if (name == "cpu") return force_model::Device::Cpu;
     if (name == "opencl") return force_model::Device::OpenCL;
+    // auto: OpenCL when a device exists, else the scalar path (said on stderr).
     try {
-        kernels::OpenClRuntime::instance();
+        force_model::opencl_device_name();
         return force_model::Device::OpenCL;
-    } catch (const kernels::OpenClError& e) {
+    } catch (const std::runtime_error& e) {
         std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
         return force_model::Device::Cpu;
     }

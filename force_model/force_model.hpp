@@ -96,6 +96,10 @@ double stock_volume_mm3(const Stock& s);
 
 enum class Device { OpenCL, Cpu };
 
+// The OpenCL device predict() would use ("auto" choices in the CLI and service); throws
+// std::runtime_error saying why when no OpenCL device is usable.
+std::string opencl_device_name();
+
 // One row per angle step while cutting (air time coarser). Forces act on the tool, in machine axes.
 struct ForceSample {
     double t_s = 0;

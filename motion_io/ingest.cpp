@@ -99,10 +99,15 @@ void check_feed_unit(double ratio, detail::Diagnostics& diag) {
 
 IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detail::GridSink& sink,
                           detail::BlockTable& blocks) {
-    if (!(opt.step_ms > 0) || !std::isfinite(opt.step_ms))
-        throw IngestError(fmt::format("step must be a positive number of milliseconds, got {}", opt.step_ms));
+    // Below 0.01 ms the output grows without bound for no gain (a CNC updates every 1-8 ms);
+    // 1 s is already coarser than an event-driven MTConnect log's own sampling.
+    if (!(opt.step_ms >= 0.01 && opt.step_ms <= 1000))
+        throw IngestError(fmt::format("step must be from 0.01 to 1000 ms, got {}", opt.step_ms));
     detail::Diagnostics diag(path);
     const Format format = opt.format == Format::Auto ? detail::detect_format(path, diag) : opt.format;
+    if (format == Format::Csv && !opt.map_file.empty())
+        throw IngestError(opt.map_file + ": a key mapping applies to SHDR logs only; a CSV log names its channels "
+                          "in its header row");
     const bool event_driven = format == Format::Shdr;
     detail::Repairer repair(diag, sink, opt.step_ms * 1e-3, event_driven);
     detail::Sequencer sequencer(diag, repair, event_driven);

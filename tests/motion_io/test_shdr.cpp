@@ -18,7 +18,7 @@ const std::string kOkuma = "data/real/okuma_multus_shdr/okuma.txt";
 
 }  // namespace
 
-TEST_CASE("Okuma SHDR: four restart sessions split, feed unit quirk flagged without the option", "[shdr]") {
+TEST_CASE("Okuma SHDR: four restart sessions split, feed unit quirk flagged without the option", "[shdr][shared]") {
     ReadOptions opt;
     opt.step_ms = 50;
     IngestReport report;
@@ -37,7 +37,7 @@ TEST_CASE("Okuma SHDR: four restart sessions split, feed unit quirk flagged with
     CHECK(report.blocks > 100);
 }
 
-TEST_CASE("Okuma SHDR: --feed-units mm/min resolves the quirk explicitly", "[shdr]") {
+TEST_CASE("Okuma SHDR: --feed-units mm/min resolves the quirk explicitly", "[shdr][shared]") {
     ReadOptions opt;
     opt.step_ms = 50;
     opt.feed_unit = "mm/min";

@@ -1,0 +1,97 @@
+// The CLI's promise for bad input: a non-zero exit, one line "cutload: error: ..." naming the
+// place and the reason, and no output file written.
+#include <catch2/catch.hpp>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <sys/wait.h>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+    int exit_code = -1;
+    std::string output;   // stdout and stderr together
+};
+
+Result run(const std::string& args) {
+    const std::string cmd = std::string(CUTLOAD_BINARY) + " " + args + " 2>&1";
+    Result r;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    REQUIRE(pipe != nullptr);
+    std::array<char, 4096> buf{};
+    while (fgets(buf.data(), static_cast<int>(buf.size()), pipe)) r.output += buf.data();
+    const int status = pclose(pipe);
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
+
+// A fresh, empty scratch folder per test.
+fs::path scratch(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("cutload_cli_test_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+void require_one_error_line(const Result& r, const std::string& must_contain) {
+    INFO(r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(r.output.rfind("cutload: error: ", 0) == 0);
+    CHECK(r.output.find('\n') == r.output.size() - 1);
+    CHECK(r.output.find(must_contain) != std::string::npos);
+}
+
+}  // namespace
+
+TEST_CASE("predict checks every output place before computing", "[cli]") {
+    const fs::path dir = scratch("predict_out");
+    const fs::path forces = dir / "forces.csv";
+    const Result r = run("predict " + source("data/demo_dryrun.csv") + " --spec " + source("data/demo_run.json") +
+                         " --out " + forces.string() + " --blocks " + (dir / "missing" / "blocks.csv").string());
+    require_one_error_line(r, "--blocks");
+    CHECK(r.output.find("does not exist") != std::string::npos);
+    CHECK_FALSE(fs::exists(forces));   // nothing computed, nothing half-written
+}
+
+TEST_CASE("an output path that is a folder is refused", "[cli]") {
+    const fs::path dir = scratch("resample_out");
+    const Result r = run("resample " + source("data/demo_dryrun.csv") + " --step-ms 1 --out " + dir.string());
+    require_one_error_line(r, "is a folder");
+}
+
+TEST_CASE("option parse errors use the one-line error format", "[cli]") {
+    require_one_error_line(run("inspect " + source("data/demo_dryrun.csv") + " --units furlong"), "--units");
+    require_one_error_line(run("no-such-command"), "no-such-command");
+}
+
+TEST_CASE("the resampling step is bounded", "[cli]") {
+    const fs::path dir = scratch("step");
+    const fs::path out = dir / "motion.csv";
+    require_one_error_line(run("resample " + source("data/demo_dryrun.csv") + " --step-ms 0.000001 --out " + out.string()),
+                           "0.01 to 1000 ms");
+    CHECK_FALSE(fs::exists(out));
+}
+
+TEST_CASE("a key mapping given for a CSV log is an error, not ignored", "[cli]") {
+    const fs::path dir = scratch("map");
+    const fs::path map = dir / "map.json";
+    FILE* f = std::fopen(map.c_str(), "w");
+    REQUIRE(f != nullptr);
+    std::fputs("{\"position\": [\"pos\"]}", f);
+    std::fclose(f);
+    require_one_error_line(run("inspect " + source("data/demo_dryrun.csv") + " --map " + map.string()),
+                           "SHDR logs only");
+}
+
+TEST_CASE("--help and --version exit 0", "[cli]") {
+    CHECK(run("--help").exit_code == 0);
+    const Result v = run("--version");
+    CHECK(v.exit_code == 0);
+    CHECK(v.output.find("cutload 0.1.0") != std::string::npos);
+}
