@@ -19,6 +19,13 @@ done
 # The web page is built with npm. Judge by the command, not the package: a machine may carry a
 # newer Node.js from elsewhere whose bundled npm conflicts with Debian's npm package.
 command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
+if command -v node >/dev/null 2>&1; then
+  node_major=$(node -p 'process.versions.node.split(".")[0]' 2>/dev/null || echo 0)
+  if [ "$node_major" -lt 18 ]; then
+    echo "cutload setup: Node.js $(node --version) is too old for the web build (need 18 or newer)" >&2
+    exit 1
+  fi
+fi
 # Extra packages asked for by the caller (scripts/test.sh adds the browser for the web tests).
 for p in ${CUTLOAD_EXTRA_PACKAGES:-}; do
   case "$p" in
@@ -37,4 +44,10 @@ fi
 BUILD_DIR=${CUTLOAD_BUILD_DIR:-build}
 JOBS=${CUTLOAD_JOBS:-$(nproc)}
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$BUILD_DIR" -j "$JOBS"
+# CUTLOAD_TARGETS narrows the build (scripts/start.sh needs only the executable and the page).
+if [ -n "${CUTLOAD_TARGETS:-}" ]; then
+  # shellcheck disable=SC2086
+  cmake --build "$BUILD_DIR" -j "$JOBS" --target $CUTLOAD_TARGETS
+else
+  cmake --build "$BUILD_DIR" -j "$JOBS"
+fi

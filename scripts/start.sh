@@ -9,7 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-scripts/setup.sh
+CUTLOAD_TARGETS="cutload cutload_web" scripts/setup.sh
 
 BUILD_DIR=${CUTLOAD_BUILD_DIR:-build}
 BIN=$BUILD_DIR/cli/cutload
@@ -35,7 +35,10 @@ KEY=$(cat "$KEY_FILE")
 "$BIN" serve --listen "$LISTEN" --db "$DB" --web "$BUILD_DIR/web/site" --anonymous-loopback-reads \
   --device "${CUTLOAD_DEVICE:-opencl}" &
 SERVER=$!
-trap 'kill -TERM $SERVER 2>/dev/null; wait $SERVER' INT TERM
+# Whatever ends this script (Ctrl-C, a failed request under set -e) stops the service gracefully.
+stop_server() { kill -TERM "$SERVER" 2>/dev/null && wait "$SERVER" 2>/dev/null; true; }
+trap stop_server EXIT
+trap 'exit 130' INT TERM
 
 for _ in $(seq 1 100); do
   curl -fsS "$URL/healthz" >/dev/null 2>&1 && break
@@ -44,7 +47,8 @@ for _ in $(seq 1 100); do
 done
 
 api() { curl -fsS -H "Authorization: Bearer $KEY" "$@"; }
-json_field() { sed -n "s/.*\"$1\":\([^,}]*\).*/\1/p" | head -n 1 | tr -d '"'; }
+# The first "key": value in a JSON answer (ids are numbers, states are plain words).
+json_field() { { grep -o "\"$1\": *\"\{0,1\}[A-Za-z0-9_]*" || true; } | head -n 1 | sed 's/.*: *"\{0,1\}//'; }
 
 RUN=$(api "$URL/api/v1/runs?program=demo&limit=1" | json_field id)
 if [ -z "$RUN" ]; then
