@@ -96,6 +96,9 @@ export const api = {
   forces: (id, window, signal) => request('GET', `runs/${id}/forces`, { query: window, signal }),
   forcesCsv: (id, window) => request('GET', `runs/${id}/forces`, { query: window, accept: 'text/csv' }),
   motion: (id, window, signal) => request('GET', `runs/${id}/motion`, { query: window, signal }),
+  // Dynamometer comparison: {report, series}; 404 when no measurement is attached.
+  measurement: (id, window) => request('GET', `runs/${id}/measurement`, { query: window }),
+  attachMeasurement: (id, form) => request('POST', `runs/${id}/measurement`, { form }),
 
   library: (kind) => all(kind, {}, 1000),
   createItem: (kind, body) => request('POST', kind, { json: body }),

@@ -62,6 +62,26 @@ export function mergeColumns(overview, detail, from, to) {
   });
 }
 
+// The measured series (fx_N, fy_N, fz_N) as [x, fx, fy, fz], envelopes as min/max pairs.
+export function measuredColumns(w) {
+  const keys = ['fx_N', 'fy_N', 'fz_N'];
+  if (!w.decimated) return [Float64Array.from(w.t_s), ...keys.map((k) => Float32Array.from(w[k]))];
+  const n = w.t_s.length;
+  const x = new Float64Array(2 * n);
+  for (let i = 0; i < n; i++) {
+    x[2 * i] = w.t_s[i];
+    x[2 * i + 1] = w.t_end_s[i];
+  }
+  return [x, ...keys.map((k) => {
+    const y = new Float32Array(2 * n);
+    for (let i = 0; i < n; i++) {
+      y[2 * i] = w[k].min[i];
+      y[2 * i + 1] = w[k].max[i];
+    }
+    return y;
+  })];
+}
+
 export class ForcePlot {
   // fetchWindow(from_s, to_s, max_points, signal) -> forces window answer.
   constructor(container, { fetchWindow, limits = {}, onPick, onRange }) {
@@ -79,6 +99,7 @@ export class ForcePlot {
     this.fetchedRange = null;
     this.interactionStart = 0;
     this.currentData = null;
+    this.measured = null;    // [x, fx, fy, fz] columns of the attached dynamometer record
     container.addEventListener('keydown', (e) => this.keydown(e));
   }
 
@@ -171,6 +192,13 @@ export class ForcePlot {
   setChannels(show) {
     Object.assign(this.show, show);
     this.build();
+  }
+
+  // The measured series of GET /runs/{id}/measurement, drawn dashed over Fx, Fy, Fz in their colours.
+  setMeasured(series) {
+    this.measured = series ? measuredColumns(series) : null;
+    this.container.dataset.measuredPoints = String(this.measured ? this.measured[0].length : 0);
+    this.u?.redraw(false, false);
   }
 
   setShaded(intervals) {
@@ -383,6 +411,7 @@ export class ForcePlot {
     line(this.limits.force_N, 'N', '#b91c1c', `force limit ${this.limits.force_N} N`);
     if (this.show.torque_Nm) line(this.limits.torque_Nm, 'Nm', '#8c2d9c', `torque limit ${this.limits.torque_Nm} N·m`);
     if (this.show.power_kW) line(this.limits.power_kW, 'kW', '#e67e00', `power limit ${this.limits.power_kW} kW`);
+    if (this.measured) this.drawMeasured(u, px);
     if (this.marker != null) {
       const x = u.valToPos(this.marker, 'x', true);
       ctx.strokeStyle = '#2563eb';
@@ -393,6 +422,27 @@ export class ForcePlot {
       ctx.stroke();
     }
     ctx.restore();
+  }
+
+  drawMeasured(u, px) {
+    const { ctx } = u;
+    const [x, ...ys] = this.measured;
+    const a = Math.max(0, lowerBound(x, u.scales.x.min) - 1);
+    const b = Math.min(x.length, lowerBound(x, u.scales.x.max) + 1);
+    ctx.lineWidth = 1.2 * px;
+    ctx.setLineDash([5 * px, 3 * px]);
+    ys.forEach((y, j) => {
+      ctx.strokeStyle = CHANNELS[j].stroke;
+      ctx.beginPath();
+      for (let i = a; i < b; i++) {
+        const cx = u.valToPos(x[i], 'x', true);
+        const cy = u.valToPos(y[i], 'N', true);
+        if (i === a) ctx.moveTo(cx, cy);
+        else ctx.lineTo(cx, cy);
+      }
+      ctx.stroke();
+    });
+    ctx.setLineDash([]);
   }
 
   // The plot canvas with a white background, a title and a legend of the shown series.
@@ -418,6 +468,10 @@ export class ForcePlot {
       ctx.fillText(`${c.label} (${c.unit})`, x + 18 * px, 36 * px);
       x += ctx.measureText(`${c.label} (${c.unit})`).width + 34 * px;
     });
+    if (this.measured) {
+      ctx.fillStyle = '#111';
+      ctx.fillText('dashed: measured', x, 36 * px);
+    }
     ctx.drawImage(src, 0, head);
     return new Promise((resolve) => out.toBlob(resolve, 'image/png'));
   }

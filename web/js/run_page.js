@@ -46,6 +46,68 @@ function summaryCards(s, limits) {
       h('span', { class: 'card-value' }, `${num(s.compute_s)} s`), h('span', { class: 'card-limit' }, `${s.samples} samples, ${s.device}`)));
 }
 
+// The comparison metrics of an attached dynamometer record, overall and per block.
+function metricsTable(report) {
+  const axes = [['x', 'Fx'], ['y', 'Fy'], ['z', 'Fz'], ['resultant', '|F|']];
+  const rows = [report.overall, ...report.blocks].flatMap((scope) => axes.map(([k, label], i) => {
+    const m = scope[k];
+    return h('tr', {}, h('td', {}, i === 0 ? scope.scope : ''), h('td', {}, label), h('td', {}, num(m.mean_error_N)),
+      h('td', {}, num(m.rmse_N)), h('td', {}, num(m.nrmse)), h('td', {}, num(m.peak_error_N)), h('td', {}, num(m.correlation)));
+  }));
+  return h('table', { class: 'metrics', id: 'measurement-metrics' },
+    h('caption', {}, `Predicted minus measured (${report.measured.file}, ${num(report.measured.rate_Hz)} Hz, offset ${num(report.offset_s)} s ${report.offset_source})`),
+    h('thead', {}, h('tr', {}, ['Scope', 'Axis', 'Mean error (N)', 'RMSE (N)', 'NRMSE', 'Peak error (N)', 'Correlation'].map((c) => h('th', { scope: 'col' }, c)))),
+    h('tbody', {}, rows));
+}
+
+// "Attach measurement": a dynamometer file and its axis matrix; the comparison once attached.
+function measurementSection(id, plot) {
+  const file = h('input', { type: 'file', id: 'measurement-file', accept: '.csv,.txt', 'aria-describedby': 'measurement-file-err' });
+  const axes = h('input', { type: 'text', id: 'measurement-axes', placeholder: '1,0,0,0,1,0,0,0,1', size: 24 });
+  const err = h('span', { class: 'field-error', id: 'measurement-file-err', role: 'alert' });
+  const result = h('div', { id: 'measurement-result' });
+  const show = (cmp) => {
+    plot.setMeasured(cmp ? cmp.series : null);
+    clear(result, cmp ? metricsTable(cmp.report) : h('p', { class: 'muted' }, 'No measurement attached.'));
+  };
+  const load = async () => {
+    try {
+      show(await api.measurement(id, { max_points: 4000 }));
+    } catch (e) {
+      if (e.status !== 404) err.textContent = errorText(e);
+      show(null);
+    }
+  };
+  const attach = async () => {
+    err.textContent = '';
+    file.removeAttribute('aria-invalid');
+    if (!file.files.length) {
+      err.textContent = 'choose the dynamometer file (DynoWare CSV export or plain CSV t,fx,fy,fz)';
+      file.setAttribute('aria-invalid', 'true');
+      return;
+    }
+    const form = new FormData();
+    form.append('file', file.files[0], file.files[0].name);
+    if (axes.value.trim()) form.append('axes', axes.value.trim());
+    try {
+      await api.attachMeasurement(id, form);
+      await load();
+    } catch (e) {
+      err.textContent = errorText(e);
+      file.setAttribute('aria-invalid', 'true');
+    }
+  };
+  const section = h('section', { class: 'measurement', 'aria-labelledby': 'measurement-title' },
+    h('h2', { id: 'measurement-title' }, 'Measurement'),
+    h('p', { class: 'hint muted' }, 'Dashed lines on the plot: measured Fx, Fy, Fz (force on the tool, machine axes).'),
+    h('div', { class: 'measurement-form' },
+      h('label', { for: 'measurement-file' }, 'Dynamometer file '), file,
+      h('label', { for: 'measurement-axes' }, ' Axis matrix (dynamometer to machine, row-major) '), axes,
+      h('button', { type: 'button', onclick: attach }, 'Attach measurement'), err),
+    result);
+  return { section, load };
+}
+
 async function showResults(body, run, lib, disposers) {
   const id = run.id;
   const limits = run.inputs?.spec?.limits || {};
@@ -101,6 +163,8 @@ async function showResults(body, run, lib, disposers) {
     }),
     exportStatus);
 
+  const measurementBox = measurementSection(id, plot);
+
   const pathBox = h('div', { class: 'path-box' });
   const tableBox = h('div');
   const alertsBox = h('section', { class: 'run-alerts', 'aria-labelledby': 'run-alerts-title' },
@@ -112,11 +176,13 @@ async function showResults(body, run, lib, disposers) {
       controls,
       h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click to reset. Shaded: flagged blocks.'),
       plotBox, selText),
+    measurementBox.section,
     h('section', { class: 'path', 'aria-labelledby': 'path-title' }, h('h2', { id: 'path-title' }, 'Tool path'), pathBox),
     tableBox, alertsBox, status);
 
   await plot.load();
   status.textContent = '';
+  await measurementBox.load();
   plot.setShaded(blocks.filter((b) => b.flags.length).map((b) => ({ t0: b.t_start_s, t1: b.t_end_s })));
 
   const [ox, of] = [plot.overview[0], plot.overview[4]];
