@@ -170,6 +170,8 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
         }
         const json& log = inputs.at("log");
         auto motion = motion_io::ingest((dir / log.at("stored_as").get<std::string>()).string(), read_options(log, dir));
+        // Ingest itself cannot be interrupted; honour a cancel that arrived meanwhile.
+        if (cancel) throw force_model::Cancelled();
         auto spec = force_model::parse_run_spec(inputs.at("spec"));
 
         force_model::StockPtr base;
@@ -207,6 +209,7 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
         std::string stock_bytes = read_file(stock_file);
         fs::remove(stock_file);
 
+        if (cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
         int alerts = 0;
         {
             auto c = pool_.get();

@@ -104,14 +104,18 @@ TEST_CASE("errors: body and row and job limits answer 413 and 429") {
     require_error(upload(c, slot_log_csv(8.0), slot_spec()), 413, "payload_too_large", "limit");
     require_error(upload(c, slot_log_csv(1.0), slot_spec()), 413, "too_many_rows", "400");
     require_nothing_left(ts);
-    // One job pending fills the queue; the next is refused until it finishes.
-    auto r = upload(c, slot_log_csv(0.6), slot_spec());
+    // One job pending fills the queue; the next is refused until it finishes. The first job is
+    // made slow on purpose (0.1 deg steps on a fine grid: seconds of work) so the check is certain.
+    json slow = slot_spec();
+    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.02}};
+    auto r = upload(c, slot_log_csv(0.6), slow);
     REQUIRE(r->status == 202);
     auto refused = upload(c, slot_log_csv(0.2), slot_spec());
-    if (refused->status != 202) {   // the first may have finished already on a fast machine
-        require_error(refused, 429, "too_many_jobs", "limit 1");
-        REQUIRE(refused->get_header_value("Retry-After") == "30");
-    }
+    require_error(refused, 429, "too_many_jobs", "limit 1");
+    REQUIRE(refused->get_header_value("Retry-After") == "30");
+    auto cancelled = c.Post("/api/v1/runs/" + std::to_string(json::parse(r->body)["id"].get<int>()) + "/cancel", "", "application/json");
+    REQUIRE(cancelled);
+    REQUIRE(cancelled->status < 300);
 }
 
 TEST_CASE("errors: static files are served without path traversal") {

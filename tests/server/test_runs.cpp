@@ -219,3 +219,23 @@ TEST_CASE("runs: the bundled demo log and spec run to done through the API") {
     REQUIRE(forces["f_N"]["max"].size() == forces["count"].get<std::size_t>());
     require_error(c.Get(("/api/v1/runs/" + id + "/forces?channels=speed").c_str()), 400, "bad_request", "speed");
 }
+
+TEST_CASE("runs: cancelling a running run stops it and stores no results") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    json slow = slot_spec();   // seconds of work, so the cancel lands while it computes
+    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.02}};
+    const std::int64_t id = body(upload(c, slot_log_csv(0.6), slow))["id"];
+    const std::string url = "/api/v1/runs/" + std::to_string(id);
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (body(c.Get(url.c_str()))["state"] != "running") {
+        REQUIRE(std::chrono::steady_clock::now() < until);
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    auto r = c.Post((url + "/cancel").c_str());
+    REQUIRE(r);
+    REQUIRE(r->status < 300);
+    const json run = wait_finished(c, id, 20);
+    REQUIRE(run["state"] == "cancelled");
+    require_error(c.Get((url + "/forces").c_str()), 409, "not_done", "cancelled");
+}
