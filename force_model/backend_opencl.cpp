@@ -33,6 +33,8 @@ public:
         group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
         cells_ = buffer((wrap_host_ ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR) | CL_MEM_READ_WRITE,
                         stock.storage.bytes(), stock.stored());
+        walls_ = buffer((wrap_host_ ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR) | CL_MEM_READ_WRITE,
+                        stock.walls.bytes(), stock.stored_walls());
         for (int k = 0; k < 4; ++k) {
             base_lo_.s[k] = stock.codec.base[k];
             base_hi_.s[k] = stock.codec.base[4 + k];
@@ -65,7 +67,7 @@ public:
         rot_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rot.size() * sizeof(float), rot.data());
         std::vector<float> lower(tool.lower_mm.begin(), tool.lower_mm.end());
         lower_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lower.size() * sizeof(float), lower.data());
-        coef_ = buffer(CL_MEM_READ_ONLY, 8 * sizeof(float), nullptr);
+        coef_ = buffer(CL_MEM_READ_ONLY, sizeof coef_host_, nullptr);
     }
 
     std::string name() const override { return "opencl: " + rt_.device_name(); }
@@ -73,8 +75,10 @@ public:
     void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
         const std::size_t n = steps.size();
         if (n == 0) return;
-        coef_host_ = {float(p.k.Ktc), float(p.k.Krc), float(p.k.Kac), float(p.k.Kte),
-                      float(p.k.Kre), float(p.k.Kae), float(p.holder_face_z_mm), float(p.min_chip_mm)};
+        coef_host_ = {float(p.k.Ktc),           float(p.k.Krc),         float(p.k.Kac),
+                      float(p.k.Kte),           float(p.k.Kre),         float(p.k.Kae),
+                      float(p.holder_face_z_mm), float(p.min_chip_mm),   float(stock_.grid.cell_mm),
+                      float(p.wall_tolerance_mm)};
         check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(), 0,
                                       nullptr, nullptr),
                  "write coefficients");
@@ -112,6 +116,7 @@ public:
         arg(k, a++, bottom);
         arg(k, a++, end);
         arg(k, a++, cells_.get());
+        arg(k, a++, walls_.get());
         arg(k, a++, base_lo_);
         arg(k, a++, base_hi_);
         arg(k, a++, x0);
@@ -145,7 +150,7 @@ public:
                  "write segments");
         const cl_int nx = stock_.grid.nx, n_lower = cl_int(tool_.lower_mm.size());
         const float x0 = float(stock_.grid.x0_mm), y0 = float(stock_.grid.y0_mm), cell = float(stock_.grid.cell_mm),
-                    radius = float(p.radius_mm), cut = float(p.cut_length_mm);
+                    radius = float(p.radius_mm), cut = float(p.cut_length_mm), band = float(p.wall_band_mm);
         cl_kernel k = remove_.get();
         std::size_t out_first = 0;
         for (const kernels::SweepCall& c : calls) {
@@ -171,6 +176,8 @@ public:
             arg(k, a++, cut);
             arg(k, a++, sweep_buf_.get());
             arg(k, a++, first);
+            arg(k, a++, walls_.get());
+            arg(k, a++, band);
             launch(k, c.cells());
             out_first += c.cells();
         }
@@ -182,24 +189,26 @@ public:
     void wait() override { check_cl(clFinish(queue_.get()), "clFinish"); }
 
     void download(Stock& stock) override {
-        const std::size_t bytes = stock.storage.bytes();
+        download(cells_, stock.stored(), stock.storage.bytes());
+        download(walls_, stock.stored_walls(), stock.walls.bytes());
+    }
+
+private:
+    void download(const ClMem& buf, void* host, std::size_t bytes) {
         if (wrap_host_) {
             // Mapping makes the host array current; PoCL maps a USE_HOST_PTR buffer in place.
             cl_int e = CL_SUCCESS;
-            void* p = clEnqueueMapBuffer(queue_.get(), cells_.get(), CL_TRUE, CL_MAP_READ, 0, bytes, 0, nullptr,
-                                         nullptr, &e);
+            void* p = clEnqueueMapBuffer(queue_.get(), buf.get(), CL_TRUE, CL_MAP_READ, 0, bytes, 0, nullptr, nullptr, &e);
             check_cl(e, "map stock");
-            if (p != stock.stored()) std::memcpy(stock.stored(), p, bytes);
-            check_cl(clEnqueueUnmapMemObject(queue_.get(), cells_.get(), p, 0, nullptr, nullptr), "unmap stock");
+            if (p != host) std::memcpy(host, p, bytes);
+            check_cl(clEnqueueUnmapMemObject(queue_.get(), buf.get(), p, 0, nullptr, nullptr), "unmap stock");
             check_cl(clFinish(queue_.get()), "finish");
         } else {
-            check_cl(clEnqueueReadBuffer(queue_.get(), cells_.get(), CL_TRUE, 0, bytes, stock.stored(), 0, nullptr,
-                                         nullptr),
+            check_cl(clEnqueueReadBuffer(queue_.get(), buf.get(), CL_TRUE, 0, bytes, host, 0, nullptr, nullptr),
                      "read stock");
         }
     }
 
-private:
     ClMem buffer(cl_mem_flags flags, std::size_t bytes, void* host) {
         cl_int e = CL_SUCCESS;
         ClMem m(clCreateBuffer(rt_.context(), flags, std::max<std::size_t>(bytes, 16), host, &e));
@@ -238,11 +247,11 @@ private:
     bool wrap_host_ = false;
     std::size_t group_ = 0;
     std::size_t stride_ = 8;
-    ClMem cells_, base_, elems_, rot_, lower_, coef_;
+    ClMem cells_, walls_, base_, elems_, rot_, lower_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
     ClMem steps_buf_, out_buf_, segs_buf_, sweep_buf_;
     std::size_t steps_cap_ = 0, out_cap_ = 0, segs_cap_ = 0, sweep_cap_ = 0;
-    std::array<float, 8> coef_host_{};
+    std::array<float, 10> coef_host_{};
     std::vector<float> host_steps_, host_segs_;
 };
 

@@ -24,6 +24,15 @@ struct EngineSettings {
     // also keeps sub-micron vertical jitter of a repaired log from switching the whole flat bottom
     // into "cutting" with full edge forces.
     double min_chip_mm = 5e-4;
+    // An edge point near a recorded sub-cell wall cuts only when it lies deeper than this past the
+    // wall (docs/force_model.md, "Sub-cell walls"). Float round-off only: anything larger shifts
+    // the immersion boundary of every finishing pass along a swept wall by that much.
+    double wall_tolerance_mm = kernels::kSliverMm;
+    // The removed path is simplified into chords that stay within this many cells of the tool's
+    // positions. The sub-cell walls resolve the swept volume far finer than a cell, so a tool
+    // position off its chord by this much shows as material on a later pass along the same wall
+    // (a quarter cell left up to 109 N on a re-cut of the demo; a sixteenth, 68 N).
+    double chord_tolerance_cells = 1.0 / 16;
 };
 
 // Where a prediction's wall time went (bench_force prints these). The backend works asynchronously:

@@ -132,9 +132,13 @@ public:
                      spec.material.Kte_N_mm,  spec.material.Kre_N_mm,  spec.material.Kae_N_mm};
         params_.holder_face_z_mm = tool.stickout_mm;
         params_.min_chip_mm = set.min_chip_mm;
+        params_.wall_tolerance_mm = set.wall_tolerance_mm;
         sweep_.lower_mm = tool.lower_mm;
         sweep_.radius_mm = tool.radius_mm;
         sweep_.cut_length_mm = tool.flute_length_mm;
+        // An edge point lies within half a cell diagonal of its ray's centre: walls farther than
+        // that from the centre cannot change a test. A whole cell keeps a margin.
+        sweep_.wall_band_mm = g_.cell_mm;
         batch_.reserve(set.max_batch_steps);
         meta_.reserve(set.max_batch_steps);
         fly_.steps.reserve(set.max_batch_steps);
@@ -636,8 +640,8 @@ private:
     }
 
     // Simplification: the farthest point b <= last (at most kMaxChordPoints on) such that every
-    // point between a and b stays within a quarter cell of the chord and the chord is short (tight
-    // cell rectangles). Binary search: a check costs O(b - a), so growing one point at a time
+    // point between a and b stays within the chord tolerance of the chord and the chord is short
+    // (tight cell rectangles). Binary search: a check costs O(b - a), so growing one point at a time
     // would be quadratic.
     std::size_t chord_end(std::size_t a, std::size_t last) const {
         std::size_t good = a + 1, bad = std::min(last, a + kMaxChordPoints) + 1;
@@ -654,7 +658,7 @@ private:
         const double len = dist(pa, pb);
         if (len > 2 * tool_.radius_mm) return false;
         if (len < 1e-12) return true;
-        const double tol = 0.25 * g_.cell_mm;
+        const double tol = set_.chord_tolerance_cells * g_.cell_mm;
         const double ux = (pb.x - pa.x) / len, uy = (pb.y - pa.y) / len, uz = (pb.z - pa.z) / len;
         for (std::size_t k = a + 1; k < b; ++k) {
             const Vec3& p = pending_[k].p;

@@ -20,7 +20,13 @@ namespace cutload::force_model {
 namespace {
 
 constexpr char kMagic[8] = {'C', 'U', 'T', 'L', 'S', 'T', 'K', '\0'};
-constexpr std::uint32_t kVersion = 1;
+// Version 2 adds the sub-cell walls (sparse, after the rays); version 1 files load without walls.
+constexpr std::uint32_t kVersion = 2;
+
+struct WallEntry {
+    std::uint64_t ray;
+    float wall[kernels::kWallFloats];   // decoded: clearance, z_from, nx, ny
+};
 
 // FNV-1a: catches truncation and bit rot; the file is not a security boundary.
 std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 1469598103934665603ull) {
@@ -98,6 +104,7 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     if (rays > 400'000'000ull) throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
     s->codec = kernels::RayCodec::for_column(float(box.min_mm[2]), float(box.max_mm[2]));
     s->storage = ZeroPages(rays * kernels::kDexelFloats * sizeof(float));   // all rays: the full box column
+    s->walls = ZeroPages(rays * kernels::kWallFloats * sizeof(float));      // no walls
     return s;
 }
 
@@ -136,6 +143,17 @@ void save_stock(const Stock& s, const std::string& path) {
             out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
             sum = fnv1a(ray.data(), sizeof ray, sum);
         }
+        std::vector<WallEntry> walls;
+        const kernels::DexelView v = s.view();
+        for (std::size_t r = 0; r < s.rays(); ++r) {
+            const kernels::Wall w = v.wall(r);
+            if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
+        }
+        const std::uint64_t n_walls = walls.size();
+        out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
+        sum = fnv1a(&n_walls, sizeof n_walls, sum);
+        out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
+        sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
         out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
         if (!out) throw std::runtime_error("writing stock file " + tmp + " failed");
     }
@@ -149,7 +167,7 @@ StockPtr load_stock(const std::string& path) {
     in.read(reinterpret_cast<char*>(&h), sizeof h);
     if (!in || std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
         throw std::runtime_error(path + ": not a cutload stock file (bad magic)");
-    if (h.version != kVersion)
+    if (h.version != 1 && h.version != kVersion)
         throw std::runtime_error(path + ": stock file version " + std::to_string(h.version) + ", this build reads " +
                                  std::to_string(kVersion));
     if (h.intervals != std::uint32_t(kernels::kDexelIntervals))
@@ -166,6 +184,7 @@ StockPtr load_stock(const std::string& path) {
     }
     s->codec = kernels::RayCodec::for_column(float(h.box_min[2]), float(h.box_max[2]));
     s->storage = ZeroPages(s->rays() * kernels::kDexelFloats * sizeof(float));
+    s->walls = ZeroPages(s->rays() * kernels::kWallFloats * sizeof(float));
     std::uint64_t sum = fnv1a(&h, sizeof h);
     const kernels::Ray full = s->codec.decode(kernels::Ray{}.data());
     std::vector<kernels::Ray> row(std::size_t(h.nx));
@@ -175,6 +194,21 @@ StockPtr load_stock(const std::string& path) {
         sum = fnv1a(row.data(), row.size() * sizeof(kernels::Ray), sum);
         for (std::size_t k = 0; k < row.size(); ++k)
             if (row[k] != full) s->codec.encode(row[k], s->stored() + (r + k) * kernels::kDexelFloats);
+    }
+    if (in && h.version >= 2) {
+        std::uint64_t n_walls = 0;
+        in.read(reinterpret_cast<char*>(&n_walls), sizeof n_walls);
+        sum = fnv1a(&n_walls, sizeof n_walls, sum);
+        if (in && n_walls > s->rays()) throw std::runtime_error(path + ": stock file is corrupt (wall count)");
+        const kernels::DexelView v = s->view();
+        for (std::uint64_t k = 0; k < n_walls && in; ++k) {
+            WallEntry e{};
+            in.read(reinterpret_cast<char*>(&e), sizeof e);
+            if (!in) break;
+            sum = fnv1a(&e, sizeof e, sum);
+            if (e.ray >= s->rays()) throw std::runtime_error(path + ": stock file is corrupt (wall ray index)");
+            v.store_wall(e.ray, {e.wall[0], e.wall[1], e.wall[2], e.wall[3]});
+        }
     }
     std::uint64_t stored = 0;
     in.read(reinterpret_cast<char*>(&stored), sizeof stored);

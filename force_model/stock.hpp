@@ -38,10 +38,12 @@ public:
     kernels::GridInfo grid;
     kernels::RayCodec codec;   // base column: the box's full height
     ZeroPages storage;         // encoded rays, kDexelFloats floats each, row-major (j * nx + i)
+    ZeroPages walls;           // encoded sub-cell walls, kWallFloats floats per ray, same order
 
     std::size_t rays() const { return std::size_t(grid.nx) * std::size_t(grid.ny); }
     float* stored() const { return static_cast<float*>(storage.data()); }
-    kernels::DexelView view() const { return {stored(), grid, codec}; }
+    float* stored_walls() const { return static_cast<float*>(walls.data()); }
+    kernels::DexelView view() const { return {stored(), stored_walls(), grid, codec}; }
     kernels::Ray ray(std::size_t r) const { return codec.decode(stored() + r * kernels::kDexelFloats); }
     kernels::Ray ray(int i, int j) const { return ray(std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)); }
     // True when ray r was never cut (still the box's full column).

@@ -12,7 +12,9 @@
 // rot:    per spin (+1 first, then -1), per flute: cos psi[stride], sin psi[stride] with
 //         psi = -2 pi j / N + spin * lag, so the edge direction is alpha = A + psi
 // cells:  2 float4 per ray: lo[4], hi[4], each XOR-ed with base_lo / base_hi (RayCodec)
-// coef:   Ktc, Krc, Kac, Kte, Kre, Kae, holder face height, minimum chip thickness
+// walls:  1 float4 per ray: clearance (bits XOR-ed with NO_WALL's), z_from, normal x, y (Wall)
+// coef:   Ktc, Krc, Kac, Kte, Kre, Kae, holder face height, minimum chip thickness, cell size,
+//         wall tolerance
 // out:    12 floats per step (StepResult)
 //
 // Axial weighting: an element with an axial span [z_lo, z_hi] cuts with the fraction of that span
@@ -25,12 +27,50 @@
 
 // Overlaps shorter than this are float round-off (kSliverMm in engine_kernels.hpp).
 #define SLIVER 1e-4f
+#define EMPTY_LO 1e30f
+#define EMPTY_HI -1e30f
+#define NO_WALL 1e30f
+#define WALL_MARK 2e30f   // kWallMark: a ray with a recorded wall holds it in its last lo slot
 
 // An element cut over all but this fraction of its span counts as fully engaged when the engaged
 // axial extent is reported (at most 1e-5 of an element off); the weight itself is always exact.
 #define FULL_WEIGHT 0.9999f
 
 float4 decode(const float4 stored, const uint4 base) { return as_float4(as_uint4(stored) ^ base); }
+
+// The material at the edge point (u, v) (grid units, on the stock), as a ray's lo and hi. The
+// cell's ray describes its centre; a wall recorded there places the point itself. On the swept side
+// of the wall the material from the wall's foot up is gone. On the far side of a wall that passes
+// between a swept centre and the point, the point has the material of the ray one cell across the
+// wall. Twin: material_at in twins.cpp.
+__attribute__((always_inline)) void material_at(__global const float4* cells, __global const float4* walls, const uint4 base_lo,
+                 const uint4 base_hi, const int c, const float u, const float v, const int nx, const int ny,
+                 const float cell_mm, const float wall_tol, float4* lo, float4* hi) {
+    *lo = decode(cells[2 * c], base_lo);
+    *hi = decode(cells[2 * c + 1], base_hi);
+    if ((*lo).w != WALL_MARK) return;   // no wall: the ray says so in its last slot
+    const int ci = (int)u, cj = (int)v;   // u, v >= 0: truncation is floor
+    const float4 w = walls[c];
+    const float clearance = as_float(as_uint(w.x) ^ as_uint(NO_WALL));
+    const float depth = clearance + ((u - (float)ci - 0.5f) * w.z + (v - (float)cj - 0.5f) * w.w) * cell_mm;
+    if (depth <= wall_tol) {
+        // Float round-off must not leave the foot itself in material (a flat bottom on the floor).
+        const float4 top = min(*hi, (float4)(w.y - SLIVER));
+        const int4 keep = isgreater(top - *lo, (float4)(SLIVER)) | isless(*hi, (float4)(w.y - SLIVER));
+        *lo = select((float4)(EMPTY_LO), *lo, keep);
+        *hi = select((float4)(EMPTY_HI), top, keep);
+        return;
+    }
+    if (clearance > 0.0f) return;
+    const int ai = (int)floor((float)ci + 0.5f + w.z), aj = (int)floor((float)cj + 0.5f + w.w);
+    if (ai < 0 || aj < 0 || ai >= nx || aj >= ny) {
+        *lo = (float4)(EMPTY_LO);
+        *hi = (float4)(EMPTY_HI);
+        return;
+    }
+    *lo = decode(cells[2 * (aj * nx + ai)], base_lo);
+    *hi = decode(cells[2 * (aj * nx + ai) + 1], base_hi);
+}
 
 // Length of the element span [za, zb) inside material on one ray (pieces over SLIVER).
 float span_overlap(const float za, const float zb, const float4 lo, const float4 hi) {
@@ -50,7 +90,8 @@ void span_clip(const float za, const float zb, const float4 lo, const float4 hi,
 
 __kernel void engage(const int n_steps, __global const float* steps, const float spin, __global const float* elems,
                      __global const float* rot, const int stride, const int n_flutes, const int bottom_count,
-                     const int element_end, __global const float4* cells, const uint4 base_lo,
+                     const int element_end, __global const float4* cells, __global const float4* walls,
+                     const uint4 base_lo,
                      const uint4 base_hi, const float x0, const float y0, const float inv_cell, const int nx,
                      const int ny, __constant float* coef, __global float* out) {
     const int i = get_global_id(0);
@@ -63,7 +104,7 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
     const float fxy = sqrt(fx * fx + fy * fy);
     const float px = fxy > 1e-12f ? -fy / fxy : 1.0f, py = fxy > 1e-12f ? fx / fxy : 0.0f;
     const float Ktc = coef[0], Krc = coef[1], Kac = coef[2], Kte = coef[3], Kre = coef[4], Kae = coef[5];
-    const float face_z = coef[6], min_chip = coef[7];
+    const float face_z = coef[6], min_chip = coef[7], cell_mm = coef[8], wall_tol = coef[9];
     // Grid coordinates of the tip; an edge point is over the stock when 0 <= u < nx and 0 <= v < ny.
     const float tu = (tx - x0) * inv_cell, tv = (ty - y0) * inv_cell;
     const float fnx = (float)nx, fny = (float)ny;
@@ -105,9 +146,11 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
             const float8 zlo = vload8(0, el_zlo + c), zhi = vload8(0, el_zhi + c), inv = vload8(0, el_inv + c);
             const float8 z = tz + ez, za = tz + zlo, zb = tz + zhi;
             int lane_ok[8], cell[8];
-            float lane_z[8], lane_a[8], lane_b[8], lane_inv[8], weight[8];
+            float lane_u[8], lane_v[8], lane_z[8], lane_a[8], lane_b[8], lane_inv[8], weight[8];
             vstore8(ok, 0, lane_ok);
             vstore8(cell8, 0, cell);
+            vstore8(u, 0, lane_u);
+            vstore8(v, 0, lane_v);
             vstore8(z, 0, lane_z);
             vstore8(za, 0, lane_a);
             vstore8(zb, 0, lane_b);
@@ -115,7 +158,9 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
             for (int l = 0; l < 8; ++l) {
                 weight[l] = 0.0f;
                 if (!lane_ok[l]) continue;
-                const float4 lo = decode(cells[2 * cell[l]], base_lo), hi = decode(cells[2 * cell[l] + 1], base_hi);
+                float4 lo, hi;
+                material_at(cells, walls, base_lo, base_hi, cell[l], lane_u[l], lane_v[l], nx, ny, cell_mm, wall_tol, &lo,
+                            &hi);
                 if (lane_inv[l] > 0.0f) {
                     weight[l] = span_overlap(lane_a[l], lane_b[l], lo, hi) * lane_inv[l];
                 } else {
@@ -138,7 +183,9 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                 vstore8(partial, 0, lane_partial);
                 for (int l = 0; l < 8; ++l) {
                     if (!lane_partial[l]) continue;
-                    const float4 lo = decode(cells[2 * cell[l]], base_lo), hi = decode(cells[2 * cell[l] + 1], base_hi);
+                    float4 lo, hi;
+                    material_at(cells, walls, base_lo, base_hi, cell[l], lane_u[l], lane_v[l], nx, ny, cell_mm,
+                                wall_tol, &lo, &hi);
                     span_clip(lane_a[l], lane_b[l], lo, hi, &clip_lo[l], &clip_hi[l]);
                 }
                 elo = vload8(0, clip_lo);

@@ -32,6 +32,7 @@ struct GridInfo {
 };
 
 using Ray = std::array<float, kDexelFloats>;
+constexpr Ray kNoMaterial{kEmptyLo, kEmptyLo, kEmptyLo, kEmptyLo, kEmptyHi, kEmptyHi, kEmptyHi, kEmptyHi};
 
 // Rays are stored with each float's bits XOR-ed with a base column (the stock box's full column),
 // so a ray that was never cut is all zero bytes: a fresh stock needs no fill, and its memory can
@@ -44,13 +45,50 @@ struct RayCodec {
     float base_top() const;
 };
 
+// ---- Sub-cell walls -------------------------------------------------------------------------------
+// A ray samples the material at its cell centre only, so a side wall left by a sweep is known to
+// within a cell: an edge point near the wall may sit in a cell whose centre stayed outside the swept
+// volume although the point itself is inside it (a re-cut of a finished wall would "cut" there),
+// or the other way round. So each ray whose centre lies within a band of a sweep's side wall also
+// keeps that wall (the nearest one): the plane tangent to the tool's cylinder at the closest
+// approach, as the signed clearance of the centre beyond it (negative: the centre was swept), its
+// unit normal (pointing away from the path, into the material) and the height from which the
+// cylinder stands (tip + lower surface at R). Engagement uses it to place an edge point
+// against the wall to well within a cell (docs/force_model.md, "Sub-cell walls").
+//
+// Stored as 4 floats per ray, the clearance's bits XOR-ed with kNoWall's, so all-zero bytes mean
+// "no wall recorded" (lazily mapped pages, like the rays). A ray with a wall says so itself: its
+// last interval slot holds [kWallMark, kEmptyHi), an empty interval to every reader, so engagement
+// fetches a wall only for the rays that have one (a gather per edge point into a second array cost
+// the kernel a third of its speed). A ray whose four slots all hold material carries no mark, and
+// its wall is not used.
+constexpr float kNoWall = 1e30f;
+constexpr float kWallMark = 2e30f;
+constexpr int kWallFloats = 4;
+inline bool has_wall_mark(const float* ray) { return ray[kDexelIntervals - 1] == kWallMark; }
+// Marks the ray when its last slot is free; returns whether it carries the mark.
+bool set_wall_mark(float* ray);
+
+struct Wall {
+    float clearance_mm = kNoWall;   // signed horizontal distance of the cell centre beyond the wall plane
+    float z_from_mm = 0;            // the wall holds for material at and above this height
+    float nx = 0, ny = 0;           // unit normal of the wall plane, into the material
+    bool exists() const { return clearance_mm < kNoWall; }
+};
+
+Wall decode_wall(const float* stored);
+void encode_wall(const Wall& w, float* stored);
+
 // The stored dexel grid as the kernels and twins see it.
 struct DexelView {
     float* cells = nullptr;   // kDexelFloats per ray, row-major (j * nx + i), encoded with codec
+    float* walls = nullptr;   // kWallFloats per ray, same order, encoded with encode_wall
     GridInfo grid;
     RayCodec codec;
     Ray load(std::size_t r) const { return codec.decode(cells + r * kDexelFloats); }
     void store(std::size_t r, const Ray& ray) const { codec.encode(ray, cells + r * kDexelFloats); }
+    Wall wall(std::size_t r) const { return decode_wall(walls + r * kWallFloats); }
+    void store_wall(std::size_t r, const Wall& w) const { encode_wall(w, walls + r * kWallFloats); }
 };
 
 // ---- Tool edge elements --------------------------------------------------------------------------
@@ -108,6 +146,8 @@ struct EngageParams {
     CuttingCoefficients k;
     double holder_face_z_mm = 30;   // lever arm origin: height of the holder face above the tip
     double min_chip_mm = 0;         // an element cuts only where h exceeds this (minimum chip thickness)
+    // An edge point counts as past a recorded wall (in material) only when it is deeper than this.
+    double wall_tolerance_mm = kSliverMm;
     int element_end = 0;            // elements [0, element_end) may reach material in this batch
 };
 
@@ -122,6 +162,7 @@ struct SweepParams {
     std::vector<double> lower_mm;   // lower surface height over radius, lower_mm.size() >= 2
     double radius_mm = 4;           // cutting radius (last table entry)
     double cut_length_mm = 20;      // flute length: material above it is not cut (shank contact)
+    double wall_band_mm = 0.1;      // walls are recorded for rays whose centre clears the tool by less
 };
 
 // One removal call: segments [first_segment, first_segment + segments) of a shared list, applied to

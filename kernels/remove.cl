@@ -6,11 +6,16 @@
 // lower: lower surface height above the tip at radius d = k * radius / (n_lower - 1)
 // cells: 8 floats per ray (lo[4], hi[4]), each XOR-ed with base[8] (RayCodec); a ray is written back
 //        only when it changes, so the pages of rays the tool misses stay untouched
+// walls: 1 float4 per ray (Wall: clearance XOR-ed with NO_WALL's bits, z_from, normal x, y): of the
+//        side walls within `band` of the ray's centre, the one with the smallest signed clearance
+//        (the sweep that takes the centre in deepest, else the nearest); written only when it changes
 // out:   per ray: removed length, new top
 #define K 4
 #define EMPTY_LO 1e30f
 #define EMPTY_HI -1e30f
 #define SLIVER 1e-4f   // kSliverMm in engine_kernels.hpp
+#define NO_WALL 1e30f  // kNoWall
+#define WALL_MARK 2e30f  // kWallMark
 
 float lower_at(__global const float* lower, const int n_lower, const float radius, const float d) {
     const float u = clamp(d / radius, 0.0f, 1.0f) * (float)(n_lower - 1);
@@ -29,7 +34,8 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
                            const float cell, const int i0, const int j0, const int width, const int height,
                            __global const float* all_segs, const int seg_first, const int n_segs,
                            __global const float* lower, const int n_lower, const float radius,
-                           const float cut_length, __global float2* all_out, const int out_first) {
+                           const float cut_length, __global float2* all_out, const int out_first,
+                           __global float4* walls, const float band) {
     const int g = get_global_id(0);
     if (g >= width * height) return;
     __global const float* segs = all_segs + 6 * seg_first;
@@ -38,26 +44,34 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
     const int i = i0 + ii, j = j0 + jj;
     const float cx = x0 + ((float)i + 0.5f) * cell, cy = y0 + ((float)j + 0.5f) * cell;
     const float R2 = radius * radius;
+    const int index = j * nx + i;
+    // The best wall candidate of this call; the stored wall is read only when there is one, so the
+    // pages of rays far from every wall stay untouched.
+    float4 wall = (float4)(NO_WALL, 0.0f, 0.0f, 0.0f);
+    const float lower_r = lower[n_lower - 1];
+    const float band_lo2 = fmax(0.0f, radius - band) * fmax(0.0f, radius - band), band_hi2 = (radius + band) * (radius + band);
     float zb = INFINITY, zt = -INFINITY;
     for (int s = 0; s < n_segs; ++s) {
         __global const float* sg = segs + 6 * s;
         const float ux = sg[3] - sg[0], uy = sg[4] - sg[1], uz = sg[5] - sg[2];
         const float wx = sg[0] - cx, wy = sg[1] - cy;
         const float A = ux * ux + uy * uy, B = 2.0f * (ux * wx + uy * wy), C = wx * wx + wy * wy;
+        const float tc = A < 1e-18f ? 0.0f : clamp(-B / (2.0f * A), 0.0f, 1.0f);   // closest approach
+        const float d2 = fmax(0.0f, (A * tc + B) * tc + C);
+        if (d2 > band_lo2 && d2 < band_hi2) {
+            const float d = sqrt(d2);
+            if (d - radius < wall.x && d > 1e-9f)
+                wall = (float4)(d - radius, sg[2] + uz * tc + lower_r, -(wx + ux * tc) / d, -(wy + uy * tc) / d);
+        }
+        if (d2 > R2) continue;
         float t0 = 0.0f, t1 = 1.0f;
-        if (A < 1e-18f) {
-            if (C > R2) continue;
-        } else {
-            const float disc = B * B - 4.0f * A * (C - R2);
-            if (disc < 0.0f) continue;
-            const float sq = sqrt(disc);
+        if (A >= 1e-18f) {
+            const float sq = sqrt(fmax(0.0f, B * B - 4.0f * A * (C - R2)));
             t0 = fmax(0.0f, (-B - sq) / (2.0f * A));
             t1 = fmin(1.0f, (-B + sq) / (2.0f * A));
-            if (t0 > t1) continue;
         }
         float best;
         if (fabs(uz) < 1e-12f) {
-            const float tc = A < 1e-18f ? t0 : clamp(-B / (2.0f * A), t0, t1);
             best = height_at(A, B, C, sg[2], uz, tc, lower, n_lower, radius);
         } else {
             const float inv_phi = 0.618034f;
@@ -80,47 +94,55 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
         zb = fmin(zb, best);
         zt = fmax(zt, fmax(sg[2] + uz * t0, sg[2] + uz * t1) + cut_length);
     }
-    __global uint* stored = cells + 8 * (j * nx + i);
+    __global uint* stored = cells + 8 * index;
     float ray[2 * K];
     for (int k = 0; k < 2 * K; ++k) ray[k] = as_float(stored[k] ^ base[k]);
-    float before = 0.0f, after = 0.0f, top = EMPTY_HI;
-    if (zb < zt) {
-        float plo[K + 1], phi[K + 1];
-        int n = 0;
-        bool changed = false;
-        for (int k = 0; k < K; ++k) {
-            const float lo = ray[k], hi = ray[K + k];
-            if (!(hi > lo)) continue;
-            before += hi - lo;
-            if (zt <= lo || zb >= hi) {
-                plo[n] = lo; phi[n] = hi; ++n;
-                continue;
-            }
-            changed = true;
-            if (zb - lo > SLIVER) { plo[n] = lo; phi[n] = zb; ++n; }
-            if (hi - zt > SLIVER) { plo[n] = zt; phi[n] = hi; ++n; }
+    // A ray with a wall carries the mark in its last slot (kWallMark), if that slot is free. The
+    // stored wall is read only for a marked ray: an unmarked one has none that engagement would use,
+    // and writing a page without reading it first spares the copy-on-write of a zero page, which
+    // costs every thread of the process a TLB flush.
+    bool marked = ray[K - 1] == WALL_MARK;
+    if (wall.x < NO_WALL) {
+        const float had = marked ? as_float(as_uint(walls[index].x) ^ as_uint(NO_WALL)) : NO_WALL;
+        if (wall.x < had) {
+            walls[index] = (float4)(as_float(as_uint(wall.x) ^ as_uint(NO_WALL)), wall.yzw);
+            marked = true;
         }
-        // Pieces come out ordered (input sorted, each split yields lower piece first).
-        if (n > K) {
-            int narrowest = 0;
-            for (int k = 1; k + 1 < n; ++k)
-                if (plo[k + 1] - phi[k] < plo[narrowest + 1] - phi[narrowest]) narrowest = k;
-            phi[narrowest] = phi[narrowest + 1];
-            for (int k = narrowest + 1; k + 1 < n; ++k) { plo[k] = plo[k + 1]; phi[k] = phi[k + 1]; }
-            --n;
-        }
-        for (int k = 0; k < K; ++k) {
-            const float lo = k < n ? plo[k] : EMPTY_LO, hi = k < n ? phi[k] : EMPTY_HI;
-            if (changed) {
-                stored[k] = as_uint(lo) ^ base[k];
-                stored[K + k] = as_uint(hi) ^ base[K + k];
-            }
-            if (k < n) { after += hi - lo; top = fmax(top, hi); }
-        }
-        out[g] = (float2)(before - after, top);
-    } else {
-        for (int k = 0; k < K; ++k)
-            if (ray[K + k] > ray[k]) top = fmax(top, ray[K + k]);
-        out[g] = (float2)(0.0f, top);
     }
+    float before = 0.0f, after = 0.0f, top = EMPTY_HI;
+    float plo[K + 1], phi[K + 1];
+    int n = 0;
+    for (int k = 0; k < K; ++k) {
+        const float lo = ray[k], hi = ray[K + k];
+        if (!(hi > lo)) continue;
+        before += hi - lo;
+        if (!(zb < zt) || zt <= lo || zb >= hi) {
+            plo[n] = lo; phi[n] = hi; ++n;
+            continue;
+        }
+        if (zb - lo > SLIVER) { plo[n] = lo; phi[n] = zb; ++n; }
+        if (hi - zt > SLIVER) { plo[n] = zt; phi[n] = hi; ++n; }
+    }
+    // Pieces come out ordered (input sorted, each split yields lower piece first).
+    if (n > K) {
+        int narrowest = 0;
+        for (int k = 1; k + 1 < n; ++k)
+            if (plo[k + 1] - phi[k] < plo[narrowest + 1] - phi[narrowest]) narrowest = k;
+        phi[narrowest] = phi[narrowest + 1];
+        for (int k = narrowest + 1; k + 1 < n; ++k) { plo[k] = plo[k + 1]; phi[k] = phi[k + 1]; }
+        --n;
+    }
+    float out_ray[2 * K];
+    for (int k = 0; k < K; ++k) {
+        out_ray[k] = k < n ? plo[k] : EMPTY_LO;
+        out_ray[K + k] = k < n ? phi[k] : EMPTY_HI;
+        if (k < n) { after += phi[k] - plo[k]; top = fmax(top, phi[k]); }
+    }
+    if (marked && n < K) out_ray[K - 1] = WALL_MARK;
+    bool changed = false;
+    for (int k = 0; k < 2 * K; ++k) changed |= as_uint(out_ray[k]) != as_uint(ray[k]);
+    // Unchanged rays are not written back: their pages stay untouched.
+    if (changed)
+        for (int k = 0; k < 2 * K; ++k) stored[k] = as_uint(out_ray[k]) ^ base[k];
+    out[g] = (float2)(before - after, top);
 }

@@ -38,6 +38,25 @@ void RayCodec::encode(const Ray& ray, float* stored) const {
 
 float RayCodec::base_top() const { return std::bit_cast<float>(base[kDexelIntervals]); }
 
+Wall decode_wall(const float* stored) {
+    const std::uint32_t no_wall = std::bit_cast<std::uint32_t>(kNoWall);
+    return {std::bit_cast<float>(std::bit_cast<std::uint32_t>(stored[0]) ^ no_wall), stored[1], stored[2], stored[3]};
+}
+
+bool set_wall_mark(float* ray) {
+    if (!(ray[kDexelIntervals - 1] == kEmptyLo || ray[kDexelIntervals - 1] == kWallMark)) return false;
+    ray[kDexelIntervals - 1] = kWallMark;
+    ray[2 * kDexelIntervals - 1] = kEmptyHi;
+    return true;
+}
+
+void encode_wall(const Wall& w, float* stored) {
+    stored[0] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(w.clearance_mm) ^ std::bit_cast<std::uint32_t>(kNoWall));
+    stored[1] = w.z_from_mm;
+    stored[2] = w.nx;
+    stored[3] = w.ny;
+}
+
 bool ray_contains(const float* ray, double z_mm) {
     for (int k = 0; k < kDexelIntervals; ++k)
         if (z_mm >= ray[k] && z_mm < ray[kDexelIntervals + k]) return true;
@@ -115,23 +134,29 @@ namespace {
 
 // Where the tool passes over the ray at (cx, cy) while its tip runs along one segment: the lowest
 // point of its lower surface (zb) and the highest point of its cutting part (zt). False when the
-// ray stays outside the cutting radius.
-bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParams& p, double& zb, double& zt) {
+// ray stays outside the cutting radius. Either way, the side wall at the closest approach replaces
+// `wall` when it lies within the band of the ray's centre and its signed clearance is smaller.
+bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParams& p, double& zb, double& zt,
+                   Wall& wall) {
     const double ux = s.bx - s.ax, uy = s.by - s.ay, uz = s.bz - s.az;
     const double wx = s.ax - cx, wy = s.ay - cy;
     // horizontal distance squared along the segment: A t^2 + B t + C
     const double A = ux * ux + uy * uy, B = 2 * (ux * wx + uy * wy), C = wx * wx + wy * wy;
-    const double R2 = p.radius_mm * p.radius_mm;
+    const double R = p.radius_mm, R2 = R * R;
+    const double tc = A < 1e-18 ? 0.0 : std::clamp(-B / (2 * A), 0.0, 1.0);   // closest approach
+    const double d2 = std::max(0.0, (A * tc + B) * tc + C);
+    // The wall that decides the centre: of the sweeps that take it in, the one that takes it in
+    // deepest (the others' walls lie inside the swept volume); else the nearest one.
+    const double d = std::sqrt(d2);
+    if (std::abs(d - R) < p.wall_band_mm && float(d - R) < wall.clearance_mm && d > 1e-9)
+        wall = {float(d - R), float(s.az + uz * tc + p.lower_mm.back()), float(-(wx + ux * tc) / d),
+                float(-(wy + uy * tc) / d)};
+    if (d2 > R2) return false;
     double t0 = 0, t1 = 1;
-    if (A < 1e-18) {
-        if (C > R2) return false;
-    } else {
-        const double disc = B * B - 4 * A * (C - R2);
-        if (disc < 0) return false;
-        const double sq = std::sqrt(disc);
+    if (A >= 1e-18) {
+        const double sq = std::sqrt(std::max(0.0, B * B - 4 * A * (C - R2)));
         t0 = std::max(0.0, (-B - sq) / (2 * A));
         t1 = std::min(1.0, (-B + sq) / (2 * A));
-        if (t0 > t1) return false;
     }
     auto height = [&](double t) {
         const double d = std::sqrt(std::max(0.0, A * t * t + B * t + C));
@@ -140,7 +165,6 @@ bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParam
     double best;
     if (std::abs(uz) < 1e-12) {
         // Level move: the lower surface rises with radius, so the closest approach is lowest.
-        const double tc = A < 1e-18 ? t0 : std::clamp(-B / (2 * A), t0, t1);
         best = height(tc);
     } else {
         // Ramp or plunge: height(t) is convex (convex rising profile of a convex distance plus a
@@ -174,23 +198,58 @@ void sweep_twin(const SweepSegment* segs, const SweepCall& call, const SweepPara
             const std::size_t index = std::size_t(j) * grid.nx + i;
             const double cx = grid.x0_mm + (i + 0.5) * grid.cell_mm, cy = grid.y0_mm + (j + 0.5) * grid.cell_mm;
             double zb = std::numeric_limits<double>::infinity(), zt = -zb;
+            Wall wall;   // the best candidate of this call; the stored one is read only if there is one
             for (std::size_t k = 0; k < call.segments; ++k) {
                 double b, t;
-                if (segment_cover(segs[call.first_segment + k], cx, cy, p, b, t)) {
+                if (segment_cover(segs[call.first_segment + k], cx, cy, p, b, t, wall)) {
                     zb = std::min(zb, b);
                     zt = std::max(zt, t);
                 }
             }
             SweepCellResult& r = out[std::size_t(jj) * call.width + ii];
             const Ray before = stock.load(index);
+            // The stored wall is read only for a marked ray (remove.cl says why).
+            bool marked = has_wall_mark(before.data());
+            if (wall.exists() && (!marked || wall.clearance_mm < stock.wall(index).clearance_mm)) {
+                stock.store_wall(index, wall);
+                marked = true;
+            }
             Ray ray = before;
             r.removed_mm = zb < zt ? float(subtract_interval(ray.data(), zb, zt)) : 0.0f;
+            if (marked) set_wall_mark(ray.data());
             // Unchanged rays are not written back: their pages stay untouched.
             if (ray != before) stock.store(index, ray);
             r.top_mm = ray_top(ray);
         }
     }
 }
+
+namespace {
+
+// The material at the edge point (x, y) in cell (ci, cj), as a ray. The cell's ray describes its
+// centre; a wall recorded there places the point itself. On the swept side of the wall the
+// material from the wall's foot up is gone. On the far side of a wall that passes between a swept
+// centre and the point, the point has the material of the ray one cell across the wall.
+Ray material_at(const DexelView& stock, double ci, double cj, double x, double y, double tolerance_mm) {
+    const GridInfo& g = stock.grid;
+    const std::size_t index = std::size_t(cj) * g.nx + std::size_t(ci);
+    Ray ray = stock.load(index);
+    if (!has_wall_mark(ray.data())) return ray;
+    const Wall wall = stock.wall(index);
+    const double du = (x - g.x0_mm) / g.cell_mm - (ci + 0.5), dv = (y - g.y0_mm) / g.cell_mm - (cj + 0.5);
+    const double depth = wall.clearance_mm + (du * wall.nx + dv * wall.ny) * g.cell_mm;
+    if (depth <= tolerance_mm) {
+        // Float round-off must not leave the foot itself in material (a flat bottom on the floor).
+        subtract_interval(ray.data(), wall.z_from_mm - kSliverMm, -kEmptyHi);
+        return ray;
+    }
+    if (wall.clearance_mm > 0) return ray;
+    const double ai = std::floor(ci + 0.5 + wall.nx), aj = std::floor(cj + 0.5 + wall.ny);
+    if (ai < 0 || aj < 0 || ai >= g.nx || aj >= g.ny) return kNoMaterial;
+    return stock.load(std::size_t(aj) * g.nx + std::size_t(ai));
+}
+
+}  // namespace
 
 void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngageParams& p, const DexelView& stock,
                  StepResult* out) {
@@ -218,7 +277,7 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 const double ci = std::floor((x - grid.x0_mm) / grid.cell_mm);
                 const double cj = std::floor((y - grid.y0_mm) / grid.cell_mm);
                 if (ci < 0 || cj < 0 || ci >= grid.nx || cj >= grid.ny) continue;
-                const Ray stored = stock.load(std::size_t(cj) * grid.nx + std::size_t(ci));
+                const Ray stored = material_at(stock, ci, cj, x, y, p.wall_tolerance_mm);
                 const float* ray = stored.data();
                 const double span = tool.z_hi_mm[e] - tool.z_lo_mm[e];
                 double weight = 0, clip_lo = z, clip_hi = z;

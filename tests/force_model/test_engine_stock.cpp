@@ -101,6 +101,18 @@ TEST_CASE("stock save and load round trip; corrupt files are rejected") {
     std::size_t differing = 0;
     for (std::size_t r = 0; r < back->rays(); ++r) differing += back->ray(r) == p.final_stock->ray(r) ? 0 : 1;
     CHECK(differing == 0);
+    // The sub-cell walls travel with the rays (a finishing run from a saved roughing stock).
+    std::size_t walls = 0, differing_walls = 0;
+    for (std::size_t r = 0; r < back->rays(); ++r) {
+        const kernels::Wall a = back->view().wall(r), b = p.final_stock->view().wall(r);
+        walls += b.exists() ? 1 : 0;
+        differing_walls += a.clearance_mm == b.clearance_mm && a.z_from_mm == b.z_from_mm && a.nx == b.nx &&
+                                   a.ny == b.ny
+                               ? 0
+                               : 1;
+    }
+    CHECK(walls >= 2 * 400);   // both walls of the slot across the 40 mm box: a ray per cell or more
+    CHECK(differing_walls == 0);
     CHECK(back->grid.nx == p.final_stock->grid.nx);
     CHECK(force_model::stock_volume_mm3(*back) == Approx(force_model::stock_volume_mm3(*p.final_stock)));
 
