@@ -7,6 +7,7 @@
 #include "force_model/compare.hpp"
 #include "force_model/measurement.hpp"
 #include "server/core.hpp"
+#include "server/durable_file.hpp"
 #include "server/series.hpp"
 
 #include <fcntl.h>
@@ -40,20 +41,6 @@ DoneRun require_done_run(db::Connection& c, const fs::path& data_dir, std::int64
     return DoneRun{RunRef{id, st.opt_text(1).value_or("")}, data_dir / st.text(2)};
 }
 
-void write_synced(const fs::path& p, const std::string& data) {
-    int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) throw std::runtime_error(fmt::format("cannot write {}", p.string()));
-    for (std::size_t done = 0; done < data.size();) {
-        const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
-        if (n <= 0) {
-            ::close(fd);
-            throw std::runtime_error(fmt::format("cannot write {}", p.string()));
-        }
-        done += static_cast<std::size_t>(n);
-    }
-    ::fsync(fd);
-    ::close(fd);
-}
 
 // The run's predicted forces at full rate, from the stored series.
 force_model::PredictedTrace stored_trace(Core& core, db::Connection& c, const RunRef& run) {
@@ -281,7 +268,7 @@ void attach(Core& core, Ctx& x) {
             fs::remove(b, ec);
         }
     } remove_tmp{tmp, tmp_settings};
-    write_synced(tmp, file.content);
+    write_durable(tmp, file.content);
     const Compared r = compare_file(trace, tmp, shown, s);
 
     const json stored{{"filename", shown},
@@ -290,7 +277,7 @@ void attach(Core& core, Ctx& x) {
                       {"attached_at", db::now_iso()},
                       {"attached_by", x.actor},
                       {"settings", settings_json(s)}};
-    write_synced(tmp_settings, stored.dump());
+    write_durable(tmp_settings, stored.dump());
     fs::rename(tmp, run.upload_dir / kDataFile);
     fs::rename(tmp_settings, run.upload_dir / kSettingsFile);
     x.res.set_header("Location", fmt::format("/api/v1/runs/{}/measurement", id));

@@ -3,6 +3,7 @@
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
 #include "server/core.hpp"
+#include "server/durable_file.hpp"
 #include "server/gzip.hpp"
 #include "server/jobs.hpp"
 #include "server/library.hpp"
@@ -73,22 +74,6 @@ std::string random_hex(std::size_t bytes) {
     return s;
 }
 
-// Written and flushed to the disk before the run row commits: "stored before 202".
-void write_durable(const fs::path& p, const std::string& data) {
-    int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) throw std::runtime_error(fmt::format("cannot write {}", p.string()));
-    std::size_t done = 0;
-    while (done < data.size()) {
-        ssize_t n = ::write(fd, data.data() + done, data.size() - done);
-        if (n <= 0) {
-            ::close(fd);
-            throw std::runtime_error(fmt::format("cannot write {}", p.string()));
-        }
-        done += static_cast<std::size_t>(n);
-    }
-    ::fsync(fd);
-    ::close(fd);
-}
 
 void fsync_dir(const fs::path& p) {
     int fd = ::open(p.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
