@@ -20,7 +20,8 @@
 // Axial weighting: an element with an axial span [z_lo, z_hi] cuts with the fraction of that span
 // that lies inside material on the ray under its edge point, so the engaged length follows the
 // dexel interval ends exactly instead of jumping by whole elements. Flat-bottom elements (no axial
-// span) cut when their edge point is inside material.
+// span) cut when their edge point is inside material, with the chip limited to the material on the
+// ray between the point and the previous tooth's pass (h above it).
 //
 // min/max rather than fmin/fmax throughout: no NaN reaches them, and the NaN-safe forms cost PoCL
 // several instructions each.
@@ -146,8 +147,9 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
             const float8 zlo = vload8(0, el_zlo + c), zhi = vload8(0, el_zhi + c), inv = vload8(0, el_inv + c);
             const float8 z = tz + ez, za = tz + zlo, zb = tz + zhi;
             int lane_ok[8], cell[8];
-            float lane_u[8], lane_v[8], lane_z[8], lane_a[8], lane_b[8], lane_inv[8], weight[8];
+            float lane_u[8], lane_v[8], lane_z[8], lane_a[8], lane_b[8], lane_inv[8], lane_h[8], weight[8];
             vstore8(ok, 0, lane_ok);
+            vstore8(h, 0, lane_h);
             vstore8(cell8, 0, cell);
             vstore8(u, 0, lane_u);
             vstore8(v, 0, lane_v);
@@ -164,10 +166,15 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                 if (lane_inv[l] > 0.0f) {
                     weight[l] = span_overlap(lane_a[l], lane_b[l], lo, hi) * lane_inv[l];
                 } else {
+                    // The chip is the material between this edge point and the previous tooth's pass,
+                    // h above it: no more than the ray holds there.
                     const float zl = lane_z[l];
-                    weight[l] = any(isgreaterequal((float4)(zl), lo) & isless((float4)(zl), hi)) ? 1.0f : 0.0f;
+                    const int inside = any(isgreaterequal((float4)(zl), lo) & isless((float4)(zl), hi));
+                    lane_h[l] = min(lane_h[l], span_overlap(zl, zl + lane_h[l], lo, hi));
+                    weight[l] = inside && lane_h[l] > min_chip ? 1.0f : 0.0f;
                 }
             }
+            const float8 h_cut = vload8(0, lane_h);
             const float8 w = vload8(0, weight);
             const int8 m = isgreater(w, (float8)(0.0f));
             if (!any(m)) continue;
@@ -192,9 +199,9 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                 ehi = vload8(0, clip_hi);
             }
             const float8 db = vload8(0, el_db + c) * w;
-            const float8 dFt = select((float8)(0.0f), (Ktc * h + Kte) * db, m);
-            const float8 dFr = select((float8)(0.0f), (Krc * h + Kre) * db, m);
-            const float8 dFa = select((float8)(0.0f), (Kac * h + Kae) * db, m);
+            const float8 dFt = select((float8)(0.0f), (Ktc * h_cut + Kte) * db, m);
+            const float8 dFr = select((float8)(0.0f), (Krc * h_cut + Kre) * db, m);
+            const float8 dFa = select((float8)(0.0f), (Kac * h_cut + Kae) * db, m);
             const float8 normal = dFr * nr + dFa * nz;
             const float8 ex = -spin * dFt * su - normal * cu;
             const float8 ey = spin * dFt * cu - normal * su;
@@ -206,7 +213,7 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
             const float8 lz = ez - face_z;
             Mx += r * su * fz_e - lz * ey;
             My += lz * ex - r * cu * fz_e;
-            chip = max(chip, select((float8)(0.0f), h, m));
+            chip = max(chip, select((float8)(0.0f), h_cut, m));
             const float8 q = r * (cu * px + su * py);
             qmin = min(qmin, select((float8)(1e30f), q, m));
             qmax = max(qmax, select((float8)(-1e30f), q, m));

@@ -280,17 +280,21 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 const Ray stored = material_at(stock, ci, cj, x, y, p.wall_tolerance_mm);
                 const float* ray = stored.data();
                 const double span = tool.z_hi_mm[e] - tool.z_lo_mm[e];
-                double weight = 0, clip_lo = z, clip_hi = z;
+                double weight = 0, clip_lo = z, clip_hi = z, h_cut = h;
                 if (span > 0) {
                     weight = ray_overlap(ray, tz + tool.z_lo_mm[e], tz + tool.z_hi_mm[e], clip_lo, clip_hi) / span;
                 } else if (ray_contains(ray, z)) {
-                    weight = 1;
+                    // The chip is the material between this edge point and the previous tooth's pass,
+                    // h above it: no more than the ray holds there.
+                    double unused_lo = 0, unused_hi = 0;
+                    h_cut = std::min(h, ray_overlap(ray, z, z + h, unused_lo, unused_hi));
+                    if (h_cut > p.min_chip_mm) weight = 1;
                 }
                 if (weight <= 0) continue;
                 const double db = tool.db_mm[e] * weight;
-                const double dFt = (k.Ktc * h + k.Kte) * db;
-                const double dFr = (k.Krc * h + k.Kre) * db;
-                const double dFa = (k.Kac * h + k.Kae) * db;
+                const double dFt = (k.Ktc * h_cut + k.Kte) * db;
+                const double dFr = (k.Krc * h_cut + k.Kre) * db;
+                const double dFa = (k.Kac * h_cut + k.Kae) * db;
                 const double normal = dFr * nr + dFa * nz;
                 const double ex = -s * dFt * su - normal * cu;
                 const double ey = s * dFt * cu - normal * su;
@@ -302,7 +306,7 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 const double lz = tool.z_mm[e] - p.holder_face_z_mm;
                 Mx += r * su * ez - lz * ey;
                 My += lz * ex - r * cu * ez;
-                chip = std::max(chip, h);
+                chip = std::max(chip, h_cut);
                 const double q = r * (cu * px + su * py);
                 qmin = std::min(qmin, q);
                 qmax = std::max(qmax, q);
