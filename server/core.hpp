@@ -62,6 +62,7 @@ private:
 void add_library_routes(Core& c);
 void add_run_routes(Core& c);
 void add_measurement_routes(Core& c);
+void add_calibration_routes(Core& c);
 void add_alert_routes(Core& c);
 void add_misc_routes(Core& c);
 

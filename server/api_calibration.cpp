@@ -1,0 +1,262 @@
+// Route: POST /api/v1/calibrations: identify Ktc, Krc, Kac, Kte, Kre, Kae from uploaded straight
+// dynamometer tests (issue 6), the way `cutload calibrate` does, and optionally store the result as a
+// library material.
+//
+// Synchronous: each test costs about 0.3 s of engine time (six short predictions), so the number of
+// tests is capped; the body size is capped by the server as for every route (413).
+#include "force_model/calibrate.hpp"
+#include "force_model/measurement.hpp"
+#include "server/core.hpp"
+#include "server/library.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace cutload::server {
+namespace {
+
+constexpr std::size_t kMaxTests = 20;
+
+struct UploadedTest {
+    std::string file;
+    std::string content;
+    force_model::CutTest test;
+};
+
+std::optional<std::string> part(const httplib::Request& req, const char* name) {
+    if (!req.has_file(name)) return std::nullopt;
+    if (req.files.count(name) > 1) bad_request(fmt::format("part {} is given more than once", name));
+    return req.get_file_value(name).content;
+}
+
+json json_part(const char* name, const std::string& text) {
+    try {
+        return json::parse(text);
+    } catch (const json::parse_error& e) {
+        bad_request(fmt::format("part {}: not valid JSON ({})", name, e.what()));
+    }
+}
+
+// The `tool` part (the run spec's tool object) or `tool_id` (a library tool), checked by the engine.
+force_model::ToolSpec tool_from_parts(Core& core, const httplib::Request& req) {
+    const auto tool_text = part(req, "tool");
+    const auto id_text = part(req, "tool_id");
+    if (tool_text.has_value() == id_text.has_value())
+        bad_request("give exactly one of part 'tool' (the run spec's tool object) and part 'tool_id' (a library tool)");
+    json tool;
+    if (tool_text) {
+        tool = json_part("tool", *tool_text);
+    } else {
+        std::int64_t id = 0;
+        try {
+            std::size_t used = 0;
+            id = std::stoll(*id_text, &used);
+            if (used != id_text->size()) throw std::invalid_argument(*id_text);
+        } catch (const std::exception&) {
+            bad_request(fmt::format("part tool_id: '{}' is not an integer", *id_text));
+        }
+        auto c = core.pool.get();
+        const auto stored = library_body(*c, "tools", id);
+        if (!stored) not_found(fmt::format("tool {} does not exist", id));
+        tool = stored->at("tool");
+    }
+    json spec = probe_spec();
+    spec["tool"] = tool;
+    try {
+        return force_model::parse_run_spec(spec).tool;
+    } catch (const force_model::SpecError& e) {
+        throw ApiError(400, "bad_spec", e.what());
+    }
+}
+
+double number_field(const json& cond, const std::string& file, const char* key) {
+    if (!cond.contains(key)) bad_request(fmt::format("part tests: '{}': {} is missing", file, key));
+    const json& v = cond[key];
+    if (!v.is_number() || !std::isfinite(v.get<double>()))
+        bad_request(fmt::format("part tests: '{}': {} must be a number", file, key));
+    return v.get<double>();
+}
+
+force_model::CutTest cut_test_of(const json& cond, const std::string& file, const force_model::ToolSpec& tool) {
+    if (!cond.is_object()) bad_request(fmt::format("part tests: '{}': conditions must be an object", file));
+    for (const auto& [key, value] : cond.items()) {
+        static const char* known[] = {"spindle_rpm", "feed_mm_min", "axial_mm", "radial_mm", "mode", "feed_direction_deg"};
+        if (std::find_if(std::begin(known), std::end(known), [&](const char* k) { return key == k; }) == std::end(known))
+            bad_request(fmt::format("part tests: '{}': unknown key {}", file, key));
+    }
+    force_model::CutTest t;
+    t.spindle_rpm = number_field(cond, file, "spindle_rpm");
+    t.feed_mm_min = number_field(cond, file, "feed_mm_min");
+    t.axial_mm = number_field(cond, file, "axial_mm");
+    if (!cond.contains("mode") || !cond["mode"].is_string())
+        bad_request(fmt::format("part tests: '{}': mode must be slot, up or down", file));
+    try {
+        t.mode = force_model::parse_immersion(cond["mode"].get<std::string>());
+    } catch (const force_model::SpecError& e) {
+        bad_request(fmt::format("part tests: '{}': {}", file, e.what()));
+    }
+    if (t.mode != force_model::Immersion::Slot || cond.contains("radial_mm"))
+        t.radial_mm = number_field(cond, file, "radial_mm");
+    if (cond.contains("feed_direction_deg")) t.feed_direction_deg = number_field(cond, file, "feed_direction_deg");
+    try {
+        force_model::validate_cut_test(t, tool);
+    } catch (const force_model::SpecError& e) {
+        bad_request(fmt::format("part tests: '{}': {}", file, e.what()));
+    }
+    return t;
+}
+
+std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const force_model::ToolSpec& tool) {
+    const auto range = req.files.equal_range("test");
+    const auto count = static_cast<std::size_t>(std::distance(range.first, range.second));
+    if (count == 0) bad_request("part 'test' is missing: upload one dynamometer record per test (DynoWare or plain CSV)");
+    if (count > kMaxTests)
+        throw ApiError(413, "too_many_tests", fmt::format("{} tests uploaded; the limit is {}", count, kMaxTests));
+    const auto conditions_text = part(req, "tests");
+    if (!conditions_text)
+        bad_request("part 'tests' is missing: a JSON object giving each test file's conditions by file name");
+    const json conditions = json_part("tests", *conditions_text);
+    if (!conditions.is_object()) bad_request("part tests: must be a JSON object keyed by test file name");
+
+    std::vector<UploadedTest> tests;
+    for (auto it = range.first; it != range.second; ++it) {
+        const auto& f = it->second;
+        if (f.filename.empty()) bad_request("a 'test' part has no file name: conditions are matched by file name");
+        for (const auto& other : tests)
+            if (other.file == f.filename) bad_request(fmt::format("test file name '{}' is used twice", f.filename));
+        if (!conditions.contains(f.filename))
+            bad_request(fmt::format("part tests: no conditions for test file '{}'", f.filename));
+        tests.push_back({f.filename, f.content, cut_test_of(conditions[f.filename], f.filename, tool)});
+    }
+    for (const auto& [name, cond] : conditions.items())
+        if (std::none_of(tests.begin(), tests.end(), [&](const UploadedTest& t) { return t.file == name; }))
+            bad_request(fmt::format("part tests: conditions for '{}' but no test file of that name", name));
+    return tests;
+}
+
+json vec3(const std::array<double, 3>& v) { return json::array({v[0], v[1], v[2]}); }
+
+void ensure_material_name_free(Core& core, const std::string& name) {
+    auto c = core.pool.get();
+    auto st = c->prepare("SELECT id FROM materials WHERE name = ?");
+    st.bind(1, name);
+    if (st.step()) throw ApiError(409, "name_taken", fmt::format("a material named '{}' already exists", name));
+}
+
+void calibrate(Core& core, Ctx& x) {
+    const auto& req = x.req;
+    if (!req.is_multipart_form_data())
+        bad_request("POST /api/v1/calibrations takes multipart/form-data: 'tool' or 'tool_id', 'tests', one 'test' file per test");
+    const force_model::ToolSpec tool = tool_from_parts(core, req);
+    const std::vector<UploadedTest> tests = tests_from_parts(req, tool);
+
+    force_model::AxisMatrix axes = force_model::kIdentityAxes;
+    if (auto a = part(req, "axes")) {
+        try {
+            axes = force_model::parse_axis_matrix(*a);
+        } catch (const force_model::MeasurementError& e) {
+            throw ApiError(400, "bad_measurement", fmt::format("part axes: {}", e.what()));
+        }
+    }
+    bool on_workpiece = true;
+    if (auto m = part(req, "measured_on")) {
+        if (*m != "workpiece" && *m != "tool") bad_request(fmt::format("part measured_on: '{}' is not workpiece or tool", *m));
+        on_workpiece = *m == "workpiece";
+    }
+    const std::optional<std::string> save_as = part(req, "save_as");
+    if (save_as) {
+        if (save_as->empty() || save_as->size() > 200) bad_request("part save_as: a material name of 1..200 characters");
+        ensure_material_name_free(core, *save_as);   // before the work; the insert checks again
+    }
+
+    // The same steps as `cutload calibrate` with engine regressors on the CPU.
+    std::vector<force_model::Regressors> regs;
+    std::vector<std::array<double, 3>> means;
+    std::vector<force_model::SteadyForce> steady;
+    for (const auto& t : tests) {
+        try {
+            std::istringstream in(t.content);
+            force_model::Measurement m = force_model::read_measurement(in, t.file);
+            force_model::map_to_tool_machine_axes(m, axes, on_workpiece);
+            steady.push_back(force_model::steady_mean_force(m, t.test.spindle_rpm));
+        } catch (const force_model::MeasurementError& e) {
+            throw ApiError(400, "bad_measurement", e.what());
+        }
+        regs.push_back(force_model::engine_regressors(tool, t.test));
+        means.push_back(force_model::to_feed_frame(steady.back().mean_N, t.test.feed_direction_deg));
+    }
+    force_model::CalibrationFit fit;
+    try {
+        fit = force_model::fit_mean_forces(regs, means, save_as.value_or("calibrated"));
+    } catch (const force_model::SpecError& e) {
+        throw ApiError(400, "bad_tests", e.what());
+    }
+    const json material = force_model::material_json(fit.material);
+
+    json per_test = json::array();
+    for (std::size_t i = 0; i < tests.size(); ++i) {
+        const auto& t = tests[i].test;
+        const auto& s = steady[i];
+        per_test.push_back({{"file", tests[i].file},
+                            {"mode", force_model::immersion_name(t.mode)},
+                            {"spindle_rpm", t.spindle_rpm},
+                            {"feed_mm_min", t.feed_mm_min},
+                            {"axial_mm", t.axial_mm},
+                            {"radial_mm", t.radial_mm},
+                            {"steady_from_s", s.t_start_s},
+                            {"steady_to_s", s.t_end_s},
+                            {"revolutions", s.revolutions},
+                            {"zero_removed", s.zeroed},
+                            {"zero_N", vec3(s.zero_N)},
+                            {"mean_force_feed_frame_N", vec3(means[i])},
+                            {"residual_rms_N", fit.group_rms_residual_N[i]}});
+    }
+    json out{{"material", material},
+             {"fit",
+              {{"equations", fit.equations},
+               {"rms_residual_N", fit.rms_residual_N},
+               {"relative_rms_residual", fit.relative_rms_residual},
+               {"condition_number", fit.condition_number}}},
+             {"tests", per_test},
+             {"saved", nullptr}};
+    if (!save_as) return x.reply(200, out);
+
+    // Stored only if the engine accepts it, as POST /api/v1/materials would.
+    json spec = probe_spec();
+    spec["material"] = material;
+    try {
+        force_model::parse_run_spec(spec);
+    } catch (const force_model::SpecError& e) {
+        throw ApiError(400, "bad_tests",
+                       fmt::format("the identified coefficients are not a valid material ({}); nothing was saved", e.what()));
+    }
+    json stored = material;
+    stored.erase("name");
+    auto c = core.pool.get();
+    const std::string now = db::now_iso();
+    try {
+        c->prepare("INSERT INTO materials(name, body, created_at, updated_at) VALUES (?,?,?,?)")
+            .bind(1, *save_as)
+            .bind(2, stored.dump())
+            .bind(3, now)
+            .bind(4, now)
+            .run();
+    } catch (const db::Error& e) {
+        if (e.is_constraint()) throw ApiError(409, "name_taken", fmt::format("a material named '{}' already exists", *save_as));
+        throw;
+    }
+    const auto id = c->last_insert_id();
+    x.res.set_header("Location", fmt::format("/api/v1/materials/{}", id));
+    out["saved"] = {{"id", id}, {"name", *save_as}};
+    x.reply(201, out);
+}
+
+}  // namespace
+
+void add_calibration_routes(Core& core) {
+    core.route("POST", "/api/v1/calibrations", Role::Write, [&core](Ctx& x) { calibrate(core, x); });
+}
+
+}  // namespace cutload::server
