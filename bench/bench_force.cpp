@@ -6,6 +6,8 @@
 // of each engine phase, the process CPU time per run (all threads; steadier than wall time on a
 // shared machine) and the load average when the runs started.
 #include "force_model/engine.hpp"
+#include "motion_io/commanded.hpp"
+#include "motion_io/nc_program.hpp"
 
 #include <sys/resource.h>
 
@@ -21,61 +23,27 @@ using namespace cutload;
 
 namespace {
 
-using P3 = std::array<double, 3>;
+// The seed's finishing pass as a program, run at its commanded feed by motion_io's own commanded
+// motion (the same path builder the "conventional" prediction uses).
+constexpr const char* kContourProgram =
+    "G21 G90 G54\n"
+    "N5 G0 X-20 Y93 Z40 S10000 M03\n"   // tip 3 mm below the top at Z27; centre 3 mm outside: ae 1 mm
+    "N10 G0 Z27\n"
+    "N20 G1 X108 F6000\n"                // clockwise seen from above: down milling with M03
+    "N30 Y-3\n"
+    "N40 X-3\n"
+    "N50 Y93\n"
+    "N60 X20\n"
+    "N70 G0 Z40\n";
 
-struct Leg {
-    P3 end;
-    double feed_mm_min;
-    std::string block;
-};
-
-motion_io::MotionModel contour_motion() {
-    const double step_s = 0.001, rpm = 10000;
-    const double z = 27, off = 3;   // tip 3 mm below the top; centre 3 mm outside: 1 mm radial depth
-    const P3 start{-20, 90 + off, 40};
-    // Clockwise around the block seen from above: down milling with an M03 right-hand cutter.
-    const std::vector<Leg> legs{
-        {{-20, 90 + off, z}, 30000, "N10 G0 Z27"},
-        {{105 + off, 90 + off, z}, 6000, "N20 G1 X108 F6000"},
-        {{105 + off, -off, z}, 6000, "N30 G1 Y-3"},
-        {{-off, -off, z}, 6000, "N40 G1 X-3"},
-        {{-off, 90 + off, z}, 6000, "N50 G1 Y93"},
-        {{20, 90 + off, z}, 6000, "N60 G1 X20"},
-        {{20, 90 + off, 40}, 30000, "N70 G0 Z40"},
-    };
-    motion_io::MotionModel m;
-    m.step_s = step_s;
-    double t = 0, angle = 0;
-    P3 p = start;
-    auto push = [&](const P3& pos, const P3& v, int block) {
-        if (!m.t_s.empty()) angle += 6.0 * rpm * step_s;
-        m.t_s.push_back(t);
-        m.x_mm.push_back(pos[0] + 200);   // machine coordinates: work zero at X200 Y-300 Z-350
-        m.y_mm.push_back(pos[1] - 300);
-        m.z_mm.push_back(pos[2] - 350);
-        m.vx_mm_s.push_back(v[0]);
-        m.vy_mm_s.push_back(v[1]);
-        m.vz_mm_s.push_back(v[2]);
-        m.spindle_rpm.push_back(rpm);
-        m.spindle_angle_deg.push_back(angle);
-        m.block.push_back(block);
-        t += step_s;
-    };
-    for (std::size_t l = 0; l < legs.size(); ++l) {
-        m.block_names.push_back(legs[l].block);
-        const P3 d{legs[l].end[0] - p[0], legs[l].end[1] - p[1], legs[l].end[2] - p[2]};
-        const double len = std::hypot(d[0], d[1], d[2]), speed = legs[l].feed_mm_min / 60;
-        const long n = std::max(1L, std::lround(len / (speed * step_s)));
-        const P3 v{d[0] / len * speed, d[1] / len * speed, d[2] / len * speed};
-        for (long k = 0; k < n; ++k) {
-            const double u = double(k) / double(n);
-            push({p[0] + u * d[0], p[1] + u * d[1], p[2] + u * d[2]}, v, int(l));
-        }
-        p = legs[l].end;
-    }
-    push(p, {0, 0, 0}, int(legs.size()) - 1);
-    m.session_start = {0};
-    return m;
+motion_io::MotionModel contour_motion(const force_model::RunSpec& spec) {
+    motion_io::NcReadOptions read;
+    read.work_offsets_mm = motion_io::default_work_offsets(spec.offset_mm);
+    const motion_io::NcProgram program = motion_io::parse_nc_program(kContourProgram, "bench contour", read);
+    motion_io::CommandedOptions opt;
+    opt.step_s = 0.001;
+    opt.rapid_mm_min = 30000;
+    return motion_io::commanded_motion(program, opt);
 }
 
 force_model::RunSpec seed_spec() {
@@ -183,8 +151,8 @@ void print_phases(const force_model::EnginePhases& p) {
 // Usage: bench_force [RUNS] [opencl|cpu]
 int main(int argc, char** argv) {
     const int runs = argc > 1 ? std::max(1, std::atoi(argv[1])) : 9;
-    const auto m = contour_motion();
     const auto spec = seed_spec();
+    const auto m = contour_motion(spec);
     std::printf("bench_force: seed 001 experiment, contour pass, %.2f s of motion, resolution %.0f deg / %.1f mm / %.1f mm\n",
                 m.t_s.back(), spec.resolution.angle_step_deg, spec.resolution.axial_step_mm, spec.resolution.grid_mm);
     std::printf("  load average at start: %s\n", load_average().c_str());
