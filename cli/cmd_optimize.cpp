@@ -37,8 +37,9 @@ void write_report(const force_model::FeedOptimization& r, const std::string& pat
 void run_optimize(const OptimizeArgs& a) {
     const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
     motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
-    const ProgramRun run = prepare_program_run(a.program, motion, spec);
-    print_mapping(run);
+    const ProgramRun active = prepare_program_run(a.program, motion, spec);
+    print_mapping(active);
+    const force_model::ProgramRun& run = active.run;
 
     force_model::FeedOptimizerOptions o;
     o.target = a.target;

@@ -1,13 +1,11 @@
 #include "cli/predict_program.hpp"
 
 #include "cli/commands.hpp"
-#include "force_model/program_compare.hpp"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cstdio>
-#include <set>
 #include <sstream>
 
 namespace cutload::cli {
@@ -26,19 +24,6 @@ std::pair<std::string, std::array<double, 3>> parse_work_offset(const std::strin
     }
     if (!ok) throw UsageError(fmt::format("--work-offset '{}': expected G54..G59=X,Y,Z (mm), e.g. G55=200,-300,-350", s));
     return {"G" + name.substr(1), v};
-}
-
-// The log names blocks, and (nearly) all of them are the program's.
-bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgram& p) {
-    const std::vector<std::string> names = motion_io::program_block_names(p);
-    const std::set<std::string> known(names.begin(), names.end());
-    std::size_t named = 0, matching = 0;
-    for (std::int32_t b : m.block) {
-        if (b < 0) continue;
-        ++named;
-        if (known.count(m.block_names[static_cast<std::size_t>(b)])) ++matching;
-    }
-    return named > 0 && matching >= 0.95 * double(named);
 }
 
 }  // namespace
@@ -89,38 +74,25 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
         return run;
     }
     if (motion.size() < 2) throw UsageError("the log holds fewer than two motion samples");
-    run.active = true;
-    motion_io::NcReadOptions ro;
-    ro.work_offsets_mm = motion_io::default_work_offsets(spec.offset_mm);
+    force_model::ProgramSettings settings;
     for (const std::string& w : o.work_offsets) {
         const auto [name, v] = parse_work_offset(w);
-        ro.work_offsets_mm[name] = v;
+        settings.work_offsets_mm[name] = v;
     }
-    ro.ignore_words = o.ignore;
-    ro.decimal_less_is_increment = o.decimal_less_increment;
-    ro.start_mm = std::array<double, 3>{motion.x_mm.front(), motion.y_mm.front(), motion.z_mm.front()};
-    run.program = motion_io::read_nc_program(o.program, ro);
-    run.commanded.step_s = motion.step_s;
-    run.commanded.rapid_mm_min = o.rapid_mm_min;
-
-    motion_io::BlockMappingOptions mo;
-    mo.lead_s = o.block_lead_ms * 1e-3;
-    run.mapped = o.map_blocks || !log_blocks_match(motion, run.program);
-    if (!run.mapped) {
-        // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
-        run.estimated_lead_s = motion_io::estimate_block_lead_s(motion, run.program, mo);
-        mo.lead_s = *run.estimated_lead_s;
-    }
-    run.mapping = motion_io::map_blocks(motion, run.program, mo);
-    if (run.mapping.quality.matched == 0)
-        throw UsageError(fmt::format("{}: no log sample lies within {} mm of the program's path (wrong program or work offset?)",
-                                     o.program, mo.max_distance_mm));
-    if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
+    settings.ignore_words = o.ignore;
+    settings.decimal_less_is_increment = o.decimal_less_increment;
+    settings.rapid_mm_min = o.rapid_mm_min;
+    settings.block_lead_ms = o.block_lead_ms;
+    settings.map_blocks = o.map_blocks;
+    auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, motion));
+    run.run = force_model::prepare_program_run(std::move(program), settings, motion);
+    run.active = true;
     return run;
 }
 
-void print_mapping(const ProgramRun& run) {
-    if (!run.active) return;
+void print_mapping(const ProgramRun& active) {
+    if (!active.active) return;
+    const force_model::ProgramRun& run = active.run;
     const auto& q = run.mapping.quality;
     std::printf("program: %zu blocks; log blocks %s; matched %.1f%% of samples, deviation mean %.3f / p95 %.3f / max %.3f mm, "
                 "path covered %.1f%%\n",
@@ -142,9 +114,8 @@ void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const mo
     if (!run.active) return;
     force_model::PredictOptions quiet = opt;
     quiet.progress = nullptr;
-    const force_model::Prediction commanded = force_model::predict(motion_io::commanded_motion(run.program, run.commanded), spec, quiet);
+    const auto [commanded, rows] = force_model::predict_program(run.run, motion, actual, spec, quiet);
     if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
-    const auto rows = force_model::compare_program(run.program, motion, run.mapping, commanded, actual, run.commanded);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
     print_mapping(run);
     std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",

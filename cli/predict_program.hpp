@@ -4,9 +4,7 @@
 #pragma once
 
 #include "force_model/force_model.hpp"
-#include "motion_io/block_mapping.hpp"
-#include "motion_io/commanded.hpp"
-#include "motion_io/nc_program.hpp"
+#include "force_model/program_run.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -30,13 +28,10 @@ struct ProgramOptions {
 // --program and its companions; `for_predict` adds --compare and --commanded-out.
 void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict);
 
+// force_model's ProgramRun, absent when no --program was given.
 struct ProgramRun {
     bool active = false;
-    motion_io::NcProgram program;
-    motion_io::BlockMapping mapping;          // always computed: it gives the path deviations
-    motion_io::CommandedOptions commanded;
-    bool mapped = false;                      // the motion's blocks come from the mapping
-    std::optional<double> estimated_lead_s;   // logs with their own block channel
+    force_model::ProgramRun run;
 };
 
 // Without --program: inactive, motion untouched. With it: reads the program (G54 = -setup offset

@@ -1,0 +1,69 @@
+#include "force_model/program_run.hpp"
+
+#include <fmt/format.h>
+
+#include <set>
+
+namespace cutload::force_model {
+namespace {
+
+// The log names blocks, and (nearly) all of them are the program's.
+bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgram& p) {
+    const std::vector<std::string> names = motion_io::program_block_names(p);
+    const std::set<std::string> known(names.begin(), names.end());
+    std::size_t named = 0, matching = 0;
+    for (std::int32_t b : m.block) {
+        if (b < 0) continue;
+        ++named;
+        if (known.count(m.block_names[static_cast<std::size_t>(b)])) ++matching;
+    }
+    return named > 0 && matching >= 0.95 * double(named);
+}
+
+}  // namespace
+
+motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, const RunSpec& spec,
+                                              const motion_io::MotionModel& motion) {
+    motion_io::NcReadOptions ro;
+    ro.work_offsets_mm = motion_io::default_work_offsets(spec.offset_mm);
+    for (const auto& [name, v] : settings.work_offsets_mm) ro.work_offsets_mm[name] = v;
+    ro.ignore_words = settings.ignore_words;
+    ro.decimal_less_is_increment = settings.decimal_less_is_increment;
+    if (!motion.x_mm.empty()) ro.start_mm = std::array<double, 3>{motion.x_mm.front(), motion.y_mm.front(), motion.z_mm.front()};
+    return ro;
+}
+
+ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
+                               motion_io::MotionModel& motion) {
+    if (motion.size() < 2) throw motion_io::IngestError("the log holds fewer than two motion samples");
+    ProgramRun run;
+    run.program = std::move(program);
+    run.commanded.step_s = motion.step_s;
+    run.commanded.rapid_mm_min = settings.rapid_mm_min;
+
+    motion_io::BlockMappingOptions mo;
+    mo.lead_s = settings.block_lead_ms * 1e-3;
+    run.mapped = settings.map_blocks || !log_blocks_match(motion, run.program);
+    if (!run.mapped) {
+        // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
+        run.estimated_lead_s = motion_io::estimate_block_lead_s(motion, run.program, mo);
+        mo.lead_s = *run.estimated_lead_s;
+    }
+    run.mapping = motion_io::map_blocks(motion, run.program, mo);
+    if (run.mapping.quality.matched == 0)
+        throw motion_io::NcProgramError(
+            fmt::format("{}: no log sample lies within {} mm of the program's path (wrong program or work offset?)",
+                        run.program.file, mo.max_distance_mm));
+    if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
+    return run;
+}
+
+ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
+                                  const RunSpec& spec, const PredictOptions& options) {
+    ProgramPrediction out;
+    out.commanded = predict(motion_io::commanded_motion(run.program, run.commanded), spec, options);
+    out.blocks = compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
+    return out;
+}
+
+}  // namespace cutload::force_model

@@ -1,0 +1,60 @@
+// A dry run read together with the NC program it runs: the program interpreted in the log's
+// machine coordinates, the log's samples attributed to program blocks (its own block channel, or
+// block mapping when it has none), and the commanded-vs-actual prediction and comparison.
+// Shared by `cutload predict --program`, `cutload optimize` and the service's run jobs.
+#pragma once
+
+#include "force_model/force_model.hpp"
+#include "force_model/program_compare.hpp"
+#include "motion_io/block_mapping.hpp"
+#include "motion_io/commanded.hpp"
+#include "motion_io/nc_program.hpp"
+
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cutload::force_model {
+
+struct ProgramSettings {
+    // Machine position of G54..G59's tool-tip zero, mm; G54 defaults to -setup offset of the spec.
+    std::map<std::string, std::array<double, 3>> work_offsets_mm;
+    std::vector<std::string> ignore_words;   // e.g. "G28", "H": dropped before interpretation
+    double rapid_mm_min = 30000;             // the machine's G00 rate (commanded motion)
+    double block_lead_ms = 0;                // block counter lead for logs without a block channel
+    bool map_blocks = false;                 // map even when the log names the program's blocks
+    bool decimal_less_is_increment = false;  // FANUC 3401#0 = 0: X10 means 10 least increments
+};
+
+struct ProgramRun {
+    motion_io::NcProgram program;
+    motion_io::BlockMapping mapping;          // always computed: it gives the path deviations
+    motion_io::CommandedOptions commanded;    // step of the log's model, the rapid rate
+    bool mapped = false;                      // the motion's blocks come from the mapping
+    std::optional<double> estimated_lead_s;   // logs with their own block channel
+};
+
+// How to read the program against this spec and log: default work offsets from the spec's setup
+// offset, overridden by settings; the machine starts at the log's first position.
+motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, const RunSpec& spec,
+                                              const motion_io::MotionModel& motion);
+
+// Maps the log onto the program and relabels `motion`'s blocks with the program's names when the
+// log has none that match (or settings.map_blocks). Throws motion_io::NcProgramError when no
+// sample lies near the program's path (wrong program or work offset).
+ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
+                               motion_io::MotionModel& motion);
+
+struct ProgramPrediction {
+    Prediction commanded;                  // from the programmed path at programmed feed
+    std::vector<BlockComparison> blocks;   // compare_program() rows, program order
+};
+
+// Predicts the commanded motion with the same spec and options as the actual one and compares
+// the two block by block. `motion` is the (relabelled) log `actual` was predicted from.
+ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
+                                  const RunSpec& spec, const PredictOptions& options);
+
+}  // namespace cutload::force_model
