@@ -162,7 +162,32 @@ constexpr const char* kV2 = R"SQL(
 ALTER TABLE api_keys ADD COLUMN last_used_at TEXT;
 )SQL";
 
-constexpr std::array<const char*, 2> kMigrations{kV1, kV2};
+// NC programs (issue 7): a run's commanded-vs-actual comparison (its commanded forces are series 2
+// in series_chunks) and feed optimizations, which are jobs like runs.
+constexpr const char* kV3 = R"SQL(
+CREATE TABLE run_program (
+  run_id INTEGER PRIMARY KEY REFERENCES runs(id) ON DELETE CASCADE,
+  body TEXT NOT NULL               -- JSON: mapping quality, commanded summary, per-block comparison
+);
+CREATE TABLE optimizations (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+  state TEXT NOT NULL CHECK (state IN ('queued','running','done','failed','cancelled')),
+  progress REAL NOT NULL DEFAULT 0,
+  params TEXT NOT NULL,            -- JSON: target, feed range, basis, max_predictions
+  result TEXT,                     -- JSON, set with state 'done' in the same transaction
+  program TEXT,                    -- the optimized NC program
+  error TEXT,
+  attempts INTEGER NOT NULL DEFAULT 0,
+  created_at TEXT NOT NULL,
+  started_at TEXT,
+  finished_at TEXT
+);
+CREATE INDEX optimizations_by_state ON optimizations(state, id);
+CREATE INDEX optimizations_by_run ON optimizations(run_id, id);
+)SQL";
+
+constexpr std::array<const char*, 3> kMigrations{kV1, kV2, kV3};
 
 int user_version(Connection& c) {
     auto st = c.prepare("PRAGMA user_version");

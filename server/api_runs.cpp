@@ -8,6 +8,7 @@
 #include "server/jobs.hpp"
 #include "server/library.hpp"
 #include "server/number_text.hpp"
+#include "server/program.hpp"
 #include "server/series.hpp"
 
 #include <fcntl.h>
@@ -35,7 +36,7 @@ json opt_json(const db::Stmt& st, int col, bool integer) {
 
 json run_json(const db::Stmt& st) {
     const std::int64_t id = st.i64(0);
-    return {{"id", id},
+    json run{{"id", id},
             {"name", opt_json(st, 1, false)},
             {"program", opt_json(st, 2, false)},
             {"machine_id", opt_json(st, 3, true)},
@@ -57,6 +58,11 @@ json run_json(const db::Stmt& st) {
               {"blocks", fmt::format("/api/v1/runs/{}/blocks", id)},
               {"forces", fmt::format("/api/v1/runs/{}/forces", id)},
               {"motion", fmt::format("/api/v1/runs/{}/motion", id)}}}};
+    if (run["inputs"].is_object() && run["inputs"].contains("nc_program")) {
+        run["links"]["program"] = fmt::format("/api/v1/runs/{}/program", id);
+        run["links"]["optimizations"] = fmt::format("/api/v1/runs/{}/optimizations", id);
+    }
+    return run;
 }
 
 json load_run(db::Connection& c, std::int64_t id) {
@@ -186,6 +192,36 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
     return s;
 }
 
+// Stores the uploaded NC program beside the log and reads it once, so a bad program is a 400 now
+// rather than a failed job later. Positions are checked again by the job, against the log.
+json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json) {
+    const auto f = req.get_file_value("nc_program");
+    if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
+    json options = json::object();
+    if (auto o = part(req, "nc_options")) {
+        try {
+            options = json::parse(*o);
+        } catch (const json::parse_error& e) {
+            throw ApiError(400, "bad_request", fmt::format("part nc_options is not valid JSON: byte {}: {}", e.byte, e.what()));
+        }
+    }
+    const force_model::ProgramSettings settings = program_settings(options);
+    const std::string name = f.filename.empty() ? "program.nc" : fs::path(f.filename).filename().string();
+    const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
+    motion_io::MotionModel origin;   // the log's first position is not known yet: start at machine zero
+    origin.x_mm = origin.y_mm = origin.z_mm = {0.0};
+    try {
+        const auto program = motion_io::parse_nc_program(f.content, name, force_model::program_read_options(settings, spec, origin));
+        if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
+            throw ApiError(400, "bad_program", fmt::format("{}: the program has no motion block", name));
+    } catch (const motion_io::NcProgramError& e) {
+        throw ApiError(400, "bad_program", e.what());
+    }
+    write_durable(dir / "program.nc", f.content);
+    return {{"filename", name}, {"bytes", f.content.size()}, {"sha256", sha256_hex(f.content)}, {"stored_as", "program.nc"},
+            {"options", options}};
+}
+
 void create_run(Core& core, Ctx& x) {
     const auto& req = x.req;
     if (!req.is_multipart_form_data())
@@ -269,12 +305,17 @@ void create_run(Core& core, Ctx& x) {
         msg = replace_all(msg, (tmp / "mapping.json").string(), "mapping");
         throw ApiError(400, "bad_log", msg);
     }
+    json nc_program;
+    if (req.has_file("nc_program")) nc_program = store_nc_program(req, tmp, r.spec);
     std::size_t rows = 0;
     for (const auto& [name, ch] : report.channels) rows = std::max(rows, ch.samples);
     if (rows > core.opt.max_log_rows)
         throw ApiError(413, "too_many_rows", fmt::format("the log has {} rows; the limit is {}", rows, core.opt.max_log_rows));
     json warnings = json::array();
-    for (const auto& w : report.warnings) warnings.push_back({{"code", w.code}, {"message", w.message}, {"count", w.count}});
+    for (const auto& w : report.warnings)
+        warnings.push_back({{"code", w.code},
+                            {"message", replace_all(w.message, (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename)},
+                            {"count", w.count}});
     json inputs{{"log", log},
                 {"spec", r.spec},
                 {"ingest",
@@ -284,6 +325,7 @@ void create_run(Core& core, Ctx& x) {
                   {"blocks", report.blocks},
                   {"rows", rows},
                   {"warnings", warnings}}}};
+    if (!nc_program.is_null()) inputs["nc_program"] = nc_program;
 
     const auto name = part(req, "name");
     const auto program = part(req, "program");
@@ -368,12 +410,14 @@ void cancel_run(Core& core, Ctx& x) {
         .run();
     if (c->changes() == 0) {
         auto run = load_run(*c, id);
-        if (run["state"] != "running" || !core.jobs->cancel_running(id))
+        if (run["state"] != "running" || !core.jobs->cancel_running(Jobs::Kind::Run, id))
             throw ApiError(409, "conflict", fmt::format("run {} is {}: only queued or running runs can be cancelled", id,
                                                         run["state"].get<std::string>()));
     }
     x.reply(202, load_run(*c, id));
 }
+
+}  // namespace
 
 // Results exist only for finished runs; anything else is a conflict, not an empty answer.
 RunRef require_done(db::Connection& c, std::int64_t id) {
@@ -384,6 +428,17 @@ RunRef require_done(db::Connection& c, std::int64_t id) {
         throw ApiError(409, "not_done", fmt::format("run {} is {}: results exist once it is done", id, st.text(0)));
     return RunRef{id, st.opt_text(1).value_or("")};
 }
+
+json require_program(db::Connection& c, std::int64_t id) {
+    auto st = c.prepare("SELECT body FROM run_program WHERE run_id = ?");
+    st.bind(1, id);
+    if (!st.step())
+        throw ApiError(404, "no_program",
+                       fmt::format("run {} was uploaded without an NC program (multipart part nc_program)", id));
+    return json::parse(st.text(0));
+}
+
+namespace {
 
 void list_blocks(Core& core, Ctx& x) {
     const auto id = x.id();
@@ -599,6 +654,12 @@ std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t
 
 void series_route(Core& core, Ctx& x, SeriesId s) {
     const auto id = x.id();
+    if (s == SeriesId::Forces) {
+        const std::string source = x.param("source").value_or("actual");
+        if (source != "actual" && source != "commanded")
+            bad_request(fmt::format("query parameter source: '{}' is not actual or commanded", source));
+        if (source == "commanded") s = SeriesId::CommandedForces;
+    }
     const auto max_points = x.param_int("max_points").value_or(2000);
     if (max_points < 2 || max_points > core.opt.max_points)
         throw ApiError(400, "bad_request",
@@ -607,6 +668,7 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
     std::vector<bool> wanted = wanted_channels(x, ch);
     auto c = core.pool.get();
     const RunRef run = require_done(*c, id);
+    if (s == SeriesId::CommandedForces) require_program(*c, id);
     const bool csv = x.wants_csv();
     const bool gzip = accepts_gzip(x.req);
     const bool whole_run = !x.param("from_s") && !x.param("to_s");

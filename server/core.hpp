@@ -59,8 +59,14 @@ private:
     Role authorize(const httplib::Request& req, Role need, std::string* actor);
 };
 
+// A finished run (404 unknown, 409 `not_done` otherwise), and its stored program comparison
+// (404 `no_program` for a run uploaded without an NC program).
+RunRef require_done(db::Connection& c, std::int64_t id);
+json require_program(db::Connection& c, std::int64_t id);
+
 void add_library_routes(Core& c);
 void add_run_routes(Core& c);
+void add_program_routes(Core& c);
 void add_measurement_routes(Core& c);
 void add_calibration_routes(Core& c);
 void add_alert_routes(Core& c);

@@ -1,7 +1,6 @@
 #include "server/jobs.hpp"
 
-#include "force_model/force_model.hpp"
-#include "motion_io/motion_io.hpp"
+#include "server/program.hpp"
 #include "server/results.hpp"
 
 #include <fmt/format.h>
@@ -35,7 +34,29 @@ std::string read_file(const fs::path& p) {
     return ss.str();
 }
 
+const char* table_of(Jobs::Kind kind) { return kind == Jobs::Kind::Run ? "runs" : "optimizations"; }
+
 }  // namespace
+
+motion_io::MotionModel ingest_run_log(const json& inputs, const fs::path& upload_dir) {
+    const json& log = inputs.at("log");
+    return motion_io::ingest((upload_dir / log.at("stored_as").get<std::string>()).string(), read_options(log, upload_dir));
+}
+
+force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run, const fs::path& scratch_dir) {
+    if (!base_run) return nullptr;
+    auto c = pool.get();
+    auto st = c->prepare("SELECT data FROM run_stock WHERE run_id = ?");
+    st.bind(1, *base_run);
+    if (!st.step()) throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
+    std::size_t bytes = 0;
+    const void* p = st.blob(0, &bytes);
+    const fs::path tmp = scratch_dir / fmt::format("base-{}.stock", std::hash<std::thread::id>{}(std::this_thread::get_id()));
+    std::ofstream(tmp, std::ios::binary).write(static_cast<const char*>(p), static_cast<std::streamsize>(bytes));
+    auto stock = force_model::load_stock(tmp.string());
+    fs::remove(tmp);
+    return stock;
+}
 
 Jobs::Jobs(DbPool& pool, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
            std::function<void()> on_alerts)
@@ -48,9 +69,10 @@ void Jobs::start() {
         auto c = pool_.get();
         // Only one server owns the database (see the lock in Core), so 'running' here means the
         // previous process died mid-job: its results were never committed, so run it again.
-        auto st = c->prepare("UPDATE runs SET state = 'queued', progress = 0 WHERE state = 'running'");
-        st.run();
-        if (int n = c->changes()) spdlog::info("re-queued {} run(s) interrupted by the last shutdown", n);
+        for (const Kind kind : {Kind::Run, Kind::Optimization}) {
+            c->prepare(fmt::format("UPDATE {} SET state = 'queued', progress = 0 WHERE state = 'running'", table_of(kind))).run();
+            if (int n = c->changes()) spdlog::info("re-queued {} {} interrupted by the last shutdown", n, table_of(kind));
+        }
     }
     for (int i = 0; i < std::max(1, opt_.workers); ++i) threads_.emplace_back([this] { worker(); });
 }
@@ -61,9 +83,9 @@ void Jobs::notify() {
     cv_.notify_all();
 }
 
-bool Jobs::cancel_running(std::int64_t id) {
+bool Jobs::cancel_running(Kind kind, std::int64_t id) {
     std::lock_guard lk(mu_);
-    auto it = running_.find(id);
+    auto it = running_.find({kind, id});
     if (it == running_.end()) return false;
     it->second->store(true);
     return true;
@@ -88,21 +110,26 @@ void Jobs::stop(double drain_s) {
     threads_.clear();
 }
 
-std::optional<std::int64_t> Jobs::claim() {
+// Runs first: an optimization re-predicts a finished run, a queued run is someone waiting.
+std::optional<Jobs::Job> Jobs::claim() {
     auto c = pool_.get();
-    auto st = c->prepare(
-        "UPDATE runs SET state = 'running', started_at = ?, progress = 0, attempts = attempts + 1 "
-        "WHERE id = (SELECT id FROM runs WHERE state = 'queued' ORDER BY id LIMIT 1) RETURNING id");
-    st.bind(1, db::now_iso());
-    if (!st.step()) return std::nullopt;
-    std::int64_t id = st.i64(0);
-    st.run();
-    return id;
+    for (const Kind kind : {Kind::Run, Kind::Optimization}) {
+        auto st = c->prepare(fmt::format(
+            "UPDATE {0} SET state = 'running', started_at = ?, progress = 0, attempts = attempts + 1 "
+            "WHERE id = (SELECT id FROM {0} WHERE state = 'queued' ORDER BY id LIMIT 1) RETURNING id",
+            table_of(kind)));
+        st.bind(1, db::now_iso());
+        if (!st.step()) continue;
+        const std::int64_t id = st.i64(0);
+        st.run();
+        return Job{kind, id};
+    }
+    return std::nullopt;
 }
 
 void Jobs::worker() {
     for (;;) {
-        std::optional<std::int64_t> id;
+        std::optional<Job> job;
         std::uint64_t seq = 0;
         {
             std::unique_lock lk(mu_);
@@ -110,11 +137,11 @@ void Jobs::worker() {
             seq = wake_seq_;
         }
         try {
-            id = claim();
+            job = claim();
         } catch (const db::Error& e) {
             spdlog::error("job queue: {}", e.what());
         }
-        if (!id) {
+        if (!job) {
             std::unique_lock lk(mu_);
             cv_.wait_for(lk, std::chrono::seconds(2), [this, seq] { return stopping_ || wake_seq_ != seq; });
             continue;
@@ -122,22 +149,26 @@ void Jobs::worker() {
         auto flag = std::make_shared<std::atomic<bool>>(false);
         {
             std::lock_guard lk(mu_);
-            running_[*id] = flag;
+            running_[{job->kind, job->id}] = flag;
         }
-        execute(*id, *flag);
+        if (job->kind == Kind::Run)
+            execute(job->id, *flag);
+        else
+            optimize(job->id, *flag);
         {
             std::lock_guard lk(mu_);
-            running_.erase(*id);
+            running_.erase({job->kind, job->id});
         }
         idle_cv_.notify_all();
     }
 }
 
-void Jobs::finish(std::int64_t id, const std::string& state, const std::string& error) {
+void Jobs::finish(Kind kind, std::int64_t id, const std::string& state, const std::string& error) {
     auto c = pool_.get();
-    auto st = c->prepare(
-        "UPDATE runs SET state = ?, error = ?, finished_at = ?, progress = CASE WHEN ? = 'queued' THEN 0 ELSE progress END "
-        "WHERE id = ? AND state = 'running'");
+    auto st = c->prepare(fmt::format(
+        "UPDATE {} SET state = ?, error = ?, finished_at = ?, progress = CASE WHEN ? = 'queued' THEN 0 ELSE progress END "
+        "WHERE id = ? AND state = 'running'",
+        table_of(kind)));
     st.bind(1, state);
     if (error.empty())
         st.bind_null(2);
@@ -168,31 +199,28 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             inputs = json::parse(st.text(1));
             base_run = st.opt_i64(2);
         }
-        const json& log = inputs.at("log");
-        auto motion = motion_io::ingest((dir / log.at("stored_as").get<std::string>()).string(), read_options(log, dir));
+        auto motion = ingest_run_log(inputs, dir);
         // Ingest itself cannot be interrupted; honour a cancel that arrived meanwhile.
         if (cancel) throw force_model::Cancelled();
         auto spec = force_model::parse_run_spec(inputs.at("spec"));
-
-        force_model::StockPtr base;
-        if (base_run) {
-            auto c = pool_.get();
-            auto st = c->prepare("SELECT data FROM run_stock WHERE run_id = ?");
-            st.bind(1, *base_run);
-            if (!st.step())
-                throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
-            std::size_t bytes = 0;
-            const void* p = st.blob(0, &bytes);
-            fs::path tmp = dir / "base.stock";
-            std::ofstream(tmp, std::ios::binary).write(static_cast<const char*>(p), static_cast<std::streamsize>(bytes));
-            base = force_model::load_stock(tmp.string());
-            fs::remove(tmp);
-        }
+        // Before predicting: a log without block numbers takes the program's blocks by mapping.
+        std::optional<force_model::ProgramRun> program;
+        if (inputs.contains("nc_program")) program = load_program_run(inputs, dir, spec, motion);
+        const force_model::StockPtr base = load_base_stock(pool_, base_run, dir);
 
         force_model::PredictOptions po;
         po.device = opt_.use_opencl ? force_model::Device::OpenCL : force_model::Device::Cpu;
         po.base_stock = base.get();
         po.cancel = &cancel;
+        // With a program, the commanded prediction follows the actual one; share the bar by duration.
+        double share = 1, offset = 0;
+        if (program) {
+            const auto commanded_s = motion_io::commanded_durations_s(program->program, program->commanded);
+            double total_s = 0;
+            for (double d : commanded_s) total_s += d;
+            const double actual_s = motion.t_s.back() - motion.t_s.front();
+            share = actual_s / std::max(1e-9, actual_s + total_s);
+        }
         auto last_write = std::chrono::steady_clock::now() - std::chrono::seconds(1);
         po.progress = [&](double f) {
             // At most a few writes per second: progress is for people polling, not an audit trail.
@@ -200,9 +228,18 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             if (now - last_write < std::chrono::milliseconds(250)) return;
             last_write = now;
             auto c = pool_.get();
-            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
+            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'")
+                .bind(1, offset + share * f)
+                .bind(2, id)
+                .run();
         };
         auto prediction = force_model::predict(motion, spec, po);
+        std::optional<force_model::ProgramPrediction> commanded;
+        if (program) {
+            offset = share;
+            share = 1 - share;
+            commanded = force_model::predict_program(*program, motion, prediction, spec, po);
+        }
 
         fs::path stock_file = dir / "final.stock";
         force_model::save_stock(*prediction.final_stock, stock_file.string());
@@ -213,23 +250,48 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
         int alerts = 0;
         {
             auto c = pool_.get();
-            alerts = store_result(*c, id, motion, prediction, stock_bytes);
+            std::optional<ProgramResult> program_result;
+            if (program) program_result.emplace(ProgramResult{*program, *commanded, inputs["nc_program"].value("filename", "")});
+            alerts = store_result(*c, id, motion, prediction, stock_bytes, program_result ? &*program_result : nullptr);
         }
         metrics_.job_finished("done", elapsed_s());
         if (alerts > 0) {
             metrics_.alerts_raised(alerts);
             on_alerts_();
         }
-        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts)", id, elapsed_s(), prediction.samples.size(), alerts);
+        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts{})", id, elapsed_s(), prediction.samples.size(), alerts,
+                     program ? ", with the commanded prediction" : "");
     } catch (const force_model::Cancelled&) {
         const bool requeue = requeue_on_cancel_.load();
-        finish(id, requeue ? "queued" : "cancelled", "");
+        finish(Kind::Run, id, requeue ? "queued" : "cancelled", "");
         metrics_.job_finished(requeue ? "requeued" : "cancelled", elapsed_s());
         spdlog::info("run {} {}", id, requeue ? "interrupted by shutdown, re-queued" : "cancelled");
     } catch (const std::exception& e) {
-        finish(id, "failed", e.what());
+        finish(Kind::Run, id, "failed", e.what());
         metrics_.job_finished("failed", elapsed_s());
         spdlog::warn("run {} failed: {}", id, e.what());
+    }
+}
+
+void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
+    const auto t_start = std::chrono::steady_clock::now();
+    auto last_write = t_start - std::chrono::seconds(1);
+    auto progress = [&](double f) {
+        auto now = std::chrono::steady_clock::now();
+        if (now - last_write < std::chrono::milliseconds(250)) return;
+        last_write = now;
+        auto c = pool_.get();
+        c->prepare("UPDATE optimizations SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
+    };
+    try {
+        run_optimization(pool_, data_dir_, opt_.use_opencl, id, cancel, progress);
+        spdlog::info("optimization {} done in {:.2f} s", id,
+                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
+    } catch (const force_model::Cancelled&) {
+        finish(Kind::Optimization, id, requeue_on_cancel_.load() ? "queued" : "cancelled", "");
+    } catch (const std::exception& e) {
+        finish(Kind::Optimization, id, "failed", e.what());
+        spdlog::warn("optimization {} failed: {}", id, e.what());
     }
 }
 

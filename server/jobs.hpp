@@ -1,9 +1,12 @@
-// Internal to server: the prediction job pool. The runs table is the queue: a worker claims the
-// oldest 'queued' run, computes it outside any transaction and writes every result row, the final
-// stock, the summary, alerts and webhook deliveries in one transaction with state 'done'. A crash
-// at any point leaves the run 'queued' or 'running' with no results; start() re-queues 'running'.
+// Internal to server: the prediction job pool. The runs and optimizations tables are the queue: a
+// worker claims the oldest 'queued' run (then the oldest queued feed optimization), computes it
+// outside any transaction and writes every result row, the final stock, the summary, alerts and
+// webhook deliveries in one transaction with state 'done'. A crash at any point leaves the job
+// 'queued' or 'running' with no results; start() re-queues 'running'.
 #pragma once
 
+#include "force_model/force_model.hpp"
+#include "motion_io/motion_io.hpp"
 #include "server/common.hpp"
 #include "server/metrics.hpp"
 
@@ -13,6 +16,13 @@
 
 namespace cutload::server {
 
+// The run's stored log, read and repaired with the options it was uploaded with.
+motion_io::MotionModel ingest_run_log(const json& inputs, const std::filesystem::path& upload_dir);
+
+// The final stock of base_run (null without one); `scratch_dir` holds a temporary file meanwhile.
+force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run,
+                                      const std::filesystem::path& scratch_dir);
+
 class Jobs {
 public:
     Jobs(DbPool& pool, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
@@ -21,16 +31,22 @@ public:
 
     void start();
     void notify();                        // a run was queued
-    bool cancel_running(std::int64_t id); // true if a worker was computing it
+    enum class Kind { Run, Optimization };
+    bool cancel_running(Kind kind, std::int64_t id);   // true if a worker was computing it
     // Stops claiming; waits up to drain_s for running jobs, then cancels them back to 'queued'.
     void stop(double drain_s);
     long running() const;
 
 private:
     void worker();
-    std::optional<std::int64_t> claim();
+    struct Job {
+        Kind kind;
+        std::int64_t id;
+    };
+    std::optional<Job> claim();
     void execute(std::int64_t id, const std::atomic<bool>& cancel);
-    void finish(std::int64_t id, const std::string& state, const std::string& error);
+    void optimize(std::int64_t id, const std::atomic<bool>& cancel);
+    void finish(Kind kind, std::int64_t id, const std::string& state, const std::string& error);
 
     DbPool& pool_;
     const ServerOptions& opt_;
@@ -43,7 +59,7 @@ private:
     bool stopping_ = false;
     std::uint64_t wake_seq_ = 0;   // bumped by notify(), so a sleeping worker sees new runs
     std::atomic<bool> requeue_on_cancel_{false};
-    std::map<std::int64_t, std::shared_ptr<std::atomic<bool>>> running_;
+    std::map<std::pair<Kind, std::int64_t>, std::shared_ptr<std::atomic<bool>>> running_;
     std::vector<std::thread> threads_;
 };
 

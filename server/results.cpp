@@ -1,5 +1,6 @@
 #include "server/results.hpp"
 
+#include "server/program.hpp"
 #include "server/series.hpp"
 
 #include <fmt/format.h>
@@ -30,7 +31,8 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
             {"flags", flags}};
 }
 
-SeriesData force_series(const force_model::Prediction& p) {
+// `block_of` maps the prediction's block indices to the stored block names (identity: empty).
+SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of = {}) {
     SeriesData d;
     const std::size_t k = series_channels(SeriesId::Forces).size();
     d.t_s.reserve(p.samples.size());
@@ -40,7 +42,9 @@ SeriesData force_series(const force_model::Prediction& p) {
         const float f = std::sqrt(s.fx_N * s.fx_N + s.fy_N * s.fy_N + s.fz_N * s.fz_N);
         // Wrapped: the unwrapped angle of a long run exceeds float precision.
         const auto angle = static_cast<float>(std::fmod(s.spindle_angle_deg, 360.0));
-        const float row[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(s.block), s.fx_N, s.fy_N, s.fz_N, f,
+        const std::int32_t block =
+            s.block >= 0 && static_cast<std::size_t>(s.block) < block_of.size() ? block_of[static_cast<std::size_t>(s.block)] : s.block;
+        const float row[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(block), s.fx_N, s.fy_N, s.fz_N, f,
                              s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
                              s.axial_engagement_mm};
         d.values.insert(d.values.end(), std::begin(row), std::end(row));
@@ -246,7 +250,7 @@ json alert_row_json(const db::Stmt& st) {
 }
 
 int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes) {
+                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program) {
     db::Transaction tx(c);
     {
         auto st = c.prepare("SELECT state FROM runs WHERE id = ?");
@@ -271,12 +275,34 @@ int store_result(db::Connection& c, std::int64_t run_id, const motion_io::Motion
     const int alerts = raise_alerts(c, run_id, p);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0);
     summary["alerts"] = alerts;
-    const json names = p.block_names.empty() ? json(motion.block_names) : json(p.block_names);
+    std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;
+    if (program) {
+        // The commanded series names its blocks in the run's list, so one block_names serves both.
+        const force_model::Prediction& cmd = program->prediction.commanded;
+        std::vector<std::int32_t> block_of;
+        for (const std::string& name : cmd.block_names) {
+            auto at = std::find(names.begin(), names.end(), name);
+            if (at == names.end()) at = names.insert(names.end(), name);
+            block_of.push_back(static_cast<std::int32_t>(at - names.begin()));
+        }
+        write_series(c, run_id, SeriesId::CommandedForces, force_series(cmd, block_of));
+        const json commanded_summary = summary_json(cmd, cmd.final_stock ? force_model::stock_volume_mm3(*cmd.final_stock) : 0.0);
+        c.prepare("INSERT INTO run_program(run_id, body) VALUES (?, ?)")
+            .bind(1, run_id)
+            .bind(2, program_body(*program, commanded_summary).dump())
+            .run();
+        const auto& q = program->run.mapping.quality;
+        summary["program"] = {{"program_blocks", program->run.program.blocks.size()},
+                              {"mapped", program->run.mapped},
+                              {"matched_fraction", q.matched_fraction},
+                              {"commanded_peak_force_N", commanded_summary["peak_force_N"]},
+                              {"commanded_simulated_s", cmd.stats.simulated_s}};
+    }
     c.prepare(
          "UPDATE runs SET state = 'done', progress = 1, summary = ?, block_names = ?, flagged = ?, finished_at = ? "
          "WHERE id = ?")
         .bind(1, summary.dump())
-        .bind(2, names.dump())
+        .bind(2, json(names).dump())
         .bind(3, (flagged || alerts > 0) ? 1 : 0)
         .bind(4, db::now_iso())
         .bind(5, run_id)

@@ -8,9 +8,12 @@
 
 namespace cutload::server {
 
-// Returns the number of alerts raised. The run must be 'running'; it becomes 'done'.
+struct ProgramResult;
+
+// Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
+// the commanded prediction and comparison of a run uploaded with an NC program, or null.
 int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes);
+                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program);
 
 // An alert as the API shows it; null when unknown. alert_row_json reads the columns of the
 // SELECT in load_alert (a.id, a.run_id, a.threshold_id, a.severity, a.body, a.created_at,

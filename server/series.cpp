@@ -57,7 +57,7 @@ const std::vector<std::string>& series_channels(SeriesId s) {
         "spindle_angle_deg", "block", "fx_N", "fy_N", "fz_N", "f_N", "torque_Nm", "power_kW",
         "chip_mm", "bending_MPa", "radial_engagement_mm", "axial_engagement_mm"};
     static const std::vector<std::string> motion{"x_mm", "y_mm", "z_mm", "feed_mm_min", "spindle_rpm", "block"};
-    return s == SeriesId::Forces ? forces : motion;
+    return s == SeriesId::Motion ? motion : forces;
 }
 
 void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const SeriesData& d) {

@@ -20,7 +20,8 @@
 
 namespace cutload::server {
 
-enum class SeriesId : int { Forces = 0, Motion = 1 };
+// CommandedForces: forces predicted from a run's NC program (same channels as Forces).
+enum class SeriesId : int { Forces = 0, Motion = 1, CommandedForces = 2 };
 
 constexpr std::size_t kChunkElems = 4096;
 // Small enough that the level a query reads holds at most kFanout x max_points elements.

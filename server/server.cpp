@@ -254,6 +254,7 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
 
     add_library_routes(c);
     add_run_routes(c);
+    add_program_routes(c);
     add_measurement_routes(c);
     add_calibration_routes(c);
     add_alert_routes(c);

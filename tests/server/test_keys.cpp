@@ -124,11 +124,13 @@ TEST_CASE("keys: a schema 1 database upgrades in place and keeps its keys") {
     const std::string db = (dir.path() / "old.db").string();
     const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Write, "old");
     {
-        // Back to schema 1: api_keys without last_used_at.
+        // Back to schema 1: api_keys without last_used_at (v2), no program tables (v3).
         sqlite3* h = nullptr;
         REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
-        REQUIRE(sqlite3_exec(h, "ALTER TABLE api_keys DROP COLUMN last_used_at; PRAGMA user_version=1", nullptr, nullptr,
-                             nullptr) == SQLITE_OK);
+        REQUIRE(sqlite3_exec(h,
+                             "ALTER TABLE api_keys DROP COLUMN last_used_at; DROP TABLE run_program; "
+                             "DROP TABLE optimizations; PRAGMA user_version=1",
+                             nullptr, nullptr, nullptr) == SQLITE_OK);
         sqlite3_close(h);
     }
     const auto keys = cutload::server::list_api_keys(db);

@@ -1,0 +1,288 @@
+#include "server/program.hpp"
+
+#include "server/jobs.hpp"
+#include "server/results.hpp"
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+namespace cutload::server {
+namespace fs = std::filesystem;
+namespace {
+
+[[noreturn]] void bad_option(const std::string& key, const std::string& why) {
+    throw ApiError(400, "bad_request", fmt::format("nc_options.{}: {}", key, why));
+}
+
+double number_at_least(const json& o, const char* key, double lowest, bool strictly) {
+    const json& v = o[key];
+    if (!v.is_number()) bad_option(key, "must be a number");
+    const double x = v.get<double>();
+    if (strictly ? !(x > lowest) : !(x >= lowest))
+        bad_option(key, fmt::format("{} must be {} {}", x, strictly ? "above" : "at least", lowest));
+    return x;
+}
+
+bool boolean(const json& o, const char* key) {
+    if (!o[key].is_boolean()) bad_option(key, "must be true or false");
+    return o[key].get<bool>();
+}
+
+std::string read_text(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    if (!in) throw std::runtime_error(fmt::format("{}: the uploaded NC program is gone", p.filename().string()));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+json mapping_json(const force_model::ProgramRun& run) {
+    const auto& q = run.mapping.quality;
+    return {{"source", run.mapped ? "mapping" : "log"},
+            {"samples", q.samples},
+            {"matched", q.matched},
+            {"matched_fraction", q.matched_fraction},
+            {"mean_distance_mm", q.mean_distance_mm},
+            {"p95_distance_mm", q.p95_distance_mm},
+            {"max_distance_mm", q.max_distance_mm},
+            {"coverage", q.coverage},
+            {"agreement", q.agreement ? json(*q.agreement) : json(nullptr)},
+            {"estimated_lead_ms", run.estimated_lead_s ? json(*run.estimated_lead_s * 1e3) : json(nullptr)},
+            {"blocks_without_samples", q.blocks_without_samples}};
+}
+
+json comparison_json(const force_model::BlockComparison& r) {
+    return {{"block", r.block},
+            {"rapid", r.rapid},
+            {"programmed_feed_mm_min", r.programmed_feed_mm_min},
+            {"samples", r.samples},
+            {"max_deviation_mm", r.max_deviation_mm},
+            {"mean_deviation_mm", r.mean_deviation_mm},
+            {"actual_min_feed_mm_min", r.actual_min_feed_mm_min},
+            {"actual_mean_feed_mm_min", r.actual_mean_feed_mm_min},
+            {"actual_max_feed_mm_min", r.actual_max_feed_mm_min},
+            {"feed_deficit_pct", r.feed_deficit_pct},
+            {"feed_surge_pct", r.feed_surge_pct},
+            {"commanded_duration_s", r.commanded_duration_s},
+            {"actual_duration_s", r.actual_duration_s},
+            {"commanded_peak_force_N", r.commanded_peak_force_N},
+            {"actual_peak_force_N", r.actual_peak_force_N},
+            {"force_difference_N", r.force_difference_N},
+            {"force_difference_pct", r.force_difference_pct}};
+}
+
+const std::vector<std::string>& comparison_columns() {
+    static const std::vector<std::string> cols{
+        "block", "rapid", "programmed_feed_mm_min", "samples", "max_deviation_mm", "mean_deviation_mm",
+        "actual_min_feed_mm_min", "actual_mean_feed_mm_min", "actual_max_feed_mm_min", "feed_deficit_pct",
+        "feed_surge_pct", "commanded_duration_s", "actual_duration_s", "commanded_peak_force_N", "actual_peak_force_N",
+        "force_difference_N", "force_difference_pct"};
+    return cols;
+}
+
+double peak_force_of(const force_model::Prediction& p, const std::string& block) {
+    for (const auto& b : p.blocks)
+        if (b.block == block) return b.peak_force_N;
+    return 0;
+}
+
+}  // namespace
+
+force_model::ProgramSettings program_settings(const json& o) {
+    if (!o.is_object()) throw ApiError(400, "bad_request", "nc_options: must be a JSON object");
+    force_model::ProgramSettings s;
+    static const std::regex work_system("G5[4-9]");
+    for (const auto& [key, v] : o.items()) {
+        if (key == "work_offsets_mm") {
+            if (!v.is_object()) bad_option(key, "must be an object like {\"G55\": [x, y, z]}");
+            for (const auto& [name, xyz] : v.items()) {
+                if (!std::regex_match(name, work_system)) bad_option(key, fmt::format("'{}' is not G54..G59", name));
+                if (!xyz.is_array() || xyz.size() != 3 || !xyz[0].is_number() || !xyz[1].is_number() || !xyz[2].is_number())
+                    bad_option(key + "." + name, "must be [x, y, z] in mm");
+                s.work_offsets_mm[name] = {xyz[0].get<double>(), xyz[1].get<double>(), xyz[2].get<double>()};
+            }
+        } else if (key == "ignore_words") {
+            if (!v.is_array()) bad_option(key, "must be an array of words like [\"G28\", \"H\"]");
+            for (const auto& w : v) {
+                if (!w.is_string() || w.get<std::string>().empty()) bad_option(key, "every entry must be a non-empty string");
+                s.ignore_words.push_back(w.get<std::string>());
+            }
+        } else if (key == "rapid_feed_mm_min") {
+            s.rapid_mm_min = number_at_least(o, "rapid_feed_mm_min", 0, true);
+        } else if (key == "block_lead_ms") {
+            s.block_lead_ms = number_at_least(o, "block_lead_ms", 0, false);
+        } else if (key == "map_blocks") {
+            s.map_blocks = boolean(o, "map_blocks");
+        } else if (key == "decimal_less_is_increment") {
+            s.decimal_less_is_increment = boolean(o, "decimal_less_is_increment");
+        } else {
+            throw ApiError(400, "bad_request",
+                           fmt::format("nc_options: unknown key '{}' (known: work_offsets_mm, ignore_words, rapid_feed_mm_min, "
+                                       "block_lead_ms, map_blocks, decimal_less_is_increment)",
+                                       key));
+        }
+    }
+    return s;
+}
+
+force_model::ProgramRun load_program_run(const json& inputs, const fs::path& upload_dir, const force_model::RunSpec& spec,
+                                         motion_io::MotionModel& motion) {
+    const json& nc = inputs.at("nc_program");
+    const auto settings = program_settings(nc.value("options", json::object()));
+    const std::string name = nc.value("filename", std::string("program.nc"));
+    auto program = motion_io::parse_nc_program(read_text(upload_dir / nc.at("stored_as").get<std::string>()), name,
+                                               force_model::program_read_options(settings, spec, motion));
+    return force_model::prepare_program_run(std::move(program), settings, motion);
+}
+
+json program_body(const ProgramResult& r, const json& commanded_summary) {
+    json blocks = json::array();
+    for (const auto& row : r.prediction.blocks) blocks.push_back(comparison_json(row));
+    return {{"filename", r.filename},
+            {"program_blocks", r.run.program.blocks.size()},
+            {"mapping", mapping_json(r.run)},
+            {"commanded", commanded_summary},
+            {"blocks", blocks}};
+}
+
+std::string comparison_csv(const json& blocks) {
+    std::string out;
+    for (const auto& c : comparison_columns()) out += (out.empty() ? "" : ",") + c;
+    out += '\n';
+    for (const auto& b : blocks) {
+        bool first = true;
+        for (const auto& c : comparison_columns()) {
+            if (!first) out += ',';
+            first = false;
+            const json& v = b.at(c);
+            if (v.is_string())
+                out += v.get<std::string>();
+            else if (v.is_boolean())
+                out += v.get<bool>() ? "1" : "0";
+            else if (v.is_number_float())
+                out += fmt::format("{:.6g}", v.get<double>());
+            else
+                out += v.dump();
+        }
+        out += '\n';
+    }
+    return out;
+}
+
+json optimization_params(const json& body) {
+    if (!body.is_object()) bad_request("request body: must be a JSON object");
+    json p{{"target", 0.8}, {"min_feed_mm_min", 10.0}, {"max_feed_mm_min", nullptr}, {"basis", "actual"}, {"max_predictions", 8}};
+    auto number = [&](const std::string& key, double lo, double hi) {
+        const json& v = body[key];
+        if (!v.is_number()) bad_request(fmt::format("{}: must be a number", key));
+        const double x = v.get<double>();
+        if (!(x >= lo && x <= hi)) bad_request(fmt::format("{}: {} is outside {}..{}", key, x, lo, hi));
+        return x;
+    };
+    for (const auto& [key, v] : body.items()) {
+        if (key == "target") {
+            p[key] = number(key, 0.05, 1.0);
+        } else if (key == "min_feed_mm_min") {
+            p[key] = number(key, 1e-3, 1e6);
+        } else if (key == "max_feed_mm_min") {
+            if (!v.is_null()) p[key] = number(key, 1e-3, 1e6);
+        } else if (key == "basis") {
+            if (v != "actual" && v != "commanded") bad_request("basis: must be \"actual\" or \"commanded\"");
+            p[key] = v;
+        } else if (key == "max_predictions") {
+            if (!v.is_number_integer()) bad_request("max_predictions: must be an integer");
+            p[key] = static_cast<int>(number(key, 2, 20));
+        } else {
+            bad_request(fmt::format("unknown key '{}' (known: target, min_feed_mm_min, max_feed_mm_min, basis, max_predictions)", key));
+        }
+    }
+    if (!p["max_feed_mm_min"].is_null() && p["max_feed_mm_min"].get<double>() <= p["min_feed_mm_min"].get<double>())
+        bad_request(fmt::format("max_feed_mm_min ({}) must be above min_feed_mm_min ({})", p["max_feed_mm_min"].dump(),
+                                p["min_feed_mm_min"].dump()));
+    return p;
+}
+
+void run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, std::int64_t id,
+                      const std::atomic<bool>& cancel, const std::function<void(double)>& progress) {
+    json params, inputs;
+    fs::path dir;
+    std::optional<std::int64_t> base_run;
+    {
+        auto c = pool.get();
+        auto st = c->prepare(
+            "SELECT o.params, r.inputs, r.upload_dir, r.base_run FROM optimizations o JOIN runs r ON r.id = o.run_id "
+            "WHERE o.id = ?");
+        st.bind(1, id);
+        if (!st.step()) return;   // deleted meanwhile
+        params = json::parse(st.text(0));
+        inputs = json::parse(st.text(1));
+        dir = data_dir / st.text(2);
+        base_run = st.opt_i64(3);
+    }
+    const auto spec = force_model::parse_run_spec(inputs.at("spec"));
+    auto motion = ingest_run_log(inputs, dir);
+    if (cancel) throw force_model::Cancelled();
+    const force_model::ProgramRun run = load_program_run(inputs, dir, spec, motion);
+    const force_model::StockPtr base = load_base_stock(pool, base_run, dir);
+
+    force_model::FeedOptimizerOptions o;
+    o.target = params["target"].get<double>();
+    o.min_feed_mm_min = params["min_feed_mm_min"].get<double>();
+    o.max_feed_mm_min = params["max_feed_mm_min"].is_null() ? 0.0 : params["max_feed_mm_min"].get<double>();
+    o.max_predictions = params["max_predictions"].get<int>();
+    o.basis = params["basis"] == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
+    o.commanded = run.commanded;
+
+    // Each prediction reports 0..1; the search runs at most max_predictions + 3 of them.
+    const double total = o.max_predictions + 3;
+    int finished = 0;
+    double last = 0;
+    force_model::PredictOptions po;
+    po.device = use_opencl ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    po.base_stock = base.get();
+    po.cancel = &cancel;
+    po.progress = [&](double f) {
+        if (f < last) ++finished;
+        last = f;
+        progress(std::min(1.0, (finished + f) / total));
+    };
+    const force_model::FeedOptimization r = force_model::optimize_feeds(run.program, motion, spec, po, o);
+    const std::string text = motion_io::rewrite_feeds(run.program, r.feed_mm_min);
+
+    json blocks = json::array();
+    std::size_t changed = 0;
+    for (const auto& b : r.blocks) {
+        if (b.recommended_feed_mm_min != b.programmed_feed_mm_min) ++changed;
+        blocks.push_back({{"block", b.block},
+                          {"programmed_feed_mm_min", b.programmed_feed_mm_min},
+                          {"recommended_feed_mm_min", b.recommended_feed_mm_min},
+                          {"binding", b.binding},
+                          {"ratio_before", b.ratio_before},
+                          {"ratio_after", b.ratio_after},
+                          {"at_feed_limit", b.at_feed_limit},
+                          {"peak_force_before_N", peak_force_of(r.before, b.block)},
+                          {"peak_force_after_N", peak_force_of(r.after, b.block)}});
+    }
+    const json result{{"blocks", blocks},
+                      {"predictions", r.predictions},
+                      {"target_met", r.target_met},
+                      {"max_ratio_after", r.max_ratio_after},
+                      {"changed_blocks", changed},
+                      {"cycle_before_s", r.before.stats.simulated_s},
+                      {"cycle_after_s", r.after.stats.simulated_s}};
+    if (cancel) throw force_model::Cancelled();
+    auto c = pool.get();
+    c->prepare(
+         "UPDATE optimizations SET state = 'done', progress = 1, result = ?, program = ?, finished_at = ? "
+         "WHERE id = ? AND state = 'running'")
+        .bind(1, result.dump())
+        .bind(2, text)
+        .bind(3, db::now_iso())
+        .bind(4, id)
+        .run();
+}
+
+}  // namespace cutload::server

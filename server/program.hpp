@@ -1,0 +1,43 @@
+// Internal to server: NC programs of runs. The upload's nc_options, what a run job stores of its
+// commanded prediction, and the optimization jobs that recommend feeds.
+#pragma once
+
+#include "force_model/feed_optimizer.hpp"
+#include "force_model/program_run.hpp"
+#include "server/common.hpp"
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+
+namespace cutload::server {
+
+// nc_options (JSON object) as program settings; ApiError 400 `bad_request` naming the key.
+force_model::ProgramSettings program_settings(const json& options);
+
+// The NC program of a run's inputs, read against the spec and the log; relabels `motion`'s blocks.
+force_model::ProgramRun load_program_run(const json& inputs, const std::filesystem::path& upload_dir,
+                                         const force_model::RunSpec& spec, motion_io::MotionModel& motion);
+
+struct ProgramResult {
+    const force_model::ProgramRun& run;
+    const force_model::ProgramPrediction& prediction;
+    std::string filename;
+};
+
+// What GET /runs/{id}/program answers (stored in run_program.body); `commanded_summary` is the
+// commanded prediction's summary in the form of a run's summary.
+json program_body(const ProgramResult& r, const json& commanded_summary);
+
+// The comparison rows of a program body as CSV (the columns of `cutload predict --compare`).
+std::string comparison_csv(const json& blocks);
+
+// Feed optimization request body as stored params; ApiError 400 naming the key.
+json optimization_params(const json& body);
+
+// Computes optimization `id` (claimed, state 'running') and stores its result. Throws
+// force_model::Cancelled when `cancel` is set; other exceptions are the job's failure.
+void run_optimization(DbPool& pool, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
+                      const std::atomic<bool>& cancel, const std::function<void(double)>& progress);
+
+}  // namespace cutload::server

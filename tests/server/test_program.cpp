@@ -1,0 +1,262 @@
+// Issue 7 through the API: a run uploaded with its NC program gets the commanded prediction, the
+// per-block comparison and block mapping; feed optimizations run as jobs and return the program
+// with only its F words changed.
+#include "harness.hpp"
+
+#include "motion_io/nc_program.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+using namespace cutload::test;
+
+namespace {
+
+std::string read_text(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    REQUIRE(in);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+const fs::path kData = fs::path(CUTLOAD_SOURCE_DIR) / "data";
+
+json demo_spec() { return json::parse(read_text(kData / "demo_run.json")); }
+
+// The demo log without its block column: the program must supply the blocks.
+std::string demo_log_without_blocks() {
+    std::istringstream in(read_text(kData / "demo_dryrun.csv"));
+    std::string out, line;
+    while (std::getline(in, line)) out += line.substr(0, line.rfind(',')) + '\n';
+    return out;
+}
+
+httplib::MultipartFormDataItems with_program(const std::string& text, const std::string& filename = "demo_program.nc",
+                                             const std::string& options = "") {
+    httplib::MultipartFormDataItems items{{"nc_program", text, filename, "text/plain"}};
+    if (!options.empty()) items.push_back({"nc_options", options, "", "application/json"});
+    return items;
+}
+
+// slot_log_csv(1.0) as a program: a straight slot from X-6 at F1200, N10 to half way, N20 on.
+const char* kSlotProgram = "%\nO0007 (SLOT)\nN10 G90 G21 G17 G01 X4. Y5. Z-2. F1200 S10000 M03\nN20 X14.\nM30\n%\n";
+
+json slot_spec_with_limit(double force_N) {
+    json s = slot_spec();
+    s["limits"] = {{"force_N", force_N}};
+    return s;
+}
+
+json get_json(httplib::Client& c, const std::string& path, int status = 200) {
+    auto r = c.Get(path.c_str());
+    REQUIRE(r);
+    INFO(path << ": " << r->body);
+    REQUIRE(r->status == status);
+    return json::parse(r->body);
+}
+
+json wait_optimization(httplib::Client& c, std::int64_t id, double timeout_s = 30) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    for (;;) {
+        json o = get_json(c, "/api/v1/optimizations/" + std::to_string(id));
+        const std::string state = o["state"];
+        if (state != "queued" && state != "running") return o;
+        if (std::chrono::steady_clock::now() > until) FAIL("optimization " << id << " still " << state);
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+}
+
+}  // namespace
+
+TEST_CASE("program api: the demo with its program gives the commanded forces and a per-block comparison") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string program_text = read_text(kData / "demo_program.nc");
+    auto up = upload(c, read_text(kData / "demo_dryrun.csv"), demo_spec(), with_program(program_text));
+    REQUIRE(up->status == 202);
+    const json created = body(up);
+    REQUIRE(created["inputs"]["nc_program"]["filename"] == "demo_program.nc");
+    REQUIRE(created["links"]["program"] == "/api/v1/runs/" + std::to_string(created["id"].get<int>()) + "/program");
+    const std::int64_t id = created["id"];
+    const json run = wait_finished(c, id, 60);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    const std::string base = "/api/v1/runs/" + std::to_string(id);
+
+    const json p = get_json(c, base + "/program");
+    REQUIRE(p["run_id"] == id);
+    REQUIRE(p["mapping"]["source"] == "log");                  // the demo log names its blocks
+    REQUIRE(p["mapping"]["agreement"].get<double>() > 0.95);
+    REQUIRE(p["mapping"]["matched_fraction"].get<double>() > 0.99);
+    const double commanded_peak_N = p["commanded"]["peak_force_N"];
+    REQUIRE(commanded_peak_N > 100);
+    REQUIRE(run["summary"]["program"]["commanded_peak_force_N"].get<double>() == Approx(commanded_peak_N));
+
+    // Blocks that cut in earnest cut in both predictions (a block's lagging tail may graze the
+    // stock only in the actual motion); corners of the pocket rings are where the machine's path
+    // departs from the program (servo-rounded corners, short feed).
+    std::size_t cutting = 0;
+    double worst_deviation_mm = 0, worst_deficit_pct = 0;
+    for (const auto& b : p["blocks"]) {
+        if (b["actual_peak_force_N"].get<double>() < 50) continue;
+        ++cutting;
+        REQUIRE(b["commanded_peak_force_N"].get<double>() > 0);
+        REQUIRE(b["force_difference_N"].get<double>() ==
+                Approx(b["actual_peak_force_N"].get<double>() - b["commanded_peak_force_N"].get<double>()).margin(1e-6));
+        worst_deviation_mm = std::max(worst_deviation_mm, b["max_deviation_mm"].get<double>());
+        worst_deficit_pct = std::max(worst_deficit_pct, b["feed_deficit_pct"].get<double>());
+    }
+    REQUIRE(cutting > 30);
+    REQUIRE(worst_deviation_mm > 0.2);
+    REQUIRE(worst_deficit_pct > 20);
+
+    // The commanded forces: same shape as the actual ones, names shared with the run's blocks.
+    const json cmd = get_json(c, base + "/forces?source=commanded&channels=f_N,block&max_points=20000");
+    const json act = get_json(c, base + "/forces?channels=f_N&max_points=20000");
+    REQUIRE(cmd["count"].get<int>() > 1000);
+    double cmd_max_N = 0;
+    const auto& f = cmd["decimated"].get<bool>() ? cmd["f_N"]["max"] : cmd["f_N"];
+    for (const auto& v : f) cmd_max_N = std::max(cmd_max_N, v.is_null() ? 0.0 : v.get<double>());
+    REQUIRE(cmd_max_N == Approx(commanded_peak_N).epsilon(1e-4));
+    REQUIRE(cmd["to_s"].get<double>() < act["to_s"].get<double>());   // no acceleration: the program is quicker
+    std::set<std::string> names;
+    for (const auto& [k, v] : cmd["block_names"].items()) names.insert(v.get<std::string>());
+    REQUIRE(names.count("N70"));
+
+    // CSV of the comparison and the program as uploaded.
+    auto csv = c.Get((base + "/program?format=csv").c_str());
+    REQUIRE(csv->status == 200);
+    REQUIRE(csv->body.rfind("block,rapid,programmed_feed_mm_min,", 0) == 0);
+    REQUIRE(std::count(csv->body.begin(), csv->body.end(), '\n') == static_cast<long>(p["blocks"].size()) + 1);
+    auto src = c.Get((base + "/program/source").c_str());
+    REQUIRE(src->status == 200);
+    REQUIRE(src->body == program_text);
+}
+
+TEST_CASE("program api: a log without block numbers takes the program's blocks by mapping") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    auto up = upload(c, demo_log_without_blocks(), demo_spec(), with_program(read_text(kData / "demo_program.nc")));
+    REQUIRE(up->status == 202);
+    const std::int64_t id = body(up)["id"];
+    REQUIRE(wait_finished(c, id, 60)["state"] == "done");
+    const std::string base = "/api/v1/runs/" + std::to_string(id);
+    const json p = get_json(c, base + "/program");
+    REQUIRE(p["mapping"]["source"] == "mapping");
+    REQUIRE(p["mapping"]["agreement"].is_null());
+    REQUIRE(p["mapping"]["matched_fraction"].get<double>() > 0.99);
+    // The run's own block summaries are named after the program's blocks.
+    const json blocks = get_json(c, base + "/blocks");
+    std::set<std::string> names;
+    for (const auto& b : blocks["items"]) names.insert(b["block"].get<std::string>());
+    REQUIRE(names.count("N40"));
+    REQUIRE(names.count("N590"));
+    REQUIRE(names.size() > 50);
+}
+
+TEST_CASE("program api: bad programs and options are 400 naming line and word, leaving nothing behind") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string log = slot_log_csv(0.4);
+    require_error(upload(c, log, slot_spec(), with_program("%\nN10 G01 X1. F100\nN20 G41 X2.\n%\n", "bad.nc")), 400,
+                  "bad_program", "bad.nc:3");
+    require_error(upload(c, log, slot_spec(), with_program("", "empty.nc")), 400, "bad_program", "empty");
+    require_error(upload(c, log, slot_spec(), with_program("%\n(ONLY A COMMENT)\n%\n", "none.nc")), 400, "bad_program",
+                  "no motion");
+    require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", R"({"rapid_feed": 1})")), 400,
+                  "bad_request", "unknown key 'rapid_feed'");
+    require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", R"({"work_offsets_mm": {"G55": [1, 2]}})")),
+                  400, "bad_request", "work_offsets_mm.G55");
+    require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", "{not json")), 400, "bad_request",
+                  "nc_options");
+    // A work system the program selects but nobody set.
+    require_error(upload(c, log, slot_spec(), with_program("%\nN10 G55 G01 X1. F100\n%\n", "g55.nc")), 400, "bad_program",
+                  "G55");
+    REQUIRE(files_under(ts.data_dir()) == 0);
+    REQUIRE(body(c.Get("/api/v1/runs"))["items"].empty());
+
+    // A run without a program has none of the program's results.
+    const std::int64_t id = body(upload(c, log, slot_spec()))["id"];
+    REQUIRE(wait_finished(c, id)["state"] == "done");
+    const std::string base = "/api/v1/runs/" + std::to_string(id);
+    require_error(c.Get((base + "/program").c_str()), 404, "no_program");
+    require_error(c.Get((base + "/program/source").c_str()), 404, "no_program");
+    require_error(c.Get((base + "/forces?source=commanded").c_str()), 404, "no_program");
+    require_error(c.Get((base + "/forces?source=planned").c_str()), 400, "bad_request", "source");
+    require_error(c.Post((base + "/optimizations").c_str(), "{}", "application/json"), 409, "no_program");
+}
+
+TEST_CASE("program api: a feed optimization job meets the target and changes only F words") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    // Limit well above the slot's load: the optimizer raises the feed to reach 80 % of it.
+    auto up = upload(c, slot_log_csv(1.0), slot_spec_with_limit(400), with_program(kSlotProgram, "slot.nc"));
+    REQUIRE(up->status == 202);
+    const std::int64_t run_id = body(up)["id"];
+    REQUIRE(wait_finished(c, run_id, 30)["state"] == "done");
+    const std::string base = "/api/v1/runs/" + std::to_string(run_id);
+    REQUIRE(get_json(c, base + "/program")["mapping"]["source"] == "log");
+
+    require_error(c.Post((base + "/optimizations").c_str(), R"({"target": 2})", "application/json"), 400, "bad_request",
+                  "target");
+    require_error(c.Post((base + "/optimizations").c_str(), R"({"basis": "dream"})", "application/json"), 400,
+                  "bad_request", "basis");
+    require_error(c.Post((base + "/optimizations").c_str(), R"({"feed": 1})", "application/json"), 400, "bad_request",
+                  "unknown key 'feed'");
+    require_error(c.Post((base + "/optimizations").c_str(), R"({"min_feed_mm_min": 500, "max_feed_mm_min": 400})",
+                         "application/json"),
+                  400, "bad_request", "max_feed_mm_min");
+    require_error(c.Post("/api/v1/runs/999/optimizations", "{}", "application/json"), 404, "not_found");
+
+    auto r = c.Post((base + "/optimizations").c_str(), R"({"target": 0.8, "max_feed_mm_min": 20000})", "application/json");
+    REQUIRE(r);
+    INFO(r->body);
+    REQUIRE(r->status == 202);
+    const json created = json::parse(r->body);
+    REQUIRE(created["params"]["target"] == 0.8);
+    REQUIRE(created["params"]["basis"] == "actual");
+    const std::int64_t oid = created["id"];
+    const json o = wait_optimization(c, oid);
+    INFO(o.dump());
+    REQUIRE(o["state"] == "done");
+    const json& res = o["result"];
+    REQUIRE(res["target_met"] == true);
+    REQUIRE(res["max_ratio_after"].get<double>() <= 0.8 + 1e-9);
+    REQUIRE(res["blocks"].size() == 2);
+    for (const auto& b : res["blocks"]) {
+        REQUIRE(b["binding"] == "force");
+        REQUIRE(b["ratio_before"].get<double>() < 0.6);   // the slot loads the tool well below its limit
+        REQUIRE(b["recommended_feed_mm_min"].get<double>() > b["programmed_feed_mm_min"].get<double>());
+        REQUIRE(b["ratio_after"].get<double>() == Approx(0.8).margin(0.8 * 0.05 + 1e-9));
+        REQUIRE(b["peak_force_after_N"].get<double>() <= 0.8 * 400 + 1e-6);
+    }
+    REQUIRE(get_json(c, base + "/optimizations")["items"][0]["id"] == oid);
+
+    auto prog = c.Get(("/api/v1/optimizations/" + std::to_string(oid) + "/program").c_str());
+    REQUIRE(prog->status == 200);
+    REQUIRE(prog->get_header_value("Content-Disposition").find("slot_opt.nc") != std::string::npos);
+    // Line by line: every token but F is the uploaded one.
+    std::istringstream before(kSlotProgram), after(prog->body);
+    std::string a, b;
+    std::size_t f_changed = 0;
+    while (std::getline(before, a)) {
+        REQUIRE(std::getline(after, b));
+        auto ta = cutload::motion_io::nc_tokens(a), tb = cutload::motion_io::nc_tokens(b);
+        auto not_f = [](const std::string& t) { return t[0] != 'F'; };
+        std::vector<std::string> ka, kb;
+        std::copy_if(ta.begin(), ta.end(), std::back_inserter(ka), not_f);
+        std::copy_if(tb.begin(), tb.end(), std::back_inserter(kb), not_f);
+        REQUIRE(ka == kb);
+        if (ta != tb) ++f_changed;
+    }
+    REQUIRE(!std::getline(after, b));
+    REQUIRE(f_changed >= 1);
+
+    // Done: no cancel; delete removes it.
+    require_error(c.Post(("/api/v1/optimizations/" + std::to_string(oid) + "/cancel").c_str(), "", "application/json"), 409,
+                  "conflict");
+    REQUIRE(c.Delete(("/api/v1/optimizations/" + std::to_string(oid)).c_str())->status == 204);
+    require_error(c.Get(("/api/v1/optimizations/" + std::to_string(oid)).c_str()), 404, "not_found");
+}
