@@ -20,8 +20,9 @@ KEY_FILE=$STATE_DIR/admin.key
 URL=http://$LISTEN
 LOG=data/demo_dryrun.csv
 SPEC=data/demo_run.json
+NC=data/demo_program.nc
 
-for f in "$LOG" "$SPEC"; do
+for f in "$LOG" "$SPEC" "$NC"; do
   [ -f "$f" ] || { echo "cutload start: $f is missing from this checkout" >&2; exit 1; }
 done
 mkdir -p "$STATE_DIR"
@@ -52,8 +53,8 @@ json_field() { { grep -o "\"$1\": *\"\{0,1\}[A-Za-z0-9_]*" || true; } | head -n 
 
 RUN=$(api "$URL/api/v1/runs?program=demo&limit=1" | json_field id)
 if [ -z "$RUN" ]; then
-  echo "cutload start: submitting the demo dry run ($LOG)"
-  RUN=$(api -F "log=@$LOG" -F "spec=<$SPEC" -F name=demo -F program=demo "$URL/api/v1/runs" | json_field id)
+  echo "cutload start: submitting the demo dry run ($LOG) with its NC program ($NC)"
+  RUN=$(api -F "log=@$LOG" -F "spec=<$SPEC" -F "nc_program=@$NC" -F name=demo -F program=demo "$URL/api/v1/runs" | json_field id)
 fi
 while :; do
   STATE=$(api "$URL/api/v1/runs/$RUN" | json_field state)
@@ -71,11 +72,12 @@ cutload is running at $URL  (Ctrl-C stops it)
   the run:          $URL/api/v1/runs/$RUN
   per-block loads:  $URL/api/v1/runs/$RUN/blocks
   forces (plot):    $URL/api/v1/runs/$RUN/forces?max_points=2000
+  program vs actual: $URL/api/v1/runs/$RUN/program
   API description:  $URL/api/v1/openapi.json
   metrics:          $URL/metrics
 Reads from this machine need no key. For writes, the admin key (kept in $KEY_FILE):
   $KEY
-e.g. curl -H "Authorization: Bearer $KEY" -F log=@$LOG -F "spec=<$SPEC" $URL/api/v1/runs
+e.g. curl -H "Authorization: Bearer $KEY" -F log=@$LOG -F "spec=<$SPEC" -F nc_program=@$NC $URL/api/v1/runs
 EOF
 
 wait $SERVER
