@@ -46,7 +46,8 @@ void run_predict(const PredictArgs& a) {
     if (show_progress) std::fprintf(stderr, "\r                    \r");
 
     force_model::write_forces_csv(p, a.out);
-    if (!a.blocks.empty()) force_model::write_blocks_csv(p, a.blocks);
+    // With a program, BLOCKS.csv also carries the comparison: finish_program_run writes it.
+    if (!a.blocks.empty() && !program.active) force_model::write_blocks_csv(p, a.blocks);
     if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
 
     const auto& s = p.stats;
@@ -63,7 +64,7 @@ void run_predict(const PredictArgs& a) {
     }
     std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
                 a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
-    finish_program_run(a.program, program, motion, p, spec, opt);
+    finish_program_run(a.program, program, motion, p, spec, opt, a.blocks);
 }
 
 void add_predict(CLI::App& app) {

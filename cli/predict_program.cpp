@@ -110,13 +110,14 @@ void print_mapping(const ProgramRun& active) {
 
 void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
                         const force_model::Prediction& actual, const force_model::RunSpec& spec,
-                        const force_model::PredictOptions& opt) {
+                        const force_model::PredictOptions& opt, const std::string& blocks_csv) {
     if (!run.active) return;
     force_model::PredictOptions quiet = opt;
     quiet.progress = nullptr;
     const auto [commanded, rows] = force_model::predict_program(run.run, motion, actual, spec, quiet);
     if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
+    if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
     print_mapping(run);
     std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",
                 "F_cmd_N", "F_act_N", "diff");

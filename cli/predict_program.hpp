@@ -42,11 +42,12 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
 // Prints the block mapping's quality (and the calibrated lead when the log had blocks).
 void print_mapping(const ProgramRun& run);
 
-// Predicts the commanded motion, writes --commanded-out and --compare, prints the cutting blocks'
-// comparison. No-op when inactive.
+// Predicts the commanded motion, writes --commanded-out, --compare and BLOCKS.csv (`blocks_csv`,
+// unless empty) with the comparison columns, prints the cutting blocks' comparison. No-op when
+// inactive.
 void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
                         const force_model::Prediction& actual, const force_model::RunSpec& spec,
-                        const force_model::PredictOptions& opt);
+                        const force_model::PredictOptions& opt, const std::string& blocks_csv);
 
 // The device choice of `--device opencl|cpu|auto` (auto: OpenCL when a device exists).
 force_model::Device choose_device(const std::string& name);

@@ -79,21 +79,23 @@ void write_forces_csv(const Prediction& p, const std::string& path) {
     });
 }
 
-void write_blocks_csv(const Prediction& p, const std::string& path) {
+void write_blocks_csv(const Prediction& p, const std::string& path, const BlockCsvExtra& extra) {
     write_atomically(path, [&](std::ofstream& out) {
         out << "block,t_start_s,t_end_s,peak_force_N,mean_force_N,peak_torque_Nm,peak_power_kW,max_chip_mm,"
-               "max_bending_MPa,max_radial_engagement_mm,max_axial_engagement_mm,removed_mm3,flags,flag_details\n";
+               "max_bending_MPa,max_radial_engagement_mm,max_axial_engagement_mm,removed_mm3,flags,flag_details"
+            << extra.header << '\n';
         for (const BlockSummary& b : p.blocks) {
             std::string flags, details;
             for (const FlagHit& f : b.flags) {
                 flags += (flags.empty() ? "" : ";") + f.flag;
                 details += fmt::format("{}{}@{:.4f}s={:.4g}", details.empty() ? "" : ";", f.flag, f.t_s, f.value);
             }
-            out << fmt::format("{},{:.6f},{:.6f},{:.3f},{:.3f},{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.3f},{:.3f},{},{}\n",
+            out << fmt::format("{},{:.6f},{:.6f},{:.3f},{:.3f},{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.3f},{:.3f},{},{}",
                                csv_field(b.block), b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N,
                                b.peak_torque_Nm, b.peak_power_kW, b.max_chip_mm, b.max_bending_MPa,
                                b.max_radial_engagement_mm, b.max_axial_engagement_mm, b.removed_mm3, flags,
-                               csv_field(details));
+                               csv_field(details))
+                << (extra.fields ? extra.fields(b) : std::string()) << '\n';
         }
     });
 }

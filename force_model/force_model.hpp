@@ -162,6 +162,12 @@ public:
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 
 void write_forces_csv(const Prediction& p, const std::string& path);
-void write_blocks_csv(const Prediction& p, const std::string& path);
+// Columns appended to BLOCKS.csv: `header` starts with ',', fields(block) gives the block's
+// fields, also starting with ','. (The NC program comparison adds its columns this way.)
+struct BlockCsvExtra {
+    std::string header;
+    std::function<std::string(const BlockSummary&)> fields;
+};
+void write_blocks_csv(const Prediction& p, const std::string& path, const BlockCsvExtra& extra = {});
 
 }  // namespace cutload::force_model

@@ -100,4 +100,21 @@ void write_comparison_csv(const std::vector<BlockComparison>& rows, const std::s
     if (ec) throw std::runtime_error("cannot rename " + tmp + " to " + path + ": " + ec.message());
 }
 
+BlockCsvExtra comparison_block_columns(const std::vector<BlockComparison>& rows) {
+    std::map<std::string, BlockComparison> by_name;
+    for (const BlockComparison& r : rows) by_name.emplace(r.block, r);
+    BlockCsvExtra extra;
+    extra.header = ",commanded_peak_force_N,force_difference_N,force_difference_pct,max_deviation_mm,mean_deviation_mm,"
+                   "feed_deficit_pct,feed_surge_pct";
+    extra.fields = [by_name = std::move(by_name)](const BlockSummary& b) {
+        const auto it = by_name.find(b.block);
+        if (it == by_name.end()) return std::string(",,,,,,,");
+        const BlockComparison& r = it->second;
+        return fmt::format(",{:.3f},{:.3f},{:.2f},{:.4f},{:.4f},{:.2f},{:.2f}", r.commanded_peak_force_N, r.force_difference_N,
+                           r.force_difference_pct, r.max_deviation_mm, r.mean_deviation_mm, r.feed_deficit_pct,
+                           r.feed_surge_pct);
+    };
+    return extra;
+}
+
 }  // namespace cutload::force_model

@@ -38,4 +38,9 @@ std::vector<BlockComparison> compare_program(const motion_io::NcProgram& program
 
 void write_comparison_csv(const std::vector<BlockComparison>& rows, const std::string& path);
 
+// The comparison as extra BLOCKS.csv columns, matched by block name (empty for a block the
+// comparison lacks): commanded_peak_force_N, force_difference_N, force_difference_pct,
+// max_deviation_mm, mean_deviation_mm, feed_deficit_pct, feed_surge_pct.
+BlockCsvExtra comparison_block_columns(const std::vector<BlockComparison>& rows);
+
 }  // namespace cutload::force_model
