@@ -659,6 +659,8 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
         if (source != "actual" && source != "commanded")
             bad_request(fmt::format("query parameter source: '{}' is not actual or commanded", source));
         if (source == "commanded") s = SeriesId::CommandedForces;
+    } else if (x.param("source")) {
+        bad_request("query parameter source: only /forces has a commanded counterpart; /motion is the log's");
     }
     const auto max_points = x.param_int("max_points").value_or(2000);
     if (max_points < 2 || max_points > core.opt.max_points)

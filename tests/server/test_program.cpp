@@ -185,6 +185,7 @@ TEST_CASE("program api: bad programs and options are 400 naming line and word, l
     require_error(c.Get((base + "/program/source").c_str()), 404, "no_program");
     require_error(c.Get((base + "/forces?source=commanded").c_str()), 404, "no_program");
     require_error(c.Get((base + "/forces?source=planned").c_str()), 400, "bad_request", "source");
+    require_error(c.Get((base + "/motion?source=commanded").c_str()), 400, "bad_request", "source");
     require_error(c.Post((base + "/optimizations").c_str(), "{}", "application/json"), 409, "no_program");
 }
 
