@@ -245,8 +245,11 @@ Hook validate_hook(const json& b) {
     Hook h;
     h.url = req_string(b, "url");
     std::string origin, path;
-    if (!split_http_url(h.url, &origin, &path))
+    std::string host;
+    if (!split_http_url(h.url, &origin, &path, &host))
         bad_request(fmt::format("url: '{}' is not an http:// or https:// URL", h.url));
+    if (std::string why = refused_webhook_host(host, false); !why.empty())
+        bad_request(fmt::format("url: {}; webhooks may not target it", why));
     if (b.contains("secret")) {
         if (!b["secret"].is_string()) bad_request("secret: must be a string");
         h.secret = b["secret"].get<std::string>();

@@ -1,21 +1,70 @@
 #include "server/webhooks.hpp"
 
+#include <arpa/inet.h>
+#include <fmt/format.h>
 #include <httplib.h>
+#include <netdb.h>
+#include <netinet/in.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <regex>
 
 namespace cutload::server {
 
-bool split_http_url(const std::string& url, std::string* origin, std::string* path) {
-    static const std::regex re(R"(^(https?://[A-Za-z0-9.\-]+|https?://\[[0-9A-Fa-f:.]+\])(:[0-9]{1,5})?(/[^\s#]*)?$)");
+bool split_http_url(const std::string& url, std::string* origin, std::string* path, std::string* host) {
+    static const std::regex re(R"(^(https?://([A-Za-z0-9.\-]+)|https?://\[([0-9A-Fa-f:.]+)\])(:[0-9]{1,5})?(/[^\s#]*)?$)");
     std::smatch m;
     if (!std::regex_match(url, m, re)) return false;
-    *origin = m[1].str() + m[2].str();
-    *path = m[3].matched ? m[3].str() : "/";
+    *origin = m[1].str() + m[4].str();
+    *path = m[5].matched ? m[5].str() : "/";
+    if (host) *host = m[2].matched ? m[2].str() : m[3].str();
     return true;
+}
+
+namespace {
+
+std::string refused_address(const sockaddr* a) {
+    char text[INET6_ADDRSTRLEN] = "";
+    if (a->sa_family == AF_INET) {
+        const auto* in = reinterpret_cast<const sockaddr_in*>(a);
+        const std::uint32_t ip = ntohl(in->sin_addr.s_addr);
+        inet_ntop(AF_INET, &in->sin_addr, text, sizeof text);
+        if ((ip >> 16) == 0xA9FE) return fmt::format("{} is a link-local address (cloud metadata services answer there)", text);
+        if (ip == 0) return fmt::format("{} is the unspecified address", text);
+        if ((ip >> 28) == 0xE) return fmt::format("{} is a multicast address", text);
+    } else if (a->sa_family == AF_INET6) {
+        const auto* in6 = reinterpret_cast<const sockaddr_in6*>(a);
+        const in6_addr& x = in6->sin6_addr;
+        inet_ntop(AF_INET6, &x, text, sizeof text);
+        if (IN6_IS_ADDR_LINKLOCAL(&x)) return fmt::format("{} is a link-local address", text);
+        if (IN6_IS_ADDR_UNSPECIFIED(&x)) return fmt::format("{} is the unspecified address", text);
+        if (IN6_IS_ADDR_MULTICAST(&x)) return fmt::format("{} is a multicast address", text);
+        if (IN6_IS_ADDR_V4MAPPED(&x)) {
+            sockaddr_in v4{};
+            v4.sin_family = AF_INET;
+            std::memcpy(&v4.sin_addr, x.s6_addr + 12, 4);
+            return refused_address(reinterpret_cast<const sockaddr*>(&v4));
+        }
+    }
+    return "";
+}
+
+}  // namespace
+
+std::string refused_webhook_host(const std::string& host, bool resolve) {
+    addrinfo hints{};
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = resolve ? 0 : AI_NUMERICHOST;
+    addrinfo* found = nullptr;
+    if (getaddrinfo(host.c_str(), nullptr, &hints, &found) != 0) return "";   // not a literal, or unknown: the POST says so
+    std::string why;
+    for (const addrinfo* a = found; a && why.empty(); a = a->ai_next) why = refused_address(a->ai_addr);
+    freeaddrinfo(found);
+    if (!why.empty() && why.rfind(host, 0) != 0) why = host + " resolves to " + why;
+    return why;
 }
 
 Webhooks::Webhooks(DbPool& pool, const ServerOptions& opt, Metrics& metrics)
@@ -78,11 +127,13 @@ double Webhooks::deliver_due() {
             std::lock_guard lk(mu_);
             if (stopping_) return 1;
         }
-        std::string origin, path, error;
+        std::string origin, path, host, error;
         int status = 0;
         const auto t0 = std::chrono::steady_clock::now();
-        if (!split_http_url(d.url, &origin, &path)) {
+        if (!split_http_url(d.url, &origin, &path, &host)) {
             error = "not an http(s) URL";
+        } else if (std::string why = refused_webhook_host(host, true); !why.empty()) {
+            error = "refused: " + why;
         } else {
             httplib::Client cli(origin);
             const auto timeout = std::chrono::duration<double>(opt_.webhook_timeout_s);

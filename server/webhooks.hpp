@@ -31,7 +31,15 @@ private:
     std::thread thread_;
 };
 
-// Splits "http://host:port/path" (or https); false when it is not such a URL.
-bool split_http_url(const std::string& url, std::string* origin, std::string* path);
+// Splits "http://host:port/path" (or https); false when it is not such a URL. `host` (optional)
+// gets the host name or address without brackets or port.
+bool split_http_url(const std::string& url, std::string* origin, std::string* path, std::string* host = nullptr);
+
+// Why a webhook may not be sent to `host`, or "" when it may. Link-local addresses (169.254/16,
+// fe80::/10: where cloud metadata services answer), unspecified and multicast addresses are
+// refused. Loopback and private networks are allowed: MES and alerting hosts live there. Without
+// `resolve` only address literals are checked (at registration); with it, every address the name
+// resolves to (before each delivery, so a name cannot be pointed there later).
+std::string refused_webhook_host(const std::string& host, bool resolve);
 
 }  // namespace cutload::server

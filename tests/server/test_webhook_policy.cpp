@@ -1,0 +1,73 @@
+// Webhook targets: link-local (cloud metadata), unspecified and multicast addresses are refused at
+// registration and again before each delivery; loopback and private networks are allowed.
+#include "harness.hpp"
+
+#include "server/webhooks.hpp"
+
+#include <sqlite3.h>
+
+using namespace cutload::test;
+
+TEST_CASE("webhooks: link-local, unspecified and multicast targets are 400, private and loopback ones accepted") {
+    TestServer ts;
+    auto admin = ts.admin();
+    auto post = [&](const std::string& url) { return admin.Post("/api/v1/webhooks", json{{"url", url}}.dump(), "application/json"); };
+    require_error(post("http://169.254.169.254/latest/meta-data"), 400, "bad_request", "169.254.169.254 is a link-local address");
+    require_error(post("http://[fe80::1]:8080/hook"), 400, "bad_request", "link-local");
+    require_error(post("http://[::ffff:169.254.1.2]/hook"), 400, "bad_request", "link-local");
+    require_error(post("http://0.0.0.0:9000/hook"), 400, "bad_request", "unspecified");
+    require_error(post("http://224.0.0.1/hook"), 400, "bad_request", "multicast");
+    REQUIRE(body(admin.Get("/api/v1/webhooks"))["items"].empty());
+    for (const char* ok : {"http://10.1.2.3/mes/alerts", "http://192.168.0.20:8080/hook", "http://127.0.0.1:9/x",
+                           "https://[::1]/hook", "http://mes.shop.local/hook"}) {
+        INFO(ok);
+        REQUIRE(post(ok)->status == 201);
+    }
+    // An update is checked the same way.
+    const int id = body(admin.Get("/api/v1/webhooks"))["items"][0]["id"];
+    auto put = admin.Put(("/api/v1/webhooks/" + std::to_string(id)).c_str(), json{{"url", "http://169.254.1.1/"}}.dump(),
+                         "application/json");
+    require_error(put, 400, "bad_request", "link-local");
+}
+
+TEST_CASE("webhooks: a stored link-local target is refused at delivery without a connection") {
+    // A row from before the check (or a name pointed there later): the delivery logs the refusal.
+    TestServer ts([](cutload::server::ServerOptions& o) { o.webhook_max_attempts = 2; });
+    auto admin = ts.admin();
+    {
+        sqlite3* h = nullptr;
+        REQUIRE(sqlite3_open(ts.opt.db_path.c_str(), &h) == SQLITE_OK);
+        REQUIRE(sqlite3_exec(h,
+                             "INSERT INTO webhooks(url, enabled, created_at) VALUES "
+                             "('http://169.254.169.254/latest', 1, '2026-01-01T00:00:00Z')",
+                             nullptr, nullptr, nullptr) == SQLITE_OK);
+        sqlite3_close(h);
+    }
+    json flag{{"name", "any flag"}, {"metric", "flag"}, {"flag", "force_limit"}};
+    REQUIRE(admin.Post("/api/v1/thresholds", flag.dump(), "application/json")->status == 201);
+    json spec = slot_spec();
+    spec["limits"] = {{"force_N", 20}};
+    REQUIRE(wait_finished(admin, body(upload(admin, slot_log_csv(0.8), spec))["id"])["summary"]["alerts"] == 1);
+    const int hook = body(admin.Get("/api/v1/webhooks"))["items"][0]["id"];
+    json d;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    do {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        d = body(admin.Get(("/api/v1/webhooks/" + std::to_string(hook) + "/deliveries").c_str()))["items"][0];
+    } while (d["state"] == "pending" && std::chrono::steady_clock::now() < until);
+    INFO(d.dump());
+    REQUIRE(d["state"] == "failed");
+    REQUIRE(d["log"].size() == 2);
+    const std::string error = d["log"][0]["error"];
+    REQUIRE(error.rfind("refused: 169.254.169.254 is a link-local address", 0) == 0);
+    REQUIRE(d["log"][0]["duration_ms"].get<double>() < 100);   // no connection was attempted
+}
+
+TEST_CASE("webhooks: host names are checked by what they resolve to") {
+    using cutload::server::refused_webhook_host;
+    REQUIRE(refused_webhook_host("localhost", true).empty());
+    REQUIRE(refused_webhook_host("10.0.0.1", false).empty());
+    REQUIRE(refused_webhook_host("mes.example", false).empty());   // a name is resolved at delivery
+    REQUIRE(refused_webhook_host("169.254.0.1", true).find("link-local") != std::string::npos);
+    REQUIRE(refused_webhook_host("fe80::1", false).find("link-local") != std::string::npos);
+}
