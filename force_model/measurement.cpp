@@ -50,6 +50,17 @@ std::optional<double> number(std::string_view s) {
     s = trim(s);
     if (!s.empty() && s.front() == '+') s.remove_prefix(1);
     if (s.empty()) return std::nullopt;
+    // A decimal comma (European exports, which separate fields by ';' or tab): "0,125" is 0.125.
+    // A field holds a comma only when the separator is not one; one comma and no point, else
+    // "1.234,5" (a thousands point) would read as 1.234.
+    char buf[64];
+    if (const std::size_t comma = s.find(','); comma != std::string_view::npos) {
+        if (s.size() >= sizeof buf || s.find('.') != std::string_view::npos || s.find(',', comma + 1) != std::string_view::npos)
+            return std::nullopt;
+        s.copy(buf, s.size());
+        buf[comma] = '.';
+        s = std::string_view(buf, s.size());
+    }
     double v = 0;
     const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
     if (r.ec != std::errc() || r.ptr != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;

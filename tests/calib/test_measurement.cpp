@@ -54,6 +54,28 @@ TEST_CASE("a DynoWare export is read with its rate, channels and extra columns",
     CHECK_FALSE(m.tool_machine_axes);
 }
 
+TEST_CASE("a European export (semicolons, decimal commas) reads as the same record", "[calib][measurement]") {
+    std::string european = kDynoWare;
+    for (char& c : european) c = c == ',' ? ';' : c == '.' ? ',' : c;   // "Version 3,2,2,0" stays metadata
+    const Measurement m = read_text(european), ref = read_text(kDynoWare);
+    CHECK(m.rate_Hz == ref.rate_Hz);
+    REQUIRE(m.size() == ref.size());
+    for (std::size_t i = 0; i < m.size(); ++i) {
+        CHECK(m.t_s(i) == Approx(ref.t_s(i)));
+        CHECK(m.fx_N[i] == ref.fx_N[i]);
+        CHECK(m.fy_N[i] == ref.fy_N[i]);
+        CHECK(m.fz_N[i] == ref.fz_N[i]);
+    }
+    // Tab-separated works the same way; a thousands point is refused at its line and column.
+    std::string tabbed = european;
+    for (char& c : tabbed) c = c == ';' ? '\t' : c;
+    CHECK(read_text(tabbed).size() == ref.size());
+    std::string thousands = european;
+    thousands.replace(thousands.find("1,7;"), 4, "1.000,7;");
+    const std::string e = error_of(thousands);
+    CHECK_THAT(e, Catch::Contains("test.csv:9") && Catch::Contains("(Fx)") && Catch::Contains("1.000,7"));
+}
+
 TEST_CASE("plain CSV with units in brackets, milliseconds and kilonewtons", "[calib][measurement]") {
     const Measurement m = read_text("t [ms];fz [kN];fx [N];fy [N]\n0;0.001;1;2\n0.5;0.002;3;4\n1.0;0.003;5;6\n");
     CHECK(m.format == "csv");
