@@ -106,8 +106,10 @@ force_model::ProgramSettings program_settings(const json& o) {
             }
         } else if (key == "ignore_words") {
             if (!v.is_array()) bad_option(key, "must be an array of words like [\"G28\", \"H\"]");
+            static const std::regex word("[A-Za-z]([0-9]+(\\.[0-9]+)?)?");
             for (const auto& w : v) {
-                if (!w.is_string() || w.get<std::string>().empty()) bad_option(key, "every entry must be a non-empty string");
+                if (!w.is_string() || !std::regex_match(w.get<std::string>(), word))
+                    bad_option(key, fmt::format("{} is not a letter or a code like \"G28\" or \"H\"", w.dump()));
                 s.ignore_words.push_back(w.get<std::string>());
             }
         } else if (key == "rapid_feed_mm_min") {

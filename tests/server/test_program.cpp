@@ -169,6 +169,8 @@ TEST_CASE("program api: bad programs and options are 400 naming line and word, l
                   "bad_request", "unknown key 'rapid_feed'");
     require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", R"({"work_offsets_mm": {"G55": [1, 2]}})")),
                   400, "bad_request", "work_offsets_mm.G55");
+    require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", R"({"ignore_words": ["G2 8"]})")), 400,
+                  "bad_request", "nc_options.ignore_words");
     require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", "{not json")), 400, "bad_request",
                   "nc_options");
     // A work system the program selects but nobody set.
