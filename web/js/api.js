@@ -35,6 +35,7 @@ function buildUrl(path, query) {
   return url;
 }
 
+// accept: a text type (text/csv, text/plain) answers the body as text; otherwise JSON.
 async function request(method, path, { query, json, form, accept, signal } = {}) {
   const headers = {};
   const key = apiKey();
@@ -66,7 +67,7 @@ async function request(method, path, { query, json, form, accept, signal } = {})
     throw e;
   }
   if (res.status === 204) return null;
-  return accept === 'text/csv' ? res.text() : res.json();
+  return accept ? res.text() : res.json();
 }
 
 // Follows next_cursor until the list is complete (libraries, blocks: small enough to hold).
@@ -99,6 +100,18 @@ export const api = {
   // Dynamometer comparison: {report, series}; 404 when no measurement is attached.
   measurement: (id, window) => request('GET', `runs/${id}/measurement`, { query: window }),
   attachMeasurement: (id, form) => request('POST', `runs/${id}/measurement`, { form }),
+
+  // NC program of a run (404 no_program without one): mapping quality, commanded summary, per-block comparison.
+  program: (id) => request('GET', `runs/${id}/program`),
+  // The commanded-motion resultant, windowed and decimated like forces().
+  commandedForces: (id, window, signal) => request('GET', `runs/${id}/forces`,
+    { query: { ...window, source: 'commanded', channels: 'f_N' }, signal }),
+  createOptimization: (id, params) => request('POST', `runs/${id}/optimizations`, { json: params }),
+  optimizations: (id) => request('GET', `runs/${id}/optimizations`).then((r) => r.items),
+  optimization: (oid, signal) => request('GET', `optimizations/${oid}`, { signal }),
+  cancelOptimization: (oid) => request('POST', `optimizations/${oid}/cancel`),
+  // Any API path (as the server's links give them) as text, for downloads that need the key.
+  text: (path, accept = 'text/plain') => request('GET', path, { accept }),
 
   library: (kind) => all(kind, {}, 1000),
   createItem: (kind, body) => request('POST', kind, { json: body }),

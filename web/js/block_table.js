@@ -1,5 +1,6 @@
-// The block table: one row per NC block with its peaks and flags; sortable by any column, flagged
-// rows highlighted; a click or Enter on a row selects the block.
+// The block table: one row per NC block with its peaks and flags, and for a run with an NC program
+// the comparison with the commanded motion; sortable by any column (blanks last), flagged rows
+// highlighted; a click or Enter on a row selects the block.
 import { h, num } from './dom.js';
 
 const COLUMNS = [
@@ -16,9 +17,37 @@ const COLUMNS = [
   { key: 'flags', label: 'Flags', sortValue: (b) => b.flags.length },
 ];
 
+// Per-block keys of GET /runs/{id}/program shown beside the run's own; blank for blocks it lacks.
+export const COMPARISON_COLUMNS = [
+  { key: 'max_deviation_mm', label: 'Max deviation (mm)', title: 'Largest distance of the actual path from the programmed one', blank: true },
+  { key: 'feed_deficit_pct', label: 'Feed deficit (%)', title: 'Largest shortfall of the actual feed below the programmed feed', blank: true },
+  { key: 'commanded_peak_force_N', label: 'Commanded peak F (N)', title: 'Peak resultant predicted from the programmed motion', blank: true },
+  { key: 'force_difference_pct', label: 'Difference (%)', title: 'Actual minus commanded peak force, as a percentage of the commanded peak', blank: true },
+];
+
+// The run's blocks with the program comparison's values merged in by block name.
+export function withComparison(blocks, programBlocks) {
+  const byName = new Map();
+  for (const p of programBlocks) if (!byName.has(p.block)) byName.set(p.block, p);
+  return blocks.map((b) => {
+    const p = byName.get(b.block);
+    const extra = {};
+    for (const c of COMPARISON_COLUMNS) extra[c.key] = p ? p[c.key] ?? null : null;
+    return { ...b, ...extra };
+  });
+}
+
+// Ascending order with blank (null) values after every number in either direction.
+function compareValues(va, vb, dir) {
+  if (va == null || vb == null) return (va == null) - (vb == null);
+  return (typeof va === 'string' ? va.localeCompare(vb, undefined, { numeric: true }) : va - vb) * dir;
+}
+
 export class BlockTable {
-  constructor(container, blocks, { onSelect }) {
+  // comparison: the blocks carry the COMPARISON_COLUMNS keys (withComparison) and show them.
+  constructor(container, blocks, { onSelect, comparison = false }) {
     this.blocks = blocks;
+    this.columns = comparison ? [...COLUMNS, ...COMPARISON_COLUMNS] : COLUMNS;
     this.onSelect = onSelect;
     this.sort = { key: 't_start_s', dir: 1 };
     this.flaggedOnly = false;
@@ -49,19 +78,16 @@ export class BlockTable {
   }
 
   render() {
-    this.headRow.replaceChildren(...COLUMNS.map((c) => {
+    this.headRow.replaceChildren(...this.columns.map((c) => {
       const active = this.sort.key === c.key;
       const arrow = active ? (this.sort.dir > 0 ? ' ▲' : ' ▼') : '';
-      return h('th', { scope: 'col', 'aria-sort': active ? (this.sort.dir > 0 ? 'ascending' : 'descending') : 'none' },
+      return h('th', { scope: 'col', title: c.title, 'aria-sort': active ? (this.sort.dir > 0 ? 'ascending' : 'descending') : 'none' },
         h('button', { type: 'button', class: 'sort', onclick: () => this.sortBy(c.key) }, c.label + arrow));
     }));
-    const col = COLUMNS.find((c) => c.key === this.sort.key);
+    const col = this.columns.find((c) => c.key === this.sort.key);
     const value = col.sortValue || ((b) => b[col.key]);
-    const rows = this.blocks.filter((b) => !this.flaggedOnly || b.flags.length).sort((a, b) => {
-      const va = value(a);
-      const vb = value(b);
-      return (typeof va === 'string' ? va.localeCompare(vb, undefined, { numeric: true }) : va - vb) * this.sort.dir || a.idx - b.idx;
-    });
+    const rows = this.blocks.filter((b) => !this.flaggedOnly || b.flags.length)
+      .sort((a, b) => compareValues(value(a), value(b), this.sort.dir) || a.idx - b.idx);
     this.tbody.replaceChildren(...rows.map((b) => this.row(b)));
   }
 
@@ -79,11 +105,14 @@ export class BlockTable {
         }
       },
     });
-    for (const c of COLUMNS) {
+    for (const c of this.columns) {
       if (c.key === 'flags') {
         tr.append(h('td', {}, b.flags.map((f) => h('span', { class: 'flag', title: `at ${f.t_s.toFixed(4)} s: ${num(f.value)}` }, f.flag))));
+      } else if (c.text) {
+        tr.append(h('td', {}, b[c.key]));
       } else {
-        tr.append(h('td', { class: c.text ? null : 'num' }, c.text ? b[c.key] : num(b[c.key], c.digits || 3)));
+        const v = b[c.key];
+        tr.append(h('td', { class: 'num', dataset: { col: c.key } }, c.blank && v == null ? '' : num(v, c.digits || 3)));
       }
     }
     return tr;

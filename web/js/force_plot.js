@@ -5,6 +5,10 @@
 // panning stays instant on the overview. Limit lines, flagged intervals and the selection are
 // drawn in uPlot's hooks on the same canvas, so the PNG export shows them too.
 //
+// With an NC program, the resultant predicted from the commanded motion is one more series: it has
+// its own time base (no acceleration, so usually shorter), its own overview and its own finer
+// windows fetched beside the actual ones; the two are joined on the union of their times.
+//
 // Each interaction records performance.measure('plot-frame') (input to drawn) and each window
 // refinement 'plot-refine' (scale change to finer data drawn), for the browser tests.
 import uPlot from '../vendor/uPlot.esm.js';
@@ -19,30 +23,37 @@ export const CHANNELS = [
   { key: 'power_kW', label: 'Power', unit: 'kW', scale: 'kW', stroke: '#e67e00', dash: [2, 3], optional: true },
 ];
 
+// See-through, so the actual resultant stays visible where the two coincide.
+export const COMMANDED = { key: 'f_N', label: 'F commanded (program)', unit: 'N', scale: 'N', stroke: 'rgba(23, 190, 207, 0.7)', width: 1.4 };
+const ACTUAL_LABEL = 'F actual (dry run)';
+
 const OVERVIEW_POINTS = 2000;   // buckets for the whole run: more than a laptop plot has pixels
 const MAX_WINDOW_POINTS = 4000;
 const REFINE_DELAY_MS = 120;
 
-// A window answer as plot columns. Decimated buckets become two points (min at the bucket's
-// start, max at its end) so the line sweeps the whole envelope of each pixel column.
-export function windowColumns(w) {
-  if (!w.decimated) return [Float64Array.from(w.t_s), ...CHANNELS.map((c) => Float32Array.from(w[c.key]))];
+// A window answer as plot columns [x, ...keys]. Decimated buckets become two points (min at the
+// bucket's start, max at its end) so the line sweeps the whole envelope of each pixel column.
+export function seriesColumns(w, keys) {
+  if (!w.decimated) return [Float64Array.from(w.t_s), ...keys.map((k) => Float32Array.from(w[k]))];
   const n = w.t_s.length;
   const x = new Float64Array(2 * n);
   for (let i = 0; i < n; i++) {
     x[2 * i] = w.t_s[i];
     x[2 * i + 1] = w.t_end_s[i];
   }
-  const ys = CHANNELS.map((c) => {
-    const { min, max } = w[c.key];
+  return [x, ...keys.map((k) => {
+    const { min, max } = w[k];
     const y = new Float32Array(2 * n);
     for (let i = 0; i < n; i++) {
       y[2 * i] = min[i];
       y[2 * i + 1] = max[i];
     }
     return y;
-  });
-  return [x, ...ys];
+  })];
+}
+
+export function windowColumns(w) {
+  return seriesColumns(w, CHANNELS.map((c) => c.key));
 }
 
 // The overview outside [from, to] around the detail inside it.
@@ -64,36 +75,48 @@ export function mergeColumns(overview, detail, from, to) {
 
 // The measured series (fx_N, fy_N, fz_N) as [x, fx, fy, fz], envelopes as min/max pairs.
 export function measuredColumns(w) {
-  const keys = ['fx_N', 'fy_N', 'fz_N'];
-  if (!w.decimated) return [Float64Array.from(w.t_s), ...keys.map((k) => Float32Array.from(w[k]))];
-  const n = w.t_s.length;
-  const x = new Float64Array(2 * n);
-  for (let i = 0; i < n; i++) {
-    x[2 * i] = w.t_s[i];
-    x[2 * i + 1] = w.t_end_s[i];
-  }
-  return [x, ...keys.map((k) => {
-    const y = new Float32Array(2 * n);
-    for (let i = 0; i < n; i++) {
-      y[2 * i] = w[k].min[i];
-      y[2 * i + 1] = w[k].max[i];
+  return seriesColumns(w, ['fx_N', 'fy_N', 'fz_N']);
+}
+
+// Columns [xa, ...ya] and [xb, ...yb] on the union of their times (both ascending, repeated times
+// kept: an envelope's min and max may share one), null where a series has no sample.
+export function unionColumns(a, b) {
+  const [xa, xb] = [a[0], b[0]];
+  const n = xa.length + xb.length;
+  const x = new Float64Array(n);
+  const ys = [...a.slice(1), ...b.slice(1)].map(() => new Array(n).fill(null));
+  const na = a.length - 1;
+  let i = 0;
+  let j = 0;
+  for (let k = 0; k < n; k++) {
+    if (j >= xb.length || (i < xa.length && xa[i] <= xb[j])) {
+      x[k] = xa[i];
+      for (let c = 0; c < na; c++) ys[c][k] = a[c + 1][i];
+      i += 1;
+    } else {
+      x[k] = xb[j];
+      for (let c = 0; c < b.length - 1; c++) ys[na + c][k] = b[c + 1][j];
+      j += 1;
     }
-    return y;
-  })];
+  }
+  return [x, ...ys];
 }
 
 export class ForcePlot {
-  // fetchWindow(from_s, to_s, max_points, signal) -> forces window answer.
-  constructor(container, { fetchWindow, limits = {}, onPick, onRange }) {
+  // fetchWindow(from_s, to_s, max_points, signal) -> forces window answer; fetchCommanded the same
+  // for the commanded resultant (channel f_N), or null for a run without a program.
+  constructor(container, { fetchWindow, fetchCommanded = null, limits = {}, onPick, onRange }) {
     this.container = container;
     this.fetchWindow = fetchWindow;
+    this.fetchCommanded = fetchCommanded;
+    this.commanded = null;   // {overview, current, decimated} columns [x, f] of the commanded resultant
     this.limits = limits;
     this.onPick = onPick;
     this.onRange = onRange;
     this.shaded = [];        // [{t0, t1}] flagged intervals
     this.selected = null;    // {t0, t1} of the selected block
     this.marker = null;      // selected time
-    this.show = { torque_Nm: false, power_kW: false };
+    this.show = { torque_Nm: false, power_kW: false, commanded: true };
     this.refineTimer = 0;
     this.inflight = null;
     this.fetchedRange = null;
@@ -104,24 +127,52 @@ export class ForcePlot {
   }
 
   async load() {
-    const w = await this.fetchWindow(undefined, undefined, OVERVIEW_POINTS);
+    const [w, wc] = await Promise.all([
+      this.fetchWindow(undefined, undefined, OVERVIEW_POINTS),
+      this.fetchCommanded?.(undefined, undefined, OVERVIEW_POINTS) ?? null,
+    ]);
     this.extent = [w.from_s, w.to_s];
     this.overview = windowColumns(w);
     this.currentData = this.overview;
     this.decimatedOverview = w.decimated;
+    if (wc) {
+      const overview = seriesColumns(wc, [COMMANDED.key]);
+      this.commanded = { overview, current: overview, decimated: wc.decimated };
+      if (overview[0].length) this.extent = [Math.min(w.from_s, wc.from_s), Math.max(w.to_s, wc.to_s)];
+    }
     this.build();
+  }
+
+  // What uPlot draws: the actual columns, joined with the commanded resultant when there is one.
+  plotData() {
+    if (!this.commanded) return this.currentData;
+    const data = unionColumns(this.currentData, this.commanded.current);
+    this.container.dataset.commandedPoints = String(this.commanded.current[0].length);
+    return data;
+  }
+
+  commandedIndex() {
+    return this.commanded ? CHANNELS.length + 1 : -1;
+  }
+
+  // Shows or hides the commanded resultant (also done by clicking its legend entry).
+  setCommanded(on) {
+    this.show.commanded = on;
+    if (this.u && this.commanded) this.u.setSeries(this.commandedIndex(), { show: on });
   }
 
   options() {
     const width = Math.max(320, this.container.clientWidth);
     const showOpt = (c) => !c.optional || this.show[c.key];
     const series = [{ label: 't (s)', value: (u, v) => (v == null ? '–' : v.toFixed(4)) }];
-    for (const c of CHANNELS) {
-      series.push({
-        label: c.label, scale: c.scale, stroke: c.stroke, width: c.width || 1, dash: c.dash, show: showOpt(c),
-        value: (u, v) => (v == null ? '–' : `${v.toFixed(1)} ${c.unit}`), points: { show: false },
-      });
-    }
+    // Joined series have nulls where only the other one has a sample: draw across them.
+    const spanGaps = Boolean(this.commanded);
+    const line = (c, label, show) => ({
+      label, scale: c.scale, stroke: c.stroke, width: c.width || 1, dash: c.dash, show, spanGaps,
+      value: (u, v) => (v == null ? '–' : `${v.toFixed(1)} ${c.unit}`), points: { show: false },
+    });
+    for (const c of CHANNELS) series.push(line(c, this.commanded && c.key === 'f_N' ? ACTUAL_LABEL : c.label, showOpt(c)));
+    if (this.commanded) series.push(line(COMMANDED, COMMANDED.label, this.show.commanded));
     const axes = [
       { label: 'time (s)' },
       { scale: 'N', label: 'force (N)', size: 60 },
@@ -162,6 +213,7 @@ export class ForcePlot {
         drawClear: [(u) => this.drawBands(u)],
         draw: [(u) => this.drawOverlays(u)],
         setScale: [(u, key) => key === 'x' && this.scaleChanged(u)],
+        setSeries: [(u, i, opts) => this.seriesToggled(i, opts)],
       },
     };
   }
@@ -169,7 +221,7 @@ export class ForcePlot {
   build() {
     const range = this.u ? [this.u.scales.x.min, this.u.scales.x.max] : null;
     if (this.u) this.u.destroy();
-    this.u = new uPlot(this.options(), this.currentData, this.container);
+    this.u = new uPlot(this.options(), this.plotData(), this.container);
     if (range) this.setRange(range[0], range[1]);
     this.u.over.addEventListener('wheel', (e) => this.wheel(e), { passive: false });
     if (!this.resizeObserver) {
@@ -187,6 +239,13 @@ export class ForcePlot {
     this.inflight?.abort();
     this.resizeObserver?.disconnect();
     this.u?.destroy();
+  }
+
+  // A legend click on the commanded series keeps show.commanded (and its checkbox) in step.
+  seriesToggled(i, opts) {
+    if (i !== this.commandedIndex() || opts?.show === undefined || opts.show === this.show.commanded) return;
+    this.show.commanded = opts.show;
+    this.container.dispatchEvent(new CustomEvent('commanded-toggle', { detail: opts.show }));
   }
 
   setChannels(show) {
@@ -322,20 +381,27 @@ export class ForcePlot {
     this.refineTimer = setTimeout(() => this.refine(u.scales.x.min, u.scales.x.max, scaleAt), REFINE_DELAY_MS);
   }
 
-  // Fetches the visible window at about one bucket per pixel and splices it into the overview.
+  // Fetches the visible window at about one bucket per pixel (actual and, with a program, commanded)
+  // and splices it into the overviews.
   async refine(from, to, scaleAt) {
     const key = `${from}:${to}`;
     if (this.fetchedRange === key) return;
     this.inflight?.abort();
     this.fetchedRange = key;
     const [e0, e1] = this.extent;
-    if (!this.decimatedOverview || (from <= e0 && to >= e1)) {
-      // The overview already is full resolution, or the window is the whole run.
+    const whole = from <= e0 && to >= e1;
+    const cmd = this.commanded;
+    const needActual = this.decimatedOverview && !whole;
+    const needCommanded = Boolean(cmd?.decimated) && !whole;
+    if (!needActual && !needCommanded) {
+      // The overviews already are full resolution, or the window is the whole run.
       this.published(this.decimatedOverview ? 'envelope' : 'full', from, to);
-      if (this.currentData === this.overview) return;
+      if (cmd) this.publishedCommanded(cmd.decimated ? 'envelope' : 'full', from, to);
+      if (this.currentData === this.overview && (!cmd || cmd.current === cmd.overview)) return;
       this.currentData = this.overview;
+      if (cmd) cmd.current = cmd.overview;
       this.u.batch(() => {
-        this.u.setData(this.overview, false);
+        this.u.setData(this.plotData(), false);
         this.u.setScale('x', { min: from, max: to });
       });
       return;
@@ -344,26 +410,38 @@ export class ForcePlot {
     this.inflight = ctl;
     const points = Math.min(MAX_WINDOW_POINTS, Math.max(200, Math.round(this.u.over.clientWidth)));
     let w;
+    let wc;
     try {
-      w = await this.fetchWindow(from, to, points, ctl.signal);
+      [w, wc] = await Promise.all([
+        needActual ? this.fetchWindow(from, to, points, ctl.signal) : null,
+        needCommanded ? this.fetchCommanded(from, to, points, ctl.signal) : null,
+      ]);
     } catch (err) {
       if (this.fetchedRange === key) this.fetchedRange = null;
       if (err.name !== 'AbortError') this.container.dispatchEvent(new CustomEvent('plot-error', { detail: err }));
       return;
     }
     if (ctl.signal.aborted) return;
-    this.currentData = mergeColumns(this.overview, windowColumns(w), from, to);
+    this.currentData = w ? mergeColumns(this.overview, windowColumns(w), from, to) : this.overview;
+    if (cmd) cmd.current = wc ? mergeColumns(cmd.overview, seriesColumns(wc, [COMMANDED.key]), from, to) : cmd.overview;
     this.u.batch(() => {
-      this.u.setData(this.currentData, false);
+      this.u.setData(this.plotData(), false);
       this.u.setScale('x', { min: from, max: to });
     });
-    this.published(w.decimated ? 'envelope' : 'full', from, to);
+    this.published(w ? (w.decimated ? 'envelope' : 'full') : 'full', from, to);
+    if (cmd) this.publishedCommanded(wc ? (wc.decimated ? 'envelope' : 'full') : 'full', from, to);
     performance.measure('plot-refine', { start: scaleAt, end: performance.now() });
   }
 
   // What the plot holds for the visible window, as data attributes (read by the browser tests).
   published(resolution, from, to) {
     Object.assign(this.container.dataset, { resolution, windowFrom: String(from), windowTo: String(to) });
+  }
+
+  publishedCommanded(resolution, from, to) {
+    Object.assign(this.container.dataset, {
+      commandedResolution: resolution, commandedWindowFrom: String(from), commandedWindowTo: String(to),
+    });
   }
 
   drawBands(u) {
@@ -461,7 +539,10 @@ export class ForcePlot {
     ctx.fillText(title, 10 * px, 18 * px);
     let x = 10 * px;
     ctx.font = `${12 * px}px sans-serif`;
-    CHANNELS.filter((c) => !c.optional || this.show[c.key]).forEach((c) => {
+    const shown = CHANNELS.filter((c) => !c.optional || this.show[c.key])
+      .map((c) => (this.commanded && c.key === 'f_N' ? { ...c, label: ACTUAL_LABEL } : c));
+    if (this.commanded && this.show.commanded) shown.push(COMMANDED);
+    shown.forEach((c) => {
       ctx.fillStyle = c.stroke;
       ctx.fillRect(x, 30 * px, 14 * px, 4 * px);
       ctx.fillStyle = '#111';

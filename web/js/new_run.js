@@ -1,5 +1,6 @@
 // New run: drop a dry-run log, choose machine, tool, material from the libraries or define them
-// inline, give the stock, optionally a base run; errors appear next to the field they concern.
+// inline, give the stock, optionally a base run and the NC program with its reading options;
+// errors appear next to the field they concern.
 import { api } from './api.js';
 import { h, clear, field, setFieldError, statusLine } from './dom.js';
 import { loadLibraries } from './runs.js';
@@ -42,6 +43,70 @@ function dropZone(fileInput, onFile) {
   return zone;
 }
 
+// The program reading options (nc_options of POST /runs), each with the key the server names in its errors.
+function programOptions() {
+  const c = {
+    map_blocks: h('input', { type: 'checkbox', name: 'map_blocks' }),
+    decimal_less_is_increment: h('input', { type: 'checkbox', name: 'decimal_less_is_increment' }),
+    ignore_words: h('input', { type: 'text', name: 'ignore_words', placeholder: 'G28,H', spellcheck: 'false' }),
+    rapid_feed_mm_min: h('input', { type: 'text', inputmode: 'decimal', name: 'rapid_feed_mm_min', placeholder: '30000' }),
+    block_lead_ms: h('input', { type: 'text', inputmode: 'decimal', name: 'block_lead_ms', placeholder: '0' }),
+    work_offsets_mm: h('input', { type: 'text', name: 'work_offsets_mm', placeholder: 'G55=-150,250,340', spellcheck: 'false' }),
+  };
+  const check = (box, label) => {
+    const wrap = field(label, box);
+    wrap.classList.add('check');
+    return wrap;
+  };
+  const el = h('details', { class: 'nc-options' }, h('summary', {}, 'Program options'),
+    h('div', { class: 'field-grid' },
+      check(c.map_blocks, 'Map blocks from the program'),
+      field('Ignore words', c.ignore_words, 'Comma-separated codes or letters, dropped before reading'),
+      field('G00 rapid feed (mm/min)', c.rapid_feed_mm_min, 'Speed of rapids in the commanded motion'),
+      field('Block lead (ms)', c.block_lead_ms, 'Machine lag used when mapping blocks'),
+      field('Work offsets', c.work_offsets_mm, 'Machine position of each system\'s zero: G55=x,y,z; G56=…'),
+      check(c.decimal_less_is_increment, 'X10 means 10 least increments (0.010 mm)')));
+
+  // {value, errors: [[control, message]]}: the nc_options object, empty when nothing is set.
+  function read() {
+    const value = {};
+    const errors = [];
+    const number = (key, ok, why) => {
+      const text = c[key].value.trim();
+      if (!text) return;
+      const v = Number(text);
+      if (!Number.isFinite(v) || !ok(v)) errors.push([c[key], `nc_options.${key}: ${why}`]);
+      else value[key] = v;
+    };
+    if (c.map_blocks.checked) value.map_blocks = true;
+    if (c.decimal_less_is_increment.checked) value.decimal_less_is_increment = true;
+    const words = c.ignore_words.value.split(/[\s,]+/).filter(Boolean).map((w) => w.toUpperCase());
+    const badWord = words.find((w) => !/^[A-Z](\d+(\.\d+)?)?$/.test(w));
+    if (badWord) errors.push([c.ignore_words, `nc_options.ignore_words: '${badWord}' is not a code (G28) or a letter (H)`]);
+    else if (words.length) value.ignore_words = words;
+    number('rapid_feed_mm_min', (v) => v > 0, 'must be a number > 0 mm/min');
+    number('block_lead_ms', (v) => v >= 0, 'must be a number >= 0 ms');
+    const offsets = {};
+    for (const item of c.work_offsets_mm.value.split(';').map((x) => x.trim()).filter(Boolean)) {
+      const m = /^(G5[4-9])\s*=\s*(.+)$/i.exec(item);
+      const xyz = m ? m[2].split(',').map((x) => Number(x.trim())) : [];
+      if (!m || xyz.length !== 3 || !xyz.every(Number.isFinite)) {
+        errors.push([c.work_offsets_mm, `nc_options.work_offsets_mm: '${item}' is not G54..G59=x,y,z (mm)`]);
+        break;
+      }
+      offsets[m[1].toUpperCase()] = xyz;
+    }
+    if (Object.keys(offsets).length) value.work_offsets_mm = offsets;
+    return { value, errors };
+  }
+  // The options are folded away by default: unfold them to show an error inside.
+  function showError(control, message) {
+    el.open = true;
+    setFieldError(control, message);
+  }
+  return { el, controls: c, read, showError };
+}
+
 export async function renderNewRun(main) {
   const lib = await loadLibraries();
   let doneRuns = [];
@@ -62,6 +127,8 @@ export async function renderNewRun(main) {
   const machine = librarySelect('machine_id', lib.machines, { none: 'none (limits from the spec)' });
   const tool = librarySelect('tool_id', lib.tools, { inline: true });
   const material = librarySelect('material_id', lib.materials, { inline: true });
+  const ncProgram = h('input', { type: 'file', id: 'nc-program-file', name: 'nc_program', class: 'file' });
+  const ncOptions = programOptions();
   const baseRun = h('select', { name: 'base_run' }, h('option', { value: '' }, 'none: start from the stock box'),
     doneRuns.map((r) => h('option', { value: r.id }, `#${r.id} ${r.name || r.program || r.inputs?.log?.filename || ''}`)));
   if (!lib.tools.length) tool.value = INLINE;
@@ -93,6 +160,10 @@ export async function renderNewRun(main) {
       field('Log file', dropZone(log), 'Actual positions, feed and spindle speed from the dry run', log),
       h('div', { class: 'field-grid' }, field('Run name', name), field('Program', program), field('Format', format), field('Length units', units)),
       h('details', {}, h('summary', {}, 'Channel mapping (for logs with other column names)'), field('Mapping file (JSON)', mapping))),
+    h('fieldset', {}, h('legend', {}, 'NC program'),
+      field('NC program file (optional)', ncProgram,
+        'ISO 6983 (FANUC dialect): adds the prediction from the commanded path, the per-block comparison and feed optimization'),
+      ncOptions.el),
     h('fieldset', {}, h('legend', {}, 'Machine, tool and material'),
       field('Run spec file (RUN.json)', specFile, 'Optional: fills the fields below from a spec used with cutload predict'),
       h('div', { class: 'field-grid' }, field('Machine', machine), field('Tool', tool), field('Material', material)),
@@ -119,18 +190,27 @@ export async function renderNewRun(main) {
     }
   });
 
-  const selects = { machine_id: machine, tool_id: tool, material_id: material, base_run: baseRun, format, units, log, mapping };
+  const selects = {
+    machine_id: machine, tool_id: tool, material_id: material, base_run: baseRun, format, units, log, mapping, nc_program: ncProgram,
+  };
 
   function clearErrors() {
     formError.textContent = '';
     Object.values(groups).forEach((g) => g.clearErrors());
     Object.values(selects).forEach((c) => setFieldError(c, ''));
+    Object.values(ncOptions.controls).forEach((c) => setFieldError(c, ''));
   }
 
   // Puts a server message next to its field; unmatched messages go under the form.
   function showServerError(e) {
     const msg = e.message;
     if (e.code === 'bad_log' || /part 'log'/.test(msg)) return setFieldError(log, msg);
+    if (/^ignore word/.test(msg)) return ncOptions.showError(ncOptions.controls.ignore_words, msg);
+    if (e.code === 'bad_program' || /part 'nc_program'/.test(msg)) return setFieldError(ncProgram, msg);
+    if (/nc_options/.test(msg)) {
+      const key = /nc_options\W+(\w+)/.exec(msg)?.[1];
+      return ncOptions.controls[key] ? ncOptions.showError(ncOptions.controls[key], msg) : setFieldError(ncProgram, msg);
+    }
     for (const [partName, c] of Object.entries(selects)) {
       if (new RegExp(`^(part )?${partName}\\b`).test(msg)) return setFieldError(c, msg);
     }
@@ -157,6 +237,11 @@ export async function renderNewRun(main) {
       if (Object.keys(value).length) spec[k] = value;
     }
     if (!log.files[0]) problems.push(() => setFieldError(log, 'choose the dry-run log file'));
+    const programOpts = ncOptions.read();
+    for (const [control, why] of programOpts.errors) problems.push(() => ncOptions.showError(control, why));
+    if (!ncProgram.files[0] && (Object.keys(programOpts.value).length || programOpts.errors.length)) {
+      problems.push(() => setFieldError(ncProgram, 'choose the NC program file the program options apply to'));
+    }
     if (problems.length) {
       problems.forEach((p) => p());
       formError.textContent = 'Some fields need attention.';
@@ -176,6 +261,10 @@ export async function renderNewRun(main) {
     if (units.value) fd.append('units', units.value);
     if (baseRun.value) fd.append('base_run', baseRun.value);
     if (mapping.files[0]) fd.append('mapping', mapping.files[0], mapping.files[0].name);
+    if (ncProgram.files[0]) {
+      fd.append('nc_program', ncProgram.files[0], ncProgram.files[0].name);
+      if (Object.keys(programOpts.value).length) fd.append('nc_options', JSON.stringify(programOpts.value));
+    }
 
     submit.disabled = true;
     status.textContent = 'Uploading…';

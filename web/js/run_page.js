@@ -1,12 +1,14 @@
 // A run: live progress while it computes (polling the run), then the force plot, the tool path,
-// the block table and the run's alerts. Selecting a time or a block in any of them selects it in
+// the block table and the run's alerts; with an NC program also the commanded prediction on the
+// plot, the per-block comparison in the table and the feed optimization. Selecting a time or a block in any of them selects it in
 // all of them; selecting a block in the table zooms the plot to it.
 import { api } from './api.js';
 import { h, clear, num, seconds, when, download, statusLine, errorText, lowerBound } from './dom.js';
 import { loadLibraries, toolLabel, stateBadge } from './runs.js';
 import { ForcePlot } from './force_plot.js';
 import { PathView, pathPoints } from './path_view.js';
-import { BlockTable } from './block_table.js';
+import { BlockTable, withComparison } from './block_table.js';
+import { programSection, optimizePanel } from './program.js';
 import { alertTable } from './alerts.js';
 
 const POLL_MS = 250;   // the server updates progress at most every 250 ms
@@ -19,6 +21,7 @@ function meta(run, lib) {
   const rows = [
     ['Log', `${run.inputs?.log?.filename || '–'} (${run.inputs?.ingest?.rows ?? '?'} rows, ${seconds(run.inputs?.ingest?.duration_s)})`],
     ['Program', run.program || '–'],
+    ['NC program', run.inputs?.nc_program ? `${run.inputs.nc_program.filename} (${num(run.inputs.nc_program.bytes / 1024)} KiB)` : '–'],
     ['Machine', machine],
     ['Tool', toolLabel(run, lib)],
     ['Material', material || '–'],
@@ -113,7 +116,11 @@ async function showResults(body, run, lib, disposers) {
   const limits = run.inputs?.spec?.limits || {};
   const status = statusLine('Loading results…');
   clear(body, status);
-  const [blocks, motion] = await Promise.all([api.blocks(id), api.motion(id, { max_points: 6000 })]);
+  // A missing comparison is shown in its section; the rest of the page works without it.
+  const [runBlocks, motion, program] = await Promise.all([api.blocks(id), api.motion(id, { max_points: 6000 }),
+    run.links?.program ? api.program(id).catch((error) => ({ error })) : null]);
+  const comparing = Boolean(program && !program.error);
+  const blocks = comparing ? withComparison(runBlocks, program.blocks) : runBlocks;
 
   const plotBox = h('div', { class: 'plot', id: 'force-plot', tabindex: 0, role: 'group',
     'aria-label': 'Force plot. Left and right arrows pan, plus and minus zoom, 0 shows the whole run.' });
@@ -121,6 +128,7 @@ async function showResults(body, run, lib, disposers) {
   const selText = h('p', { class: 'selection', id: 'selection', 'aria-live': 'polite' }, 'Click the plot, the path or a block to select it.');
   const plot = new ForcePlot(plotBox, {
     fetchWindow: (from_s, to_s, max_points, signal) => api.forces(id, { from_s, to_s, max_points }, signal),
+    fetchCommanded: comparing ? (from_s, to_s, max_points, signal) => api.commandedForces(id, { from_s, to_s, max_points }, signal) : null,
     limits,
     onPick: (t) => selectTime(t),
     onRange: (a, b) => {
@@ -139,9 +147,16 @@ async function showResults(body, run, lib, disposers) {
   };
   // Symbol buttons are named by their title; worded ones by their words.
   const btn = (label, title, fn) => h('button', { type: 'button', title, 'aria-label': label.length === 1 ? title : null, onclick: fn }, label);
+  // The commanded resultant starts shown; its legend entry toggles it too.
+  const commandedBox = h('input', { type: 'checkbox', id: 'show-commanded', checked: true });
+  commandedBox.addEventListener('change', () => plot.setCommanded(commandedBox.checked));
+  plotBox.addEventListener('commanded-toggle', (e) => {
+    commandedBox.checked = e.detail;
+  });
   const exportStatus = h('span', { class: 'muted', role: 'status' });
   const controls = h('div', { class: 'plot-controls', role: 'toolbar', 'aria-label': 'Plot controls' },
     channel('torque_Nm', 'Torque'), channel('power_kW', 'Power'),
+    comparing ? h('label', { class: 'inline' }, commandedBox, ' Commanded (program)') : null,
     h('span', { class: 'sep' }),
     btn('−', 'Zoom out', () => plot.zoom(2)), btn('+', 'Zoom in', () => plot.zoom(0.5)),
     btn('◀', 'Pan left', () => plot.pan(-0.25)), btn('▶', 'Pan right', () => plot.pan(0.25)),
@@ -167,6 +182,8 @@ async function showResults(body, run, lib, disposers) {
 
   const pathBox = h('div', { class: 'path-box' });
   const tableBox = h('div');
+  const optimizer = run.links?.program ? optimizePanel(run) : null;
+  if (optimizer) disposers.push(optimizer.dispose);
   const alertsBox = h('section', { class: 'run-alerts', 'aria-labelledby': 'run-alerts-title' },
     h('h2', { id: 'run-alerts-title' }, 'Alerts'));
   clear(body,
@@ -174,15 +191,18 @@ async function showResults(body, run, lib, disposers) {
     h('section', { class: 'forces', 'aria-labelledby': 'forces-title' },
       h('div', { class: 'section-head' }, h('h2', { id: 'forces-title' }, 'Forces'), h('span', { class: 'muted' }, 'Showing '), rangeText),
       controls,
-      h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click to reset. Shaded: flagged blocks.'),
+      h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click to reset. Shaded: flagged blocks.',
+        comparing ? ' Cyan: the resultant predicted from the programmed motion (no acceleration, so it ends earlier).' : ''),
       plotBox, selText),
+    program ? programSection(run, program) : null,
     measurementBox.section,
     h('section', { class: 'path', 'aria-labelledby': 'path-title' }, h('h2', { id: 'path-title' }, 'Tool path'), pathBox),
-    tableBox, alertsBox, status);
+    tableBox, optimizer?.section, alertsBox, status);
 
   await plot.load();
   status.textContent = '';
   await measurementBox.load();
+  await optimizer?.load();
   plot.setShaded(blocks.filter((b) => b.flags.length).map((b) => ({ t0: b.t_start_s, t1: b.t_end_s })));
 
   const [ox, of] = [plot.overview[0], plot.overview[4]];
@@ -204,6 +224,7 @@ async function showResults(body, run, lib, disposers) {
 
   const table = new BlockTable(tableBox, blocks, {
     onSelect: (b) => selectBlock(b, null, true),
+    comparison: comparing,
   });
 
   function selectBlock(b, t, zoom) {
