@@ -114,7 +114,9 @@ void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const mo
     if (!run.active) return;
     force_model::PredictOptions quiet = opt;
     quiet.progress = nullptr;
-    const auto [commanded, rows] = force_model::predict_program(run.run, motion, actual, spec, quiet);
+    const force_model::ProgramPrediction both = force_model::predict_program(run.run, motion, actual, spec, quiet);
+    const force_model::Prediction& commanded = both.commanded;
+    const std::vector<force_model::BlockComparison>& rows = both.blocks;
     if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
     if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <set>
 
 namespace cutload::force_model {
@@ -58,11 +59,49 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
     return run;
 }
 
+double TimeWarp::operator()(double t) const {
+    if (commanded_s.empty()) return t;
+    if (t <= commanded_s.front()) return t + (actual_s.front() - commanded_s.front());
+    if (t >= commanded_s.back()) return t + (actual_s.back() - commanded_s.back());
+    const auto k = static_cast<std::size_t>(std::upper_bound(commanded_s.begin(), commanded_s.end(), t) - commanded_s.begin());
+    const double u = (t - commanded_s[k - 1]) / (commanded_s[k] - commanded_s[k - 1]);
+    return actual_s[k - 1] + u * (actual_s[k] - actual_s[k - 1]);
+}
+
+TimeWarp commanded_to_actual_time(const ProgramRun& run, const motion_io::MotionModel& actual) {
+    const std::vector<double> dur = motion_io::commanded_durations_s(run.program, run.commanded);
+    // First actual sample the monotone mapping puts on each program block.
+    std::vector<double> first_s(run.program.blocks.size(), -1);
+    double last_matched_s = -1;
+    for (std::size_t i = 0; i < run.mapping.program_block.size() && i < actual.size(); ++i) {
+        const std::int32_t b = run.mapping.program_block[i];
+        if (b < 0) continue;
+        if (first_s[static_cast<std::size_t>(b)] < 0) first_s[static_cast<std::size_t>(b)] = actual.t_s[i];
+        last_matched_s = actual.t_s[i];
+    }
+    TimeWarp w;
+    auto knot = [&](double c, double a) {
+        // Blocks the machine passed in no time (or matched out of order) are spread over their neighbours.
+        if (!w.commanded_s.empty() && (c <= w.commanded_s.back() || a <= w.actual_s.back())) return;
+        w.commanded_s.push_back(c);
+        w.actual_s.push_back(a);
+    };
+    double t_begin = 0;
+    for (std::size_t i = 0; i < dur.size(); ++i) {
+        if (!(dur[i] > 0)) continue;
+        if (first_s[i] >= 0) knot(t_begin, first_s[i]);
+        t_begin += dur[i];
+    }
+    if (last_matched_s >= 0) knot(t_begin, last_matched_s);
+    return w;
+}
+
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
                                   const RunSpec& spec, const PredictOptions& options) {
     ProgramPrediction out;
     out.commanded = predict(motion_io::commanded_motion(run.program, run.commanded), spec, options);
     out.blocks = compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
+    out.to_actual_time = commanded_to_actual_time(run, motion);
     return out;
 }
 

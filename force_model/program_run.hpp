@@ -47,9 +47,21 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
                                motion_io::MotionModel& motion);
 
+// Commanded time -> actual time, piecewise linear: each program block's commanded span is
+// stretched onto the span the machine took for it (the mapping's first sample of each block), so
+// a block lines up when the two predictions are plotted on one time axis. Before the first knot
+// and after the last, a plain shift.
+struct TimeWarp {
+    std::vector<double> commanded_s, actual_s;   // knots, both strictly increasing
+    double operator()(double t_commanded_s) const;
+};
+
+TimeWarp commanded_to_actual_time(const ProgramRun& run, const motion_io::MotionModel& actual);
+
 struct ProgramPrediction {
     Prediction commanded;                  // from the programmed path at programmed feed
     std::vector<BlockComparison> blocks;   // compare_program() rows, program order
+    TimeWarp to_actual_time;               // for plotting `commanded` beside the actual forces
 };
 
 // Predicts the commanded motion with the same spec and options as the actual one and compares

@@ -326,7 +326,10 @@ private:
         if (machine_coords && m_.motion != NcMotion::Rapid && m_.motion != NcMotion::Linear)
             fail(line_no, "G53", "G53 is supported with G00 and G01 only");
 
-        const auto& offset = opt_.work_offsets_mm.at(m_.wcs);
+        const auto wcs = opt_.work_offsets_mm.find(m_.wcs);
+        if (wcs == opt_.work_offsets_mm.end())
+            fail(line_no, m_.wcs, "no offset is set for this work coordinate system, active since the program start (give it with --work-offset)");
+        const auto& offset = wcs->second;
         std::array<double, 3> target = m_.pos_mm;
         for (int a = 0; a < 3; ++a) {
             if (!axis[a]) continue;

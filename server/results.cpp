@@ -285,7 +285,10 @@ int store_result(db::Connection& c, std::int64_t run_id, const motion_io::Motion
             if (at == names.end()) at = names.insert(names.end(), name);
             block_of.push_back(static_cast<std::int32_t>(at - names.begin()));
         }
-        write_series(c, run_id, SeriesId::CommandedForces, force_series(cmd, block_of));
+        // On the actual run's time axis, block by block, so the two traces line up in one plot.
+        SeriesData cmd_series = force_series(cmd, block_of);
+        for (double& t : cmd_series.t_s) t = program->prediction.to_actual_time(t);
+        write_series(c, run_id, SeriesId::CommandedForces, cmd_series);
         const json commanded_summary = summary_json(cmd, cmd.final_stock ? force_model::stock_volume_mm3(*cmd.final_stock) : 0.0);
         c.prepare("INSERT INTO run_program(run_id, body) VALUES (?, ?)")
             .bind(1, run_id)

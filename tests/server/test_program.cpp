@@ -120,7 +120,9 @@ TEST_CASE("program api: the demo with its program gives the commanded forces and
     const auto& f = cmd["decimated"].get<bool>() ? cmd["f_N"]["max"] : cmd["f_N"];
     for (const auto& v : f) cmd_max_N = std::max(cmd_max_N, v.is_null() ? 0.0 : v.get<double>());
     REQUIRE(cmd_max_N == Approx(commanded_peak_N).epsilon(1e-4));
-    REQUIRE(cmd["to_s"].get<double>() < act["to_s"].get<double>());   // no acceleration: the program is quicker
+    // On the actual time axis (block by block): it ends where the machine's last matched sample is.
+    REQUIRE(cmd["to_s"].get<double>() <= act["to_s"].get<double>() + 1e-6);
+    REQUIRE(cmd["to_s"].get<double>() > act["to_s"].get<double>() - 0.5);
     std::set<std::string> names;
     for (const auto& [k, v] : cmd["block_names"].items()) names.insert(v.get<std::string>());
     REQUIRE(names.count("N70"));

@@ -5,9 +5,10 @@
 // panning stays instant on the overview. Limit lines, flagged intervals and the selection are
 // drawn in uPlot's hooks on the same canvas, so the PNG export shows them too.
 //
-// With an NC program, the resultant predicted from the commanded motion is one more series: it has
-// its own time base (no acceleration, so usually shorter), its own overview and its own finer
-// windows fetched beside the actual ones; the two are joined on the union of their times.
+// With an NC program, the resultant predicted from the commanded motion is one more series. The
+// server puts it on the actual run's time axis block by block, but its samples fall at other
+// times, so it has its own overview and its own finer windows fetched beside the actual ones;
+// the two are joined on the union of their times.
 //
 // Each interaction records performance.measure('plot-frame') (input to drawn) and each window
 // refinement 'plot-refine' (scale change to finer data drawn), for the browser tests.

@@ -192,7 +192,7 @@ async function showResults(body, run, lib, disposers) {
       h('div', { class: 'section-head' }, h('h2', { id: 'forces-title' }, 'Forces'), h('span', { class: 'muted' }, 'Showing '), rangeText),
       controls,
       h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click to reset. Shaded: flagged blocks.',
-        comparing ? ' Cyan: the resultant predicted from the programmed motion (no acceleration, so it ends earlier).' : ''),
+        comparing ? ' Cyan: the resultant predicted from the programmed motion, each block drawn over the time the machine took for it.' : ''),
       plotBox, selText),
     program ? programSection(run, program) : null,
     measurementBox.section,
