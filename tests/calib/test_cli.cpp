@@ -1,40 +1,21 @@
 // The CLI end to end: cutload compare and cutload calibrate on generated dynamometer files, their
 // output files, and one-line errors with exit code 2 for bad input.
 #include "calib/dyno_fixture.hpp"
+#include "cli/run_cli.hpp"
 #include "force_model/calibrate.hpp"
 
 #include <catch2/catch.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <sys/wait.h>
 
 using namespace cutload;
 using namespace cutload::calibtest;
 
 namespace {
-
-struct Run {
-    int code = -1;
-    std::string out;
-};
-
-Run run_cli(const std::string& args) {
-    const std::string cmd = std::string(CUTLOAD_BINARY) + " " + args + " 2>&1";
-    Run r;
-    FILE* p = popen(cmd.c_str(), "r");
-    REQUIRE(p != nullptr);
-    std::array<char, 4096> buf;
-    while (std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-    const int status = pclose(p);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
 
 force_model::Prediction predict_cpu(const StraightCut& cut) {
     force_model::PredictOptions o;
@@ -77,11 +58,11 @@ TEST_CASE("cutload compare and calibrate end to end", "[calib][cli]") {
         if (t.side == Side::Down) force_model::write_forces_csv(p, (dir / "FORCES.csv").string());
     }
 
-    const Run cal = run_cli(fmt::format("calibrate --tool {} {} --out {}{}", (dir / "TOOL.json").string(),
+    const clitest::Result cal = clitest::run(fmt::format("calibrate --tool {} {} --out {}{}", (dir / "TOOL.json").string(),
                                         kSeedAxesArg, (dir / "MATERIAL.json").string(), tests));
-    INFO(cal.out);
-    REQUIRE(cal.code == 0);
-    CHECK_THAT(cal.out, Catch::Contains("condition number") && Catch::Contains("material ->"));
+    INFO(cal.output);
+    REQUIRE(cal.exit_code == 0);
+    CHECK_THAT(cal.output, Catch::Contains("condition number") && Catch::Contains("material ->"));
     std::ifstream in(dir / "MATERIAL.json");
     const nlohmann::json material = nlohmann::json::parse(in);
     // The file is a valid run-spec material object and holds the truth within 2 %.
@@ -95,22 +76,22 @@ TEST_CASE("cutload compare and calibrate end to end", "[calib][cli]") {
     }
 
     const std::string measured = (dir / "down_0.1.csv").string();
-    const Run cmp = run_cli(fmt::format("compare --predicted {} --measured {} {} --json --report-csv {}",
+    const clitest::Result cmp = clitest::run(fmt::format("compare --predicted {} --measured {} {} --json --report-csv {}",
                                         (dir / "FORCES.csv").string(), measured, kSeedAxesArg,
                                         (dir / "metrics.csv").string()));
-    INFO(cmp.out);
-    REQUIRE(cmp.code == 0);
-    const nlohmann::json report = nlohmann::json::parse(cmp.out);
+    INFO(cmp.output);
+    REQUIRE(cmp.exit_code == 0);
+    const nlohmann::json report = nlohmann::json::parse(cmp.output);
     CHECK(report["offset_s"].get<double>() == Approx(-DynoOptions{}.delay_s).margin(1e-4));
     CHECK(report["overall"]["resultant"]["correlation"].get<double>() > 0.98);
     CHECK(report["blocks"].size() == 1);
     CHECK(std::filesystem::file_size(dir / "metrics.csv") > 100);
 
-    const Run given = run_cli(fmt::format("compare --predicted {} --measured {} {} --offset-s -0.15123 --average rev",
+    const clitest::Result given = clitest::run(fmt::format("compare --predicted {} --measured {} {} --offset-s -0.15123 --average rev",
                                           (dir / "FORCES.csv").string(), measured, kSeedAxesArg));
-    INFO(given.out);
-    CHECK(given.code == 0);
-    CHECK_THAT(given.out, Catch::Contains("offset: -0.151230 s (given)") && Catch::Contains("averaging: revolution"));
+    INFO(given.output);
+    CHECK(given.exit_code == 0);
+    CHECK_THAT(given.output, Catch::Contains("offset: -0.151230 s (given)") && Catch::Contains("averaging: revolution"));
     std::filesystem::remove_all(dir);
 }
 
@@ -121,34 +102,34 @@ TEST_CASE("the CLI reports bad input on one line with exit code 2", "[calib][cli
     std::ofstream(bad) << "DynoWare,Version 3\nSampling rate [Hz]:,10000\nTime,Fx,Fy,Fz\n0,1,2,3\n";
     std::ofstream(forces) << "t_s,spindle_angle_deg,block,fx_N,fy_N,fz_N\n0,0,N1,1,2,3\n0.001,60,N1,1,2,3\n";
 
-    Run r = run_cli(fmt::format("compare --predicted {} --measured {}", forces, bad));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::StartsWith("cutload: error: ") && Catch::Contains("bad.csv:4: missing units row"));
+    clitest::Result r = clitest::run(fmt::format("compare --predicted {} --measured {}", forces, bad));
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::StartsWith("cutload: error: ") && Catch::Contains("bad.csv:4: missing units row"));
 
-    r = run_cli(fmt::format("compare --predicted {} --measured {} --axes 1,2,3", forces, forces));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::Contains("3 numbers where nine"));
+    r = clitest::run(fmt::format("compare --predicted {} --measured {} --axes 1,2,3", forces, forces));
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("3 numbers where nine"));
 
     std::ofstream(dir / "TOOL.json") << R"({"shape": "flat", "diameter_mm": -8})";
-    r = run_cli(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
+    r = clitest::run(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
                             bad, (dir / "M.json").string()));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::Contains("tool.diameter_mm"));
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("tool.diameter_mm"));
 
     std::ofstream(dir / "TOOL.json") << R"({"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30,
         "flute_length_mm": 20, "stickout_mm": 30})";
-    r = run_cli(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:sideways --out {}",
+    r = clitest::run(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:sideways --out {}",
                             (dir / "TOOL.json").string(), bad, (dir / "M.json").string()));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::Contains("mode `sideways`: must be slot, up or down"));
-    r = run_cli(fmt::format("calibrate --tool {} --test {}:fast:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("mode `sideways`: must be slot, up or down"));
+    r = clitest::run(fmt::format("calibrate --tool {} --test {}:fast:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
                             bad, (dir / "M.json").string()));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::Contains("SPINDLE_RPM `fast` is not a number"));
-    r = run_cli(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("SPINDLE_RPM `fast` is not a number"));
+    r = clitest::run(fmt::format("calibrate --tool {} --test {}:10000:800:2:8:slot --out {}", (dir / "TOOL.json").string(),
                             bad, (dir / "M.json").string()));
-    CHECK(r.code == 2);
-    CHECK_THAT(r.out, Catch::Contains("bad.csv:4: missing units row"));
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("bad.csv:4: missing units row"));
     CHECK_FALSE(std::filesystem::exists(dir / "M.json"));
     std::filesystem::remove_all(dir);
 }

@@ -1,43 +1,14 @@
 // The CLI's promise for bad input: a non-zero exit, one line "cutload: error: ..." naming the
 // place and the reason, and no output file written.
-#include <catch2/catch.hpp>
+#include "cli/run_cli.hpp"
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <string>
-#include <sys/wait.h>
 
 namespace fs = std::filesystem;
+using namespace cutload::clitest;
 
 namespace {
-
-struct Result {
-    int exit_code = -1;
-    std::string output;   // stdout and stderr together
-};
-
-Result run(const std::string& args) {
-    const std::string cmd = std::string(CUTLOAD_BINARY) + " " + args + " 2>&1";
-    Result r;
-    FILE* pipe = popen(cmd.c_str(), "r");
-    REQUIRE(pipe != nullptr);
-    std::array<char, 4096> buf{};
-    while (fgets(buf.data(), static_cast<int>(buf.size()), pipe)) r.output += buf.data();
-    const int status = pclose(pipe);
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
-
-// A fresh, empty scratch folder per test.
-fs::path scratch(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("cutload_cli_test_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 void require_one_error_line(const Result& r, const std::string& must_contain) {
     INFO(r.output);

@@ -1,46 +1,18 @@
 // `cutload predict --program` and `cutload optimize` as a user runs them: output files with
 // the comparison columns, consistent with each other, and one-line errors for bad programs.
-#include <catch2/catch.hpp>
+#include "cli/run_cli.hpp"
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 #include <vector>
 
 namespace fs = std::filesystem;
+using namespace cutload::clitest;
 
 namespace {
-
-struct Result {
-    int exit_code = -1;
-    std::string output;
-};
-
-Result run(const std::string& args) {
-    const std::string cmd = std::string(CUTLOAD_BINARY) + " " + args + " 2>&1";
-    Result r;
-    FILE* pipe = popen(cmd.c_str(), "r");
-    REQUIRE(pipe != nullptr);
-    std::array<char, 4096> buf{};
-    while (fgets(buf.data(), static_cast<int>(buf.size()), pipe)) r.output += buf.data();
-    const int status = pclose(pipe);
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
-
-fs::path scratch(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("cutload_cli_program_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 void write(const fs::path& p, const std::string& text) {
     std::ofstream out(p, std::ios::binary);
@@ -99,7 +71,7 @@ void write_slot(const fs::path& dir) {
 }  // namespace
 
 TEST_CASE("predict --program adds the comparison columns to BLOCKS.csv, consistent with --compare", "[cli][program]") {
-    const fs::path dir = scratch("predict");
+    const fs::path dir = scratch("program_predict");
     const Result r = run("predict " + source("data/demo_dryrun.csv") + " --spec " + source("data/demo_run.json") +
                          " --device cpu -q --out " + (dir / "forces.csv").string() + " --blocks " +
                          (dir / "blocks.csv").string() + " --program " + source("data/demo_program.nc") + " --compare " +
@@ -132,7 +104,7 @@ TEST_CASE("predict --program adds the comparison columns to BLOCKS.csv, consiste
 }
 
 TEST_CASE("optimize writes a program that differs only in F words and meets the target", "[cli][program]") {
-    const fs::path dir = scratch("optimize");
+    const fs::path dir = scratch("program_optimize");
     write_slot(dir);
     const Result r = run("optimize " + (dir / "slot.csv").string() + " --spec " + (dir / "slot.json").string() +
                          " --program " + (dir / "slot.nc").string() + " --target 0.8 --max-feed 20000 --device cpu -q" +
@@ -167,7 +139,7 @@ TEST_CASE("optimize writes a program that differs only in F words and meets the 
 }
 
 TEST_CASE("a bad program is a one-line error naming file, line and word", "[cli][program]") {
-    const fs::path dir = scratch("bad");
+    const fs::path dir = scratch("program_bad");
     write_slot(dir);
     write(dir / "g41.nc", "%\nN10 G01 X1. F100\nN20 G41 X2.\n%\n");
     Result r = run("predict " + (dir / "slot.csv").string() + " --spec " + (dir / "slot.json").string() + " --out " +

@@ -132,6 +132,20 @@ inline json wait_finished(httplib::Client& c, std::int64_t id, double timeout_s 
     }
 }
 
+// Polls the newest delivery of a webhook until it leaves 'pending' (or timeout_s passes).
+inline json wait_delivery_settled(httplib::Client& admin, std::int64_t hook_id, double timeout_s = 10) {
+    const std::string path = "/api/v1/webhooks/" + std::to_string(hook_id) + "/deliveries";
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    json d;
+    do {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        auto r = admin.Get(path.c_str());
+        REQUIRE(r);
+        d = json::parse(r->body)["items"][0];
+    } while (d["state"] == "pending" && std::chrono::steady_clock::now() < until);
+    return d;
+}
+
 inline void require_error(const httplib::Result& r, int status, const std::string& code, const std::string& in_message = "") {
     REQUIRE(r);
     INFO(r->body);

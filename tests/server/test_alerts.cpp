@@ -156,12 +156,7 @@ TEST_CASE("alerts: a receiver that never answers 2xx gets max attempts and the d
     spec["limits"] = {{"force_N", 20}};
     auto r = upload(admin, slot_log_csv(0.8), spec);
     REQUIRE(wait_finished(admin, body(r)["id"])["summary"]["alerts"] == 1);
-    json d;
-    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    do {
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        d = body(admin.Get(("/api/v1/webhooks/" + std::to_string(hook) + "/deliveries").c_str()))["items"][0];
-    } while (d["state"] == "pending" && std::chrono::steady_clock::now() < until);
+    const json d = wait_delivery_settled(admin, hook);
     REQUIRE(d["state"] == "failed");
     REQUIRE(d["attempts"] == 3);
     REQUIRE(d["log"].size() == 3);

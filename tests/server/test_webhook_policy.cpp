@@ -49,12 +49,7 @@ TEST_CASE("webhooks: a stored link-local target is refused at delivery without a
     spec["limits"] = {{"force_N", 20}};
     REQUIRE(wait_finished(admin, body(upload(admin, slot_log_csv(0.8), spec))["id"])["summary"]["alerts"] == 1);
     const int hook = body(admin.Get("/api/v1/webhooks"))["items"][0]["id"];
-    json d;
-    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    do {
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        d = body(admin.Get(("/api/v1/webhooks/" + std::to_string(hook) + "/deliveries").c_str()))["items"][0];
-    } while (d["state"] == "pending" && std::chrono::steady_clock::now() < until);
+    const json d = wait_delivery_settled(admin, hook);
     INFO(d.dump());
     REQUIRE(d["state"] == "failed");
     REQUIRE(d["log"].size() == 2);

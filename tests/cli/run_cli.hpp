@@ -1,0 +1,42 @@
+// Shared by the tests that run the `cutload` executable as a user would: run it, read what it
+// printed and its exit code, find bundled data, get a fresh scratch folder.
+#pragma once
+
+#include <catch2/catch.hpp>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <sys/wait.h>
+
+namespace cutload::clitest {
+
+struct Result {
+    int exit_code = -1;
+    std::string output;   // stdout and stderr together
+};
+
+inline Result run(const std::string& args) {
+    const std::string cmd = std::string(CUTLOAD_BINARY) + " " + args + " 2>&1";
+    Result r;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    REQUIRE(pipe != nullptr);
+    std::array<char, 4096> buf{};
+    while (fgets(buf.data(), static_cast<int>(buf.size()), pipe)) r.output += buf.data();
+    const int status = pclose(pipe);
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+inline std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
+
+// A fresh, empty scratch folder per test.
+inline std::filesystem::path scratch(const std::string& name) {
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("cutload_cli_test_" + name);
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+}  // namespace cutload::clitest
