@@ -80,13 +80,7 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& e) {
-        return app.exit(e);   // --help, --version
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForAllHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForVersion& e) {
-        return app.exit(e);
+        return app.exit(e);   // --help, --help-all, --version (CLI11 derives them from Success)
     } catch (const CLI::ParseError& e) {
         // One line in the same format as every other error, so scripts can rely on it.
         std::fprintf(stderr, "cutload: error: %s (see cutload --help)\n", e.what());
