@@ -34,7 +34,14 @@ double median_interval(const std::vector<PosRead>& r) {
 }
 
 constexpr int kCoarsePhases = 16;
+constexpr std::size_t kTrustedPairs = 40;   // moving pairs from which a scanned period is used
+// On a stretch too short to track the phase chunk by chunk, the window of good phases can be
+// narrower than a coarse phase step (readings within tens of microseconds of a tick); missing it
+// makes a wrong period look best.
+constexpr int kFinePhases = 256;
 constexpr std::size_t kTrackChunk = 64;   // readings per phase estimate, as the repair uses them
+// Fewer readings than this span too few chunks for the phase drift to refine the period.
+constexpr std::size_t kShortStretchReads = 4 * kTrackChunk;
 
 // Roughness with the phase re-chosen for every chunk of readings, as the repair tracks it: a
 // slightly wrong period or a drifting client clock then costs nothing, a wrong period a lot.
@@ -59,9 +66,9 @@ struct Candidate {
 
 // Scans periods geometrically in [lo, hi]; returns the `keep` best local minima, best first.
 std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, double hi, double rel_step,
-                                    std::size_t keep) {
+                                    std::size_t keep, int phases) {
     std::vector<Candidate> all;
-    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, tracked_roughness(r, n, T, kCoarsePhases)});
+    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, tracked_roughness(r, n, T, phases)});
     std::vector<Candidate> minima;
     for (std::size_t i = 0; i < all.size(); ++i) {
         const bool left = i == 0 || all[i].roughness <= all[i - 1].roughness;
@@ -76,6 +83,7 @@ std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, 
 // A period slightly off makes the best phase drift steadily from chunk to chunk: a tick at time t
 // sits at phase (t * (T_true - T) / T_true) mod T on the trial grid. The slope of the unwrapped
 // phase against time gives T_true far more precisely than any scan over a short stretch.
+// 0 when the readings span too few chunks to show a drift.
 double refine_by_phase_drift(const std::vector<PosRead>& reads, double T) {
     std::vector<double> tm, ph;
     double prev = -1, unwrap = 0;
@@ -91,7 +99,7 @@ double refine_by_phase_drift(const std::vector<PosRead>& reads, double T) {
         tm.push_back(reads[s + kTrackChunk / 2].t_s);
         ph.push_back(unwrap);
     }
-    if (tm.size() < 4) return T;
+    if (tm.size() < 4) return 0;
     double mt = 0, mp = 0;
     for (std::size_t i = 0; i < tm.size(); ++i) mt += tm[i], mp += ph[i];
     mt /= static_cast<double>(tm.size()), mp /= static_cast<double>(tm.size());
@@ -100,6 +108,116 @@ double refine_by_phase_drift(const std::vector<PosRead>& reads, double T) {
     if (sxx <= 0) return T;
     const double slope = sxy / sxx;
     return std::fabs(slope) < 0.01 ? T / (1.0 - slope) : T;
+}
+
+// Bounds the time stamps put on the tick grid, one per reading that shows or precedes a change.
+struct TickBound {
+    double t_s, n;        // time since the first tick, tick index
+    bool lower, upper;    // the reading shows a new position / is followed by one
+};
+
+std::vector<TickBound> tick_bounds(const std::vector<PosRead>& reads, double T, double phase) {
+    // Relative to the first tick, so that n * T stays small.
+    const double tick0 = tick_at_or_before(reads.front().t_s, T, phase);
+    std::vector<TickBound> bounds;
+    for (std::size_t k = 0; k < reads.size(); ++k) {
+        const bool lower = k > 0 && moved(reads[k - 1], reads[k]);
+        const bool upper = k + 1 < reads.size() && moved(reads[k], reads[k + 1]);
+        if (!lower && !upper) continue;
+        const double t = reads[k].t_s - tick0;
+        bounds.push_back({t, std::floor(t / T), lower, upper});
+    }
+    return bounds;
+}
+
+double window_width(const std::vector<TickBound>& bounds, double T) {
+    double hi = 1e300, lo = -1e300;
+    for (const TickBound& b : bounds) {
+        if (b.lower) hi = std::min(hi, b.t_s - b.n * T);
+        if (b.upper) lo = std::max(lo, b.t_s - (b.n + 1) * T);
+    }
+    return hi - lo;
+}
+
+// Golden-section search of the concave window width over [a, b].
+double widest_window_period(const std::vector<TickBound>& bounds, double a, double b) {
+    constexpr double kInvPhi = 0.6180339887498949;
+    double c = b - kInvPhi * (b - a), d = a + kInvPhi * (b - a);
+    double wc = window_width(bounds, c), wd = window_width(bounds, d);
+    for (int i = 0; i < 80; ++i) {
+        if (wc >= wd) {
+            b = d, d = c, wd = wc;
+            c = b - kInvPhi * (b - a), wc = window_width(bounds, c);
+        } else {
+            a = c, c = d, wc = wd;
+            d = a + kInvPhi * (b - a), wd = window_width(bounds, d);
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+// The roundest period in [lo, hi] (a multiple of 1, 0.5, 0.25 or 0.125 ms, nearest to `near`);
+// 0 when there is none.
+double nominal_period_in(double lo, double hi, double near) {
+    for (double step_s : {1e-3, 0.5e-3, 0.25e-3, 0.125e-3}) {
+        double pick = 0;
+        for (double m : {std::floor(near / step_s), std::ceil(near / step_s)}) {
+            const double T = m * step_s;
+            if (T >= lo && T <= hi && (pick == 0 || std::fabs(T - near) < std::fabs(pick - near))) pick = T;
+        }
+        if (pick > 0) return pick;
+    }
+    return 0;
+}
+
+// On a stretch too short to show a phase drift the roughness cannot fix the period: it compares
+// velocities only, and every period that keeps each reading on the same tick scales them all
+// alike. The time stamps bound it. With the tick index n_k of every reading fixed by the trial
+// grid, a reading that shows a new position lies at or after its tick and one followed by a new
+// position lies before the next tick, so the phase must satisfy
+//   t_k - (n_k + 1) T < phase <= t_k - n_k T.
+// The width of that window is concave in T; the periods where it is positive are all the stamps
+// allow. In the seed's pattern the read phase only alternates between two values and wanders
+// slowly, so 20 readings allow about +-2 %: too loose for a feed. CNCs run their position loop
+// at a nominal period, a round number of milliseconds (the seed's FANUC: 4 ms), so the roundest
+// period in the range is taken; without one, the period that maximises the window. Either way
+// the error is bounded by the range, and the caller warns. Without a nominal period inside it
+// the scan's own period stands.
+UpdatePeriod refine_by_tick_bounds(const std::vector<PosRead>& reads, double T0) {
+    UpdatePeriod out;
+    out.period_s = out.min_s = out.max_s = T0;
+    out.short_stretch = true;
+    const double search_lo = T0 / 1.05, search_hi = T0 * 1.05;
+    // The ticks are assigned on the trial grid, the period of least roughness: not re-assigned
+    // on the widest window's, which a slow wander of the read phase can pull off by a few per
+    // cent, where a reading at a change of motion then lands on another tick.
+    const double phase = best_phase(reads.data(), reads.size(), T0, -1, kFinePhases);
+    if (phase < 0) return out;
+    const std::vector<TickBound> bounds = tick_bounds(reads, T0, phase);
+    const double T = widest_window_period(bounds, search_lo, search_hi);
+    out.period_s = out.min_s = out.max_s = T;
+    if (window_width(bounds, T) <= 0) return out;   // stamps too noisy to bound the period
+    // Ends of the range where the window closes (it is concave: one interval).
+    auto edge = [&](double inside, double outside) {
+        if (window_width(bounds, outside) > 0) return outside;
+        for (int i = 0; i < 60; ++i) {
+            const double mid = 0.5 * (inside + outside);
+            (window_width(bounds, mid) > 0 ? inside : outside) = mid;
+        }
+        return inside;
+    };
+    out.min_s = edge(T, search_lo);
+    out.max_s = edge(T, search_hi);
+    const double nominal = nominal_period_in(out.min_s, out.max_s, T);
+    if (nominal > 0) {
+        out.period_s = nominal;
+        out.nominal = true;
+    } else {
+        // Motion that changes speed can put a reading near a tick on its neighbour, and the
+        // range then misses the true period: the least-roughness period is the safer guess.
+        out.period_s = T0;
+    }
+    return out;
 }
 
 }  // namespace
@@ -146,42 +264,62 @@ double tick_roughness(const PosRead* r, std::size_t n, double period_s, double p
     return pairs ? cost / static_cast<double>(pairs) : 0.0;
 }
 
-double estimate_update_period(const std::vector<PosRead>& reads) {
-    constexpr std::size_t kMinPairs = 40;
-    if (count_moving_pairs(reads.data(), reads.size()) < kMinPairs) return 0;
+UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
+    const std::size_t pairs = count_moving_pairs(reads.data(), reads.size());
+    if (pairs < kMinPeriodPairs) return {};
     const double med = median_interval(reads);
     const double lo = 0.5e-3, hi = std::min(0.05, 3 * med);
-    if (hi <= lo) return 0;
+    if (hi <= lo) return {};
     // Coarse on a short stretch (a coarse period step builds up little phase error there), then
     // the few best local minima fine on a longer one: a stretch where the reads sit right at the
     // ticks can make a wrong period look good on the short stretch, never on the long one.
     const std::size_t n_coarse = prefix_with_moving_pairs(reads, 128);
     const std::size_t n_fine = prefix_with_moving_pairs(reads, 512);
-    double T = 0, best = 1e300;
-    for (const Candidate& c : scan_periods(reads.data(), n_coarse, lo, hi, 2.5e-3, 5)) {
-        const auto fine = scan_periods(reads.data(), n_fine, c.period_s * (1 - 5e-3), c.period_s * (1 + 5e-3), 2.5e-4, 1);
-        if (!fine.empty() && fine.front().roughness < best) best = fine.front().roughness, T = fine.front().period_s;
-    }
-    if (T == 0) return 0;
-    T = refine_by_phase_drift(reads, T);
-    const double rough = tracked_roughness(reads.data(), reads.size(), T, 32);
+    auto scan = [&](int phases) {
+        double T = 0, best = 1e300;
+        for (const Candidate& c : scan_periods(reads.data(), n_coarse, lo, hi, 2.5e-3, 5, phases)) {
+            const auto fine =
+                scan_periods(reads.data(), n_fine, c.period_s * (1 - 5e-3), c.period_s * (1 + 5e-3), 2.5e-4, 1, phases);
+            if (!fine.empty() && fine.front().roughness < best) best = fine.front().roughness, T = fine.front().period_s;
+        }
+        return T;
+    };
     const double raw = tracked_roughness(reads.data(), reads.size(), 0, 1);
     // Accept only a clear improvement over the readings' own time stamps, and only when they
     // show a beat at all. A "grid" as fine as the reads themselves would merely erase their
     // jitter and rescale the velocity: the time stamps are then the better clock.
-    if (raw < 1e-3 || std::fabs(T / med - 1.0) < 0.05) return 0;
-    return rough < 0.3 * raw ? T : 0.0;
+    auto accepted = [&](double T) {
+        return raw >= 1e-3 && std::fabs(T / med - 1.0) >= 0.05 &&
+               tracked_roughness(reads.data(), reads.size(), T, 32) < 0.3 * raw;
+    };
+    // A stretch too short for the phase drift: the nominal period the time stamps allow, if any
+    // (per cent closer than the scan there), and if it fits the readings.
+    if (reads.size() <= kShortStretchReads) {
+        if (const double T = scan(kFinePhases); T > 0) {
+            const UpdatePeriod bounded = refine_by_tick_bounds(reads, T);
+            if (bounded.nominal && accepted(bounded.period_s)) return bounded;
+        }
+    }
+    // Otherwise the scan, refined by the phase drift where the stretch is long enough; with fewer
+    // than kTrustedPairs the scan alone is too loose (per cent) to be used.
+    if (pairs < kTrustedPairs) return {};
+    const double T = scan(kCoarsePhases);
+    if (T == 0) return {};
+    const double drift_T = refine_by_phase_drift(reads, T);
+    UpdatePeriod out;
+    out.period_s = drift_T > 0 ? drift_T : T;
+    if (!accepted(out.period_s)) return {};
+    return out;
 }
 
-double best_phase(const PosRead* r, std::size_t n, double period_s, double fallback_s) {
-    constexpr int kPhases = 16;
+double best_phase(const PosRead* r, std::size_t n, double period_s, double fallback_s, int phases) {
     if (period_s <= 0) return 0;
     std::size_t pairs = 0;
-    double rough[kPhases];
+    std::vector<double> rough(static_cast<std::size_t>(phases));
     double best = 1e300;
-    for (int i = 0; i < kPhases; ++i) {
-        rough[i] = tick_roughness(r, n, period_s, period_s * i / kPhases, &pairs);
-        best = std::min(best, rough[i]);
+    for (int i = 0; i < phases; ++i) {
+        rough[static_cast<std::size_t>(i)] = tick_roughness(r, n, period_s, period_s * i / phases, &pairs);
+        best = std::min(best, rough[static_cast<std::size_t>(i)]);
     }
     if (pairs < 8) return fallback_s;
     // Middle of the longest circular run of near-best phases: the tick grid then sits as far as
@@ -189,15 +327,16 @@ double best_phase(const PosRead* r, std::size_t n, double period_s, double fallb
     // One reading put on a wrong tick adds about 0.4 / pairs; position quantisation far less.
     const double tol = best + 0.1 / static_cast<double>(std::max<std::size_t>(pairs, 1));
     int best_start = 0, best_len = 0;
-    for (int start = 0; start < kPhases; ++start) {
-        if (rough[start] > tol || rough[(start + kPhases - 1) % kPhases] <= tol) continue;
+    for (int start = 0; start < phases; ++start) {
+        if (rough[static_cast<std::size_t>(start)] > tol || rough[static_cast<std::size_t>((start + phases - 1) % phases)] <= tol)
+            continue;
         int len = 0;
-        while (len < kPhases && rough[(start + len) % kPhases] <= tol) ++len;
+        while (len < phases && rough[static_cast<std::size_t>((start + len) % phases)] <= tol) ++len;
         if (len > best_len) best_len = len, best_start = start;
     }
     if (best_len == 0) return fallback_s;  // every phase equally good: nothing to learn here
     const double mid = best_start + (best_len - 1) / 2.0;
-    return period_s * std::fmod(mid, kPhases) / kPhases;
+    return period_s * std::fmod(mid, phases) / phases;
 }
 
 }  // namespace cutload::motion_io::detail

@@ -26,13 +26,26 @@ double tick_at_or_before(double t_s, double period_s, double phase_s);
 double tick_roughness(const PosRead* reads, std::size_t n, double period_s, double phase_s,
                       std::size_t* pairs = nullptr);
 
-// Estimated update period (s) from readings of a moving machine; 0 when the readings show no
+// Fewest moving pairs of readings from which estimate_update_period() tries to find a grid.
+inline constexpr std::size_t kMinPeriodPairs = 12;
+
+struct UpdatePeriod {
+    double period_s = 0;   // 0: not estimated
+    // Set when the readings were too few to measure the period by its phase drift: the range of
+    // periods their time stamps allow, and whether a nominal (round) period inside it was taken.
+    bool short_stretch = false;
+    double min_s = 0, max_s = 0;
+    bool nominal = false;
+};
+
+// Estimated update period from readings of a moving machine; period 0 when the readings show no
 // update grid that explains them better than their own time stamps (too few moving readings,
 // event-driven logs, or already uniform sampling).
-double estimate_update_period(const std::vector<PosRead>& reads);
+UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads);
 
 // Tick phase (s, in [0, period)) that best explains reads[0..n); `fallback` when they barely move.
 // The chosen phase is the middle of the range of equally good phases, far from read times.
-double best_phase(const PosRead* reads, std::size_t n, double period_s, double fallback_s);
+// `phases` trial phases are compared.
+double best_phase(const PosRead* reads, std::size_t n, double period_s, double fallback_s, int phases = 16);
 
 }  // namespace cutload::motion_io::detail

@@ -159,14 +159,18 @@ void Repairer::process_batch(bool final) {
     if (period_s_ == 0 && calibration_attempts_ < 3 && !event_driven_) {
         const std::size_t pairs = moving_pairs(pending_, 0, pending_.size());
         if (pairs < kMinMovingPairs && !final && pending_.size() < kCalibrationMaxWait) return;
-        if (pairs >= kMinMovingPairs) {
+        // A session that ends before the streaming wait is over still gets its grid from the
+        // little it has.
+        if (pairs >= kMinMovingPairs || (final && pairs >= kMinPeriodPairs)) {
             ++calibration_attempts_;
             // Calibrate on the moving stretch, starting one reading before its first move.
             std::size_t first = 1;
             while (first < pending_.size() && same_position(pending_[first - 1], pending_[first])) ++first;
             const std::size_t begin = first - 1, end = std::min(pending_.size(), begin + kCalibrationReads);
-            period_s_ = estimate_update_period(std::vector<PosRead>(pending_.begin() + static_cast<long>(begin),
-                                                                    pending_.begin() + static_cast<long>(end)));
+            const UpdatePeriod found = estimate_update_period(
+                std::vector<PosRead>(pending_.begin() + static_cast<long>(begin), pending_.begin() + static_cast<long>(end)));
+            period_s_ = found.period_s;
+            if (period_s_ > 0 && found.short_stretch) warn_short_stretch(found, end - begin);
         }
     }
     // The last reading stays for the next batch: timing a reading looks at its successor.
@@ -196,6 +200,18 @@ void Repairer::process_batch(bool final) {
         }
     }
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(commit));
+}
+
+// Too few readings to measure the period by its phase drift: say what the time stamps allowed
+// and what was taken, so a user can judge a feed that rests on it.
+void Repairer::warn_short_stretch(const UpdatePeriod& found, std::size_t reads) {
+    const std::string taken = found.nominal
+        ? fmt::format("the nominal {:.3f} ms inside it taken", found.period_s * 1e3)
+        : fmt::format("{:.4f} ms taken (no round period inside it)", found.period_s * 1e3);
+    diag_.warn("period_short_log", session_first_line_,
+               fmt::format("CNC update period from {} position readings only (too few to measure its drift): the "
+                           "time stamps allow {:.3f} to {:.3f} ms; {}",
+                           reads, found.min_s * 1e3, found.max_s * 1e3, taken));
 }
 
 double Repairer::wrap_half_period(double d) const { return d - period_s_ * std::round(d / period_s_); }

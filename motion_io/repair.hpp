@@ -42,6 +42,7 @@ private:
     void stale_filter(const PosRead& read, std::size_t line);
     void accept_read(const PosRead& read);
     void process_batch(bool final);
+    void warn_short_stretch(const UpdatePeriod& found, std::size_t reads);
     double tick_of(std::size_t pending_index) const;
     double wrap_half_period(double d) const;
     void follow_phase();

@@ -125,13 +125,8 @@ TEST_CASE("physics: a log in the seed's irregular sampling pattern gives the sam
     }
 }
 
-// Disagreement found while writing these tests (reported to the lead): on a short log (8 mm of
-// cut, about 24 client cycles) ingest's repaired feed swings between about 50 % and 150 % of the
-// true feed with the 12 ms read/update beat, so every tooth sees a different chip. The means
-// still agree (forces are linear in the chip), the per-tooth peaks do not. Marked mayfail until
-// ingest repairs short logs (or refuses them with a warning) - then drop the tag.
 TEST_CASE("physics: a short seed-pattern log gives the same per-tooth forces as a 1 ms log",
-          "[physics][sampling][!mayfail]") {
+          "[physics][sampling]") {
     for (force_model::Device device : devices_under_test()) {
         const LogComparison c = compare_logs(kSeedCut, 8.0, device);
         const double diff = relative_force_error(c.irregular.forces, c.regular.forces);
