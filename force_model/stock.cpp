@@ -20,8 +20,9 @@ namespace cutload::force_model {
 namespace {
 
 constexpr char kMagic[8] = {'C', 'U', 'T', 'L', 'S', 'T', 'K', '\0'};
-// Version 2 adds the sub-cell walls (sparse, after the rays); version 1 files load without walls.
-constexpr std::uint32_t kVersion = 2;
+// Version 2 adds the sub-cell walls (sparse, after the rays); version 3 a second list with each
+// ray's lower wall. Version 1 files load without walls, version 2 files without lower walls.
+constexpr std::uint32_t kVersion = 3;
 
 struct WallEntry {
     std::uint64_t ray;
@@ -104,7 +105,7 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     if (rays > 400'000'000ull) throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
     s->codec = kernels::RayCodec::for_column(float(box.min_mm[2]), float(box.max_mm[2]));
     s->storage = ZeroPages(rays * kernels::kDexelFloats * sizeof(float));   // all rays: the full box column
-    s->walls = ZeroPages(rays * kernels::kWallFloats * sizeof(float));      // no walls
+    s->walls = ZeroPages(rays * kernels::kWallSlots * kernels::kWallFloats * sizeof(float));   // no walls
     return s;
 }
 
@@ -143,17 +144,19 @@ void save_stock(const Stock& s, const std::string& path) {
             out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
             sum = fnv1a(ray.data(), sizeof ray, sum);
         }
-        std::vector<WallEntry> walls;
         const kernels::DexelView v = s.view();
-        for (std::size_t r = 0; r < s.rays(); ++r) {
-            const kernels::Wall w = v.wall(r);
-            if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
+        for (int slot = 0; slot < kernels::kWallSlots; ++slot) {
+            std::vector<WallEntry> walls;
+            for (std::size_t r = 0; r < s.rays(); ++r) {
+                const kernels::Wall w = v.wall(r, slot);
+                if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
+            }
+            const std::uint64_t n_walls = walls.size();
+            out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
+            sum = fnv1a(&n_walls, sizeof n_walls, sum);
+            out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
+            sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
         }
-        const std::uint64_t n_walls = walls.size();
-        out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
-        sum = fnv1a(&n_walls, sizeof n_walls, sum);
-        out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
-        sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
         out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
         if (!out) throw std::runtime_error("writing stock file " + tmp + " failed");
     }
@@ -167,8 +170,8 @@ StockPtr load_stock(const std::string& path) {
     in.read(reinterpret_cast<char*>(&h), sizeof h);
     if (!in || std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
         throw std::runtime_error(path + ": not a cutload stock file (bad magic)");
-    if (h.version != 1 && h.version != kVersion)
-        throw std::runtime_error(path + ": stock file version " + std::to_string(h.version) + ", this build reads " +
+    if (h.version < 1 || h.version > kVersion)
+        throw std::runtime_error(path + ": stock file version " + std::to_string(h.version) + ", this build reads 1 to " +
                                  std::to_string(kVersion));
     if (h.intervals != std::uint32_t(kernels::kDexelIntervals))
         throw std::runtime_error(path + ": stock file has " + std::to_string(h.intervals) +
@@ -184,7 +187,7 @@ StockPtr load_stock(const std::string& path) {
     }
     s->codec = kernels::RayCodec::for_column(float(h.box_min[2]), float(h.box_max[2]));
     s->storage = ZeroPages(s->rays() * kernels::kDexelFloats * sizeof(float));
-    s->walls = ZeroPages(s->rays() * kernels::kWallFloats * sizeof(float));
+    s->walls = ZeroPages(s->rays() * kernels::kWallSlots * kernels::kWallFloats * sizeof(float));
     std::uint64_t sum = fnv1a(&h, sizeof h);
     const kernels::Ray full = s->codec.decode(kernels::Ray{}.data());
     std::vector<kernels::Ray> row(std::size_t(h.nx));
@@ -195,7 +198,8 @@ StockPtr load_stock(const std::string& path) {
         for (std::size_t k = 0; k < row.size(); ++k)
             if (row[k] != full) s->codec.encode(row[k], s->stored() + (r + k) * kernels::kDexelFloats);
     }
-    if (in && h.version >= 2) {
+    const int wall_lists = h.version >= 3 ? 2 : h.version == 2 ? 1 : 0;
+    for (int slot = 0; slot < wall_lists && in; ++slot) {
         std::uint64_t n_walls = 0;
         in.read(reinterpret_cast<char*>(&n_walls), sizeof n_walls);
         sum = fnv1a(&n_walls, sizeof n_walls, sum);
@@ -207,7 +211,7 @@ StockPtr load_stock(const std::string& path) {
             if (!in) break;
             sum = fnv1a(&e, sizeof e, sum);
             if (e.ray >= s->rays()) throw std::runtime_error(path + ": stock file is corrupt (wall ray index)");
-            v.store_wall(e.ray, {e.wall[0], e.wall[1], e.wall[2], e.wall[3]});
+            v.store_wall(e.ray, {e.wall[0], e.wall[1], e.wall[2], e.wall[3]}, slot);
         }
     }
     std::uint64_t stored = 0;

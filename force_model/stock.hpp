@@ -38,7 +38,7 @@ public:
     kernels::GridInfo grid;
     kernels::RayCodec codec;   // base column: the box's full height
     ZeroPages storage;         // encoded rays, kDexelFloats floats each, row-major (j * nx + i)
-    ZeroPages walls;           // encoded sub-cell walls, kWallFloats floats per ray, same order
+    ZeroPages walls;           // encoded sub-cell walls, kWallSlots * kWallFloats floats per ray, same order
 
     std::size_t rays() const { return std::size_t(grid.nx) * std::size_t(grid.ny); }
     float* stored() const { return static_cast<float*>(storage.data()); }

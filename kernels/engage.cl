@@ -12,7 +12,8 @@
 // rot:    per spin (+1 first, then -1), per flute: cos psi[stride], sin psi[stride] with
 //         psi = -2 pi j / N + spin * lag, so the edge direction is alpha = A + psi
 // cells:  2 float4 per ray: lo[4], hi[4], each XOR-ed with base_lo / base_hi (RayCodec)
-// walls:  1 float4 per ray: clearance (bits XOR-ed with NO_WALL's), z_from, normal x, y (Wall)
+// walls:  2 float4 per ray, the deepest wall then the lowest (empty when it is the same): clearance
+//         (bits XOR-ed with NO_WALL's), z_from, normal x, y (Wall)
 // coef:   Ktc, Krc, Kac, Kte, Kre, Kae, holder face height, minimum chip thickness, cell size,
 //         wall tolerance
 // out:    12 floats per step (StepResult)
@@ -43,7 +44,8 @@ float4 decode(const float4 stored, const uint4 base) { return as_float4(as_uint4
 // cell's ray describes its centre; a wall recorded there places the point itself. On the swept side
 // of the wall the material from the wall's foot up is gone. On the far side of a wall that passes
 // between a swept centre and the point, the point has the material of the ray one cell across the
-// wall. Twin: material_at in twins.cpp.
+// wall. The ray's second (lower) wall only takes out the material on its swept side. Twin:
+// material_at in twins.cpp.
 __attribute__((always_inline)) void material_at(__global const float4* cells, __global const float4* walls, const uint4 base_lo,
                  const uint4 base_hi, const int c, const float u, const float v, const int nx, const int ny,
                  const float cell_mm, const float wall_tol, float4* lo, float4* hi) {
@@ -51,26 +53,32 @@ __attribute__((always_inline)) void material_at(__global const float4* cells, __
     *hi = decode(cells[2 * c + 1], base_hi);
     if ((*lo).w != WALL_MARK) return;   // no wall: the ray says so in its last slot
     const int ci = (int)u, cj = (int)v;   // u, v >= 0: truncation is floor
-    const float4 w = walls[c];
+    const float fu = u - (float)ci - 0.5f, fv = v - (float)cj - 0.5f;
+    const float4 w = walls[2 * c], w_low = walls[2 * c + 1];
     const float clearance = as_float(as_uint(w.x) ^ as_uint(NO_WALL));
-    const float depth = clearance + ((u - (float)ci - 0.5f) * w.z + (v - (float)cj - 0.5f) * w.w) * cell_mm;
-    if (depth <= wall_tol) {
+    const float clearance_low = as_float(as_uint(w_low.x) ^ as_uint(NO_WALL));
+    float swept_from = NO_WALL;   // material from this height up is gone
+    if (clearance + (fu * w.z + fv * w.w) * cell_mm <= wall_tol) {
+        swept_from = w.y;
+    } else if (clearance <= 0.0f) {
+        const int ai = (int)floor((float)ci + 0.5f + w.z), aj = (int)floor((float)cj + 0.5f + w.w);
+        if (ai < 0 || aj < 0 || ai >= nx || aj >= ny) {
+            *lo = (float4)(EMPTY_LO);
+            *hi = (float4)(EMPTY_HI);
+            return;
+        }
+        *lo = decode(cells[2 * (aj * nx + ai)], base_lo);
+        *hi = decode(cells[2 * (aj * nx + ai) + 1], base_hi);
+    }
+    if (clearance_low < NO_WALL && clearance_low + (fu * w_low.z + fv * w_low.w) * cell_mm <= wall_tol)
+        swept_from = min(swept_from, w_low.y);
+    if (swept_from < NO_WALL) {
         // Float round-off must not leave the foot itself in material (a flat bottom on the floor).
-        const float4 top = min(*hi, (float4)(w.y - SLIVER));
-        const int4 keep = isgreater(top - *lo, (float4)(SLIVER)) | isless(*hi, (float4)(w.y - SLIVER));
+        const float4 top = min(*hi, (float4)(swept_from - SLIVER));
+        const int4 keep = isgreater(top - *lo, (float4)(SLIVER)) | isless(*hi, (float4)(swept_from - SLIVER));
         *lo = select((float4)(EMPTY_LO), *lo, keep);
         *hi = select((float4)(EMPTY_HI), top, keep);
-        return;
     }
-    if (clearance > 0.0f) return;
-    const int ai = (int)floor((float)ci + 0.5f + w.z), aj = (int)floor((float)cj + 0.5f + w.w);
-    if (ai < 0 || aj < 0 || ai >= nx || aj >= ny) {
-        *lo = (float4)(EMPTY_LO);
-        *hi = (float4)(EMPTY_HI);
-        return;
-    }
-    *lo = decode(cells[2 * (aj * nx + ai)], base_lo);
-    *hi = decode(cells[2 * (aj * nx + ai) + 1], base_hi);
 }
 
 // Length of the element span [za, zb) inside material on one ray (pieces over SLIVER).

@@ -56,8 +56,16 @@ struct RayCodec {
 // cylinder stands (tip + lower surface at R). Engagement uses it to place an edge point
 // against the wall to well within a cell (docs/force_model.md, "Sub-cell walls").
 //
-// Stored as 4 floats per ray, the clearance's bits XOR-ed with kNoWall's, so all-zero bytes mean
-// "no wall recorded" (lazily mapped pages, like the rays). A ray with a wall says so itself: its
+// A second wall per ray keeps the side surface lower down: of the walls recorded, the one that
+// starts lowest (z_from; within a cell of height, the smaller clearance). A higher sweep that takes
+// the centre in deeper (a ring above, a retract) decides the first slot, and without the second the
+// lower sweep's wall would be lost below the higher one's z_from. The second slot is empty when it
+// would hold the first slot's wall. Engagement uses it only to take out the material on its swept
+// side (docs/force_model.md, "Sub-cell walls").
+//
+// Stored as kWallSlots walls of 4 floats per ray (the deepest, then the lowest), the clearance's
+// bits XOR-ed with kNoWall's, so all-zero bytes mean "no wall recorded" (lazily mapped pages, like
+// the rays). A ray with a wall says so itself: its
 // last interval slot holds [kWallMark, kEmptyHi), an empty interval to every reader, so engagement
 // fetches a wall only for the rays that have one (a gather per edge point into a second array cost
 // the kernel a third of its speed). A ray whose four slots all hold material carries no mark, and
@@ -65,6 +73,7 @@ struct RayCodec {
 constexpr float kNoWall = 1e30f;
 constexpr float kWallMark = 2e30f;
 constexpr int kWallFloats = 4;
+constexpr int kWallSlots = 2;
 inline bool has_wall_mark(const float* ray) { return ray[kDexelIntervals - 1] == kWallMark; }
 // Marks the ray when its last slot is free; returns whether it carries the mark.
 bool set_wall_mark(float* ray);
@@ -74,7 +83,14 @@ struct Wall {
     float z_from_mm = 0;            // the wall holds for material at and above this height
     float nx = 0, ny = 0;           // unit normal of the wall plane, into the material
     bool exists() const { return clearance_mm < kNoWall; }
+    bool operator==(const Wall&) const = default;
 };
+
+// Whether wall `a` displaces `b` in a ray's first slot (the smaller clearance: the sweep that takes
+// the centre in deepest, else the nearest wall) and in its second slot (the lower z_from; walls
+// starting within z_tolerance_mm of each other count as one height, and the smaller clearance wins).
+bool deeper_wall(const Wall& a, const Wall& b);
+bool lower_wall(const Wall& a, const Wall& b, float z_tolerance_mm);
 
 Wall decode_wall(const float* stored);
 void encode_wall(const Wall& w, float* stored);
@@ -82,13 +98,16 @@ void encode_wall(const Wall& w, float* stored);
 // The stored dexel grid as the kernels and twins see it.
 struct DexelView {
     float* cells = nullptr;   // kDexelFloats per ray, row-major (j * nx + i), encoded with codec
-    float* walls = nullptr;   // kWallFloats per ray, same order, encoded with encode_wall
+    float* walls = nullptr;   // kWallSlots * kWallFloats per ray, same order, encoded with encode_wall
     GridInfo grid;
     RayCodec codec;
     Ray load(std::size_t r) const { return codec.decode(cells + r * kDexelFloats); }
     void store(std::size_t r, const Ray& ray) const { codec.encode(ray, cells + r * kDexelFloats); }
-    Wall wall(std::size_t r) const { return decode_wall(walls + r * kWallFloats); }
-    void store_wall(std::size_t r, const Wall& w) const { encode_wall(w, walls + r * kWallFloats); }
+    // slot 0: the deepest wall; slot 1: the lowest one, when it is another wall
+    Wall wall(std::size_t r, int slot = 0) const { return decode_wall(walls + (r * kWallSlots + slot) * kWallFloats); }
+    void store_wall(std::size_t r, const Wall& w, int slot = 0) const {
+        encode_wall(w, walls + (r * kWallSlots + slot) * kWallFloats);
+    }
 };
 
 // ---- Tool edge elements --------------------------------------------------------------------------

@@ -6,9 +6,11 @@
 // lower: lower surface height above the tip at radius d = k * radius / (n_lower - 1)
 // cells: 8 floats per ray (lo[4], hi[4]), each XOR-ed with base[8] (RayCodec); a ray is written back
 //        only when it changes, so the pages of rays the tool misses stay untouched
-// walls: 1 float4 per ray (Wall: clearance XOR-ed with NO_WALL's bits, z_from, normal x, y): of the
-//        side walls within `band` of the ray's centre, the one with the smallest signed clearance
-//        (the sweep that takes the centre in deepest, else the nearest); written only when it changes
+// walls: 2 float4 per ray (Wall: clearance XOR-ed with NO_WALL's bits, z_from, normal x, y): of the
+//        side walls within `band` of the ray's centre, first the one with the smallest signed
+//        clearance (the sweep that takes the centre in deepest, else the nearest), then the one that
+//        starts lowest (z_from; within `band` of height, the smaller clearance), empty when that is
+//        the first one; each written only when it changes
 // out:   per ray: removed length, new top
 #define K 4
 #define EMPTY_LO 1e30f
@@ -16,6 +18,26 @@
 #define SLIVER 1e-4f   // kSliverMm in engine_kernels.hpp
 #define NO_WALL 1e30f  // kNoWall
 #define WALL_MARK 2e30f  // kWallMark
+
+// Whether wall a (clearance, z_from, normal) displaces b in a ray's second slot: the lower z_from,
+// and within z_tol of height the smaller clearance. Twin: lower_wall.
+bool lower_wall(const float4 a, const float4 b, const float z_tol) {
+    if (!(b.x < NO_WALL)) return true;
+    if (fabs(a.y - b.y) > z_tol) return a.y < b.y;
+    return a.x < b.x;
+}
+
+float4 load_wall(__global const float4* walls, const int slot) {
+    float4 w = walls[slot];
+    w.x = as_float(as_uint(w.x) ^ as_uint(NO_WALL));
+    return w;
+}
+
+void store_wall(__global float4* walls, const int slot, const float4 w) {
+    walls[slot] = (float4)(as_float(as_uint(w.x) ^ as_uint(NO_WALL)), w.yzw);
+}
+
+bool same_wall(const float4 a, const float4 b) { return all(as_uint4(a) == as_uint4(b)); }
 
 float lower_at(__global const float* lower, const int n_lower, const float radius, const float d) {
     const float u = clamp(d / radius, 0.0f, 1.0f) * (float)(n_lower - 1);
@@ -45,9 +67,10 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
     const float cx = x0 + ((float)i + 0.5f) * cell, cy = y0 + ((float)j + 0.5f) * cell;
     const float R2 = radius * radius;
     const int index = j * nx + i;
-    // The best wall candidate of this call; the stored wall is read only when there is one, so the
-    // pages of rays far from every wall stay untouched.
-    float4 wall = (float4)(NO_WALL, 0.0f, 0.0f, 0.0f);
+    // This call's wall candidates (deepest, lowest); the stored walls are read only when there are
+    // any, so the pages of rays far from every wall stay untouched.
+    const float4 none = (float4)(NO_WALL, 0.0f, 0.0f, 0.0f);
+    float4 wall = none, low = none;
     const float lower_r = lower[n_lower - 1];
     const float band_lo2 = fmax(0.0f, radius - band) * fmax(0.0f, radius - band), band_hi2 = (radius + band) * (radius + band);
     float zb = INFINITY, zt = -INFINITY;
@@ -60,8 +83,11 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
         const float d2 = fmax(0.0f, (A * tc + B) * tc + C);
         if (d2 > band_lo2 && d2 < band_hi2) {
             const float d = sqrt(d2);
-            if (d - radius < wall.x && d > 1e-9f)
-                wall = (float4)(d - radius, sg[2] + uz * tc + lower_r, -(wx + ux * tc) / d, -(wy + uy * tc) / d);
+            const float4 side = (float4)(d - radius, sg[2] + uz * tc + lower_r, -(wx + ux * tc) / d, -(wy + uy * tc) / d);
+            if (d > 1e-9f) {
+                if (side.x < wall.x) wall = side;
+                if (lower_wall(side, low, band)) low = side;
+            }
         }
         if (d2 > R2) continue;
         float t0 = 0.0f, t1 = 1.0f;
@@ -103,11 +129,15 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
     // costs every thread of the process a TLB flush.
     bool marked = ray[K - 1] == WALL_MARK;
     if (wall.x < NO_WALL) {
-        const float had = marked ? as_float(as_uint(walls[index].x) ^ as_uint(NO_WALL)) : NO_WALL;
-        if (wall.x < had) {
-            walls[index] = (float4)(as_float(as_uint(wall.x) ^ as_uint(NO_WALL)), wall.yzw);
-            marked = true;
-        }
+        __global float4* slots = walls + 2 * index;
+        const float4 had = marked ? load_wall(slots, 0) : none, had_low = marked ? load_wall(slots, 1) : none;
+        const float4 new_wall = wall.x < had.x ? wall : had;
+        const float4 low_before = had_low.x < NO_WALL ? had_low : had;
+        float4 new_low = lower_wall(low, low_before, band) ? low : low_before;
+        if (same_wall(new_low, new_wall)) new_low = none;
+        if (!same_wall(new_wall, had)) store_wall(slots, 0, new_wall);
+        if (!same_wall(new_low, had_low)) store_wall(slots, 1, new_low);
+        marked = true;
     }
     float before = 0.0f, after = 0.0f, top = EMPTY_HI;
     float plo[K + 1], phi[K + 1];

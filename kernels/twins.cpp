@@ -57,6 +57,14 @@ void encode_wall(const Wall& w, float* stored) {
     stored[3] = w.ny;
 }
 
+bool deeper_wall(const Wall& a, const Wall& b) { return a.clearance_mm < b.clearance_mm; }
+
+bool lower_wall(const Wall& a, const Wall& b, float z_tolerance_mm) {
+    if (!b.exists()) return a.exists();
+    if (std::abs(a.z_from_mm - b.z_from_mm) > z_tolerance_mm) return a.z_from_mm < b.z_from_mm;
+    return a.clearance_mm < b.clearance_mm;
+}
+
 bool ray_contains(const float* ray, double z_mm) {
     for (int k = 0; k < kDexelIntervals; ++k)
         if (z_mm >= ray[k] && z_mm < ray[kDexelIntervals + k]) return true;
@@ -134,10 +142,10 @@ namespace {
 
 // Where the tool passes over the ray at (cx, cy) while its tip runs along one segment: the lowest
 // point of its lower surface (zb) and the highest point of its cutting part (zt). False when the
-// ray stays outside the cutting radius. Either way, the side wall at the closest approach replaces
-// `wall` when it lies within the band of the ray's centre and its signed clearance is smaller.
+// ray stays outside the cutting radius. Either way, when the side wall at the closest approach lies
+// within the band of the ray's centre, it replaces `deep` if deeper_wall and `low` if lower_wall.
 bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParams& p, double& zb, double& zt,
-                   Wall& wall) {
+                   Wall& deep, Wall& low) {
     const double ux = s.bx - s.ax, uy = s.by - s.ay, uz = s.bz - s.az;
     const double wx = s.ax - cx, wy = s.ay - cy;
     // horizontal distance squared along the segment: A t^2 + B t + C
@@ -145,12 +153,13 @@ bool segment_cover(const SweepSegment& s, double cx, double cy, const SweepParam
     const double R = p.radius_mm, R2 = R * R;
     const double tc = A < 1e-18 ? 0.0 : std::clamp(-B / (2 * A), 0.0, 1.0);   // closest approach
     const double d2 = std::max(0.0, (A * tc + B) * tc + C);
-    // The wall that decides the centre: of the sweeps that take it in, the one that takes it in
-    // deepest (the others' walls lie inside the swept volume); else the nearest one.
     const double d = std::sqrt(d2);
-    if (std::abs(d - R) < p.wall_band_mm && float(d - R) < wall.clearance_mm && d > 1e-9)
-        wall = {float(d - R), float(s.az + uz * tc + p.lower_mm.back()), float(-(wx + ux * tc) / d),
-                float(-(wy + uy * tc) / d)};
+    if (std::abs(d - R) < p.wall_band_mm && d > 1e-9) {
+        const Wall side{float(d - R), float(s.az + uz * tc + p.lower_mm.back()), float(-(wx + ux * tc) / d),
+                        float(-(wy + uy * tc) / d)};
+        if (deeper_wall(side, deep)) deep = side;
+        if (lower_wall(side, low, float(p.wall_band_mm))) low = side;
+    }
     if (d2 > R2) return false;
     double t0 = 0, t1 = 1;
     if (A >= 1e-18) {
@@ -198,20 +207,27 @@ void sweep_twin(const SweepSegment* segs, const SweepCall& call, const SweepPara
             const std::size_t index = std::size_t(j) * grid.nx + i;
             const double cx = grid.x0_mm + (i + 0.5) * grid.cell_mm, cy = grid.y0_mm + (j + 0.5) * grid.cell_mm;
             double zb = std::numeric_limits<double>::infinity(), zt = -zb;
-            Wall wall;   // the best candidate of this call; the stored one is read only if there is one
+            Wall deep, low;   // this call's candidates; the stored ones are read only if there are any
             for (std::size_t k = 0; k < call.segments; ++k) {
                 double b, t;
-                if (segment_cover(segs[call.first_segment + k], cx, cy, p, b, t, wall)) {
+                if (segment_cover(segs[call.first_segment + k], cx, cy, p, b, t, deep, low)) {
                     zb = std::min(zb, b);
                     zt = std::max(zt, t);
                 }
             }
             SweepCellResult& r = out[std::size_t(jj) * call.width + ii];
             const Ray before = stock.load(index);
-            // The stored wall is read only for a marked ray (remove.cl says why).
+            // The stored walls are read only for a marked ray (remove.cl says why).
             bool marked = has_wall_mark(before.data());
-            if (wall.exists() && (!marked || wall.clearance_mm < stock.wall(index).clearance_mm)) {
-                stock.store_wall(index, wall);
+            if (deep.exists()) {
+                const Wall had_deep = marked ? stock.wall(index, 0) : Wall{};
+                const Wall had_low = marked ? stock.wall(index, 1) : Wall{};
+                const Wall new_deep = deeper_wall(deep, had_deep) ? deep : had_deep;
+                const Wall low_before = had_low.exists() ? had_low : had_deep;
+                Wall new_low = lower_wall(low, low_before, float(p.wall_band_mm)) ? low : low_before;
+                if (new_low == new_deep) new_low = Wall{};
+                if (!(new_deep == had_deep)) stock.store_wall(index, new_deep, 0);
+                if (!(new_low == had_low)) stock.store_wall(index, new_low, 1);
                 marked = true;
             }
             Ray ray = before;
@@ -229,24 +245,28 @@ namespace {
 // The material at the edge point (x, y) in cell (ci, cj), as a ray. The cell's ray describes its
 // centre; a wall recorded there places the point itself. On the swept side of the wall the
 // material from the wall's foot up is gone. On the far side of a wall that passes between a swept
-// centre and the point, the point has the material of the ray one cell across the wall.
+// centre and the point, the point has the material of the ray one cell across the wall. The ray's
+// second (lower) wall, if any, only takes out the material on its swept side.
 Ray material_at(const DexelView& stock, double ci, double cj, double x, double y, double tolerance_mm) {
     const GridInfo& g = stock.grid;
     const std::size_t index = std::size_t(cj) * g.nx + std::size_t(ci);
     Ray ray = stock.load(index);
     if (!has_wall_mark(ray.data())) return ray;
-    const Wall wall = stock.wall(index);
     const double du = (x - g.x0_mm) / g.cell_mm - (ci + 0.5), dv = (y - g.y0_mm) / g.cell_mm - (cj + 0.5);
-    const double depth = wall.clearance_mm + (du * wall.nx + dv * wall.ny) * g.cell_mm;
-    if (depth <= tolerance_mm) {
-        // Float round-off must not leave the foot itself in material (a flat bottom on the floor).
-        subtract_interval(ray.data(), wall.z_from_mm - kSliverMm, -kEmptyHi);
-        return ray;
+    auto depth = [&](const Wall& w) { return w.clearance_mm + (du * w.nx + dv * w.ny) * g.cell_mm; };
+    const Wall wall = stock.wall(index, 0), low = stock.wall(index, 1);
+    double swept_from = kNoWall;   // material from this height up is gone
+    if (depth(wall) <= tolerance_mm) {
+        swept_from = wall.z_from_mm;
+    } else if (wall.clearance_mm <= 0) {
+        const double ai = std::floor(ci + 0.5 + wall.nx), aj = std::floor(cj + 0.5 + wall.ny);
+        if (ai < 0 || aj < 0 || ai >= g.nx || aj >= g.ny) return kNoMaterial;
+        ray = stock.load(std::size_t(aj) * g.nx + std::size_t(ai));
     }
-    if (wall.clearance_mm > 0) return ray;
-    const double ai = std::floor(ci + 0.5 + wall.nx), aj = std::floor(cj + 0.5 + wall.ny);
-    if (ai < 0 || aj < 0 || ai >= g.nx || aj >= g.ny) return kNoMaterial;
-    return stock.load(std::size_t(aj) * g.nx + std::size_t(ai));
+    if (low.exists() && depth(low) <= tolerance_mm) swept_from = std::min(swept_from, double(low.z_from_mm));
+    // Float round-off must not leave the foot itself in material (a flat bottom on the floor).
+    if (swept_from < kNoWall) subtract_interval(ray.data(), swept_from - kSliverMm, -kEmptyHi);
+    return ray;
 }
 
 }  // namespace
