@@ -5,6 +5,9 @@
 #include "force_model/engine.hpp"
 #include "kernels/opencl_runtime.hpp"
 
+#include <catch2/catch.hpp>
+
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -86,6 +89,34 @@ inline bool opencl_available() {
     } catch (const kernels::OpenClError&) {
         return false;
     }
+}
+
+inline force_model::Prediction run_on(const motion_io::MotionModel& m, const force_model::RunSpec& s, force_model::Device d,
+                                      const force_model::Stock* base = nullptr) {
+    force_model::PredictOptions o;
+    o.device = d;
+    o.base_stock = base;
+    return force_model::predict(m, s, o);
+}
+
+struct Load {
+    double mean_N = 0, peak_N = 0;
+};
+
+// Mean and peak resultant over the rows in [t0_s, t1_s]; at least 100 rows are required.
+inline Load load_between(const force_model::Prediction& p, double t0_s, double t1_s) {
+    Load l;
+    std::size_t n = 0;
+    for (const auto& s : p.samples) {
+        if (s.t_s < t0_s || s.t_s > t1_s) continue;
+        const double f = std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N + double(s.fz_N) * s.fz_N);
+        l.mean_N += f;
+        l.peak_N = std::max(l.peak_N, f);
+        ++n;
+    }
+    REQUIRE(n > 100);
+    l.mean_N /= double(n);
+    return l;
 }
 
 }  // namespace cutload::enginetest

@@ -13,36 +13,10 @@
 
 using namespace cutload;
 using force_model::Device;
+using enginetest::load_between;
+using enginetest::Load;
 
 namespace {
-
-force_model::Prediction run(const motion_io::MotionModel& m, const force_model::RunSpec& s, Device d,
-                            const force_model::Stock* base = nullptr) {
-    force_model::PredictOptions o;
-    o.device = d;
-    o.base_stock = base;
-    return force_model::predict(m, s, o);
-}
-
-struct Load {
-    double mean_N = 0, peak_N = 0;
-};
-
-// Mean and peak resultant over the rows in [t0_s, t1_s].
-Load load_between(const force_model::Prediction& p, double t0_s, double t1_s) {
-    Load l;
-    std::size_t n = 0;
-    for (const auto& s : p.samples) {
-        if (s.t_s < t0_s || s.t_s > t1_s) continue;
-        const double f = std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N + double(s.fz_N) * s.fz_N);
-        l.mean_N += f;
-        l.peak_N = std::max(l.peak_N, f);
-        ++n;
-    }
-    REQUIRE(n > 100);
-    l.mean_N /= double(n);
-    return l;
-}
 
 double removed_mm3(const force_model::Prediction& p) {
     double v = 0;
@@ -61,8 +35,8 @@ void check_recut(double grid_mm, double heading_deg, double offset_mm, Device de
                                            {{{cx + half_mm * c, cy + half_mm * s, 7}, feed_mm_min, "slot"}});
     // The middle 30 mm: full slotting, away from where the tool enters and leaves the box.
     const double speed_mm_s = feed_mm_min / 60, t0 = (half_mm - 15) / speed_mm_s, t1 = (half_mm + 15) / speed_mm_s;
-    const auto first = run(m, spec, device);
-    const auto again = run(m, spec, device, first.final_stock.get());
+    const auto first = enginetest::run_on(m, spec, device);
+    const auto again = enginetest::run_on(m, spec, device, first.final_stock.get());
     const Load l1 = load_between(first, t0, t1), l2 = load_between(again, t0, t1);
     INFO((device == Device::Cpu ? "cpu" : "opencl") << " grid " << grid_mm << " heading " << heading_deg << " offset "
                                                       << offset_mm << ": first mean " << l1.mean_N << " peak "
@@ -121,12 +95,12 @@ TEST_CASE("a finishing pass along a swept wall matches the closed form wherever 
                 rough.start_mm = {-6, wall_y - 4, 3};
                 rough.segments = {line_to({26, wall_y - 4, 3}, "rough")};
                 rough.feed_mm_min = feed_mm_min;
-                const auto roughed = run(uniform_motion(rough), spec, d);
+                const auto roughed = enginetest::run_on(uniform_motion(rough), spec, d);
                 Path finish;
                 finish.start_mm = {-5, wall_y - 4 + ae_mm, 3};
                 finish.segments = {line_to({14, wall_y - 4 + ae_mm, 3}, "finish")};
                 finish.feed_mm_min = feed_mm_min;
-                const auto p = run(uniform_motion(finish), spec, d, roughed.final_stock.get());
+                const auto p = enginetest::run_on(uniform_motion(finish), spec, d, roughed.final_stock.get());
                 const SteadyMean m = steady_mean(p.samples, 5.5 / speed_mm_s, 18.5 / speed_mm_s, cut.flutes);
                 const double err = relative_force_error(m.forces, expected);
                 INFO((d == Device::Cpu ? "cpu" : "opencl") << " ae " << ae_mm << " wall " << wall_y << ": mean ("
@@ -151,10 +125,10 @@ TEST_CASE("sub-cell walls: OpenCL kernels match the scalar twins on a finishing 
     const auto rough = enginetest::legs_motion({-10, 10.03, 7}, {{{50, 10.03, 7}, 3000, "rough"}});
     const auto finish = enginetest::legs_motion({-10, 10.36, 7}, {{{50, 10.36, 7}, 3000, "finish"},
                                                                   {{20, 2, 7}, 3000, "across"}});
-    const auto base_cpu = run(rough, spec, Device::Cpu);
-    const auto base_cl = run(rough, spec, Device::OpenCL);
-    const auto cpu = run(finish, spec, Device::Cpu, base_cpu.final_stock.get());
-    const auto cl = run(finish, spec, Device::OpenCL, base_cl.final_stock.get());
+    const auto base_cpu = enginetest::run_on(rough, spec, Device::Cpu);
+    const auto base_cl = enginetest::run_on(rough, spec, Device::OpenCL);
+    const auto cpu = enginetest::run_on(finish, spec, Device::Cpu, base_cpu.final_stock.get());
+    const auto cl = enginetest::run_on(finish, spec, Device::OpenCL, base_cl.final_stock.get());
     REQUIRE(cpu.samples.size() == cl.samples.size());
     double diff = 0, norm = 0;
     for (std::size_t i = 0; i < cpu.samples.size(); ++i) {

@@ -12,36 +12,10 @@
 
 using namespace cutload;
 using force_model::Device;
+using enginetest::load_between;
+using enginetest::Load;
 
 namespace {
-
-force_model::Prediction run(const motion_io::MotionModel& m, const force_model::RunSpec& s, Device d,
-                            const force_model::Stock* base = nullptr) {
-    force_model::PredictOptions o;
-    o.device = d;
-    o.base_stock = base;
-    return force_model::predict(m, s, o);
-}
-
-struct Load {
-    double mean_N = 0, peak_N = 0;
-};
-
-// Mean and peak resultant over the rows in [t0_s, t1_s].
-Load load_between(const force_model::Prediction& p, double t0_s, double t1_s) {
-    Load l;
-    std::size_t n = 0;
-    for (const auto& s : p.samples) {
-        if (s.t_s < t0_s || s.t_s > t1_s) continue;
-        l.mean_N += std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N + double(s.fz_N) * s.fz_N);
-        l.peak_N = std::max(l.peak_N, std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N +
-                                                double(s.fz_N) * s.fz_N));
-        ++n;
-    }
-    REQUIRE(n > 100);
-    l.mean_N /= double(n);
-    return l;
-}
 
 // A slot along +x through a 60 x 60 x 10 mm box at tip height z_mm, centred on y_mm.
 motion_io::MotionModel slot(double y_mm, double z_mm, double feed_mm_min) {
@@ -69,9 +43,9 @@ TEST_CASE("a higher pass that takes the walls' cells in deeper keeps the lower s
         for (bool lower_first : {true, false}) {
             // Lower slot then higher pass, and the other way round (the demo's pocket: Z27 ring,
             // then Z24); then the lower slot again from the final stock.
-            const auto a = run(lower_first ? lower : higher, spec, d);
-            const auto b = run(lower_first ? higher : lower, spec, d, a.final_stock.get());
-            const auto again = run(lower, spec, d, b.final_stock.get());
+            const auto a = enginetest::run_on(lower_first ? lower : higher, spec, d);
+            const auto b = enginetest::run_on(lower_first ? higher : lower, spec, d, a.final_stock.get());
+            const auto again = enginetest::run_on(lower, spec, d, b.final_stock.get());
             const Load cut = load_between(lower_first ? a : b, t0, t1), re = load_between(again, t0, t1);
             INFO((d == Device::Cpu ? "cpu" : "opencl") << (lower_first ? ", lower slot first" : ", higher pass first")
                                                          << ": slot mean " << cut.mean_N << " peak " << cut.peak_N
@@ -97,11 +71,11 @@ TEST_CASE("lower walls: OpenCL kernels match the scalar twins on a re-cut below 
     double peak_N[2] = {0, 0}, walls[2] = {0, 0};
     int k = 0;
     for (Device d : {Device::Cpu, Device::OpenCL}) {
-        const auto a = run(higher, spec, d);
-        const auto b = run(lower, spec, d, a.final_stock.get());
+        const auto a = enginetest::run_on(higher, spec, d);
+        const auto b = enginetest::run_on(lower, spec, d, a.final_stock.get());
         // A pass 0.5 mm inside the +y wall at the lower height: a real finishing cut that sees the
         // walls, to compare the two paths on something that is not zero.
-        const auto finish = run(slot(30.53, 4, 3000), spec, d, b.final_stock.get());
+        const auto finish = enginetest::run_on(slot(30.53, 4, 3000), spec, d, b.final_stock.get());
         for (const auto& s : finish.samples) peak_N[k] = std::max(peak_N[k], double(std::hypot(s.fx_N, s.fy_N)));
         walls[k] = b.final_stock ? 1 : 0;
         ++k;
