@@ -42,8 +42,10 @@ void add_misc_routes(Core& core) {
         q.step();
         auto d = c->prepare("SELECT count(*) FROM webhook_deliveries WHERE state = 'pending'");
         d.step();
-        std::string text =
-            core.metrics.render(static_cast<long>(q.i64(0)), core.jobs->running(), static_cast<long>(d.i64(0)));
+        auto o = c->prepare("SELECT count(*) FROM optimizations WHERE state = 'queued'");
+        o.step();
+        std::string text = core.metrics.render(static_cast<long>(q.i64(0)), core.jobs->running(), static_cast<long>(d.i64(0)),
+                                               static_cast<long>(o.i64(0)));
         text += series_cache_metrics(core.series_cache.stats());
         x.res.status = 200;
         x.res.set_content(text, "text/plain; version=0.0.4");

@@ -283,14 +283,18 @@ void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
         auto c = pool_.get();
         c->prepare("UPDATE optimizations SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
     };
+    auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
     try {
         run_optimization(pool_, data_dir_, opt_.use_opencl, id, cancel, progress);
-        spdlog::info("optimization {} done in {:.2f} s", id,
-                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
+        metrics_.optimization_finished("done", elapsed_s());
+        spdlog::info("optimization {} done in {:.2f} s", id, elapsed_s());
     } catch (const force_model::Cancelled&) {
-        finish(Kind::Optimization, id, requeue_on_cancel_.load() ? "queued" : "cancelled", "");
+        const bool requeue = requeue_on_cancel_.load();
+        finish(Kind::Optimization, id, requeue ? "queued" : "cancelled", "");
+        metrics_.optimization_finished(requeue ? "requeued" : "cancelled", elapsed_s());
     } catch (const std::exception& e) {
         finish(Kind::Optimization, id, "failed", e.what());
+        metrics_.optimization_finished("failed", elapsed_s());
         spdlog::warn("optimization {} failed: {}", id, e.what());
     }
 }

@@ -20,6 +20,12 @@ void Metrics::job_finished(const std::string& state, double compute_s) {
     compute_s_ += compute_s;
 }
 
+void Metrics::optimization_finished(const std::string& state, double compute_s) {
+    std::lock_guard lk(mu_);
+    ++optimizations_[state];
+    compute_s_ += compute_s;
+}
+
 void Metrics::webhook_attempt(bool ok) {
     std::lock_guard lk(mu_);
     ++(ok ? webhook_ok_ : webhook_fail_);
@@ -30,7 +36,7 @@ void Metrics::alerts_raised(int n) {
     alerts_ += n;
 }
 
-std::string Metrics::render(long queued, long running, long pending_deliveries) const {
+std::string Metrics::render(long queued, long running, long pending_deliveries, long queued_optimizations) const {
     std::lock_guard lk(mu_);
     std::string out;
     auto line = [&out]<class... A>(fmt::format_string<A...> f, A&&... a) {
@@ -57,11 +63,19 @@ std::string Metrics::render(long queued, long running, long pending_deliveries) 
         auto it = jobs_.find(s);
         line("cutload_jobs_total{{state=\"{}\"}} {}\n", s, it == jobs_.end() ? 0 : it->second);
     }
-    line("# HELP cutload_job_compute_seconds_total Wall seconds spent computing predictions.\n");
+    line("# HELP cutload_optimizations_total Feed optimization jobs finished, by final state.\n");
+    line("# TYPE cutload_optimizations_total counter\n");
+    for (const char* s : {"done", "failed", "cancelled", "requeued"}) {
+        auto it = optimizations_.find(s);
+        line("cutload_optimizations_total{{state=\"{}\"}} {}\n", s, it == optimizations_.end() ? 0 : it->second);
+    }
+    line("# HELP cutload_optimizations_queued Feed optimizations waiting for a worker.\n");
+    line("# TYPE cutload_optimizations_queued gauge\ncutload_optimizations_queued {}\n", queued_optimizations);
+    line("# HELP cutload_job_compute_seconds_total Wall seconds spent computing predictions and optimizations.\n");
     line("# TYPE cutload_job_compute_seconds_total counter\ncutload_job_compute_seconds_total {}\n", compute_s_);
     line("# HELP cutload_jobs_queued Runs waiting for a worker.\n");
     line("# TYPE cutload_jobs_queued gauge\ncutload_jobs_queued {}\n", queued);
-    line("# HELP cutload_jobs_running Runs being computed.\n");
+    line("# HELP cutload_jobs_running Jobs being computed (runs and feed optimizations).\n");
     line("# TYPE cutload_jobs_running gauge\ncutload_jobs_running {}\n", running);
     line("# HELP cutload_alerts_total Alerts raised by thresholds.\n");
     line("# TYPE cutload_alerts_total counter\ncutload_alerts_total {}\n", alerts_);

@@ -16,10 +16,11 @@ class Metrics {
 public:
     void request(const std::string& method, const std::string& route, int status, double seconds);
     void job_finished(const std::string& state, double compute_s);
+    void optimization_finished(const std::string& state, double compute_s);
     void webhook_attempt(bool ok);
     void alerts_raised(int n);
     // Gauges are read at scrape time by the caller and passed in.
-    std::string render(long queued, long running, long pending_deliveries) const;
+    std::string render(long queued, long running, long pending_deliveries, long queued_optimizations) const;
 
 private:
     static constexpr std::array<double, 12> kBuckets{0.001, 0.0025, 0.005, 0.01, 0.025, 0.05,
@@ -32,7 +33,7 @@ private:
     mutable std::mutex mu_;
     std::map<std::tuple<std::string, std::string, int>, long> requests_;
     std::map<std::string, Hist> latency_;
-    std::map<std::string, long> jobs_;
+    std::map<std::string, long> jobs_, optimizations_;
     double compute_s_ = 0;
     long webhook_ok_ = 0, webhook_fail_ = 0, alerts_ = 0;
 };

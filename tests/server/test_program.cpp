@@ -238,6 +238,9 @@ TEST_CASE("program api: a feed optimization job meets the target and changes onl
         REQUIRE(b["peak_force_after_N"].get<double>() <= 0.8 * 400 + 1e-6);
     }
     REQUIRE(get_json(c, base + "/optimizations")["items"][0]["id"] == oid);
+    const std::string metrics = c.Get("/metrics")->body;
+    REQUIRE(metrics.find("cutload_optimizations_total{state=\"done\"} 1\n") != std::string::npos);
+    REQUIRE(metrics.find("cutload_optimizations_queued 0\n") != std::string::npos);
 
     auto prog = c.Get(("/api/v1/optimizations/" + std::to_string(oid) + "/program").c_str());
     REQUIRE(prog->status == 200);
