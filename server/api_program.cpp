@@ -2,6 +2,7 @@
 // uploaded, and feed optimizations (jobs that recommend per-block feeds and write the program back).
 #include "server/core.hpp"
 #include "server/jobs.hpp"
+#include "server/library.hpp"
 #include "server/program.hpp"
 
 #include <fmt/format.h>
@@ -97,10 +98,20 @@ void create_optimization(Core& core, Ctx& x) {
                        fmt::format("run {}: its spec sets none of limits.force_N, torque_Nm, power_kW, chip_mm, bending_MPa, "
                                    "so there is nothing to aim the feeds at",
                                    run_id));
-    const double max_feed = params["max_feed_mm_min"].is_null() ? 0.9 * l.rapid_feed_mm_min : params["max_feed_mm_min"].get<double>();
-    if (!(params["min_feed_mm_min"].get<double>() < max_feed))
+    if (params["max_feed_mm_min"].is_null()) {
+        // The machine's feed range when the run names a machine that states one; never above 90 %
+        // of the rapid feed, where a cutting move would read as a rapid in the log.
+        double max_feed = 0.9 * l.rapid_feed_mm_min;
+        auto st = c->prepare("SELECT machine_id FROM runs WHERE id = ?");
+        st.bind(1, run_id);
+        if (st.step() && !st.is_null(0))
+            if (const auto m = library_body(*c, "machines", st.i64(0)); m && (*m).value("max_feed_mm_min", 0.0) > 0)
+                max_feed = std::min(max_feed, (*m)["max_feed_mm_min"].get<double>());
+        params["max_feed_mm_min"] = max_feed;
+    }
+    if (!(params["min_feed_mm_min"].get<double>() < params["max_feed_mm_min"].get<double>()))
         bad_request(fmt::format("min_feed_mm_min {} is not below the highest cutting feed {} mm/min", params["min_feed_mm_min"].dump(),
-                                max_feed));
+                                params["max_feed_mm_min"].dump()));
     {
         auto st = c->prepare("SELECT count(*) FROM optimizations WHERE state IN ('queued','running')");
         st.step();

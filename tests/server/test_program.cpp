@@ -222,6 +222,7 @@ TEST_CASE("program api: a feed optimization job meets the target and changes onl
     const json created = json::parse(r->body);
     REQUIRE(created["params"]["target"] == 0.8);
     REQUIRE(created["params"]["basis"] == "actual");
+    REQUIRE(created["params"]["max_feed_mm_min"] == 20000);
     const std::int64_t oid = created["id"];
     const json o = wait_optimization(c, oid);
     INFO(o.dump());
@@ -267,4 +268,33 @@ TEST_CASE("program api: a feed optimization job meets the target and changes onl
                   "conflict");
     REQUIRE(c.Delete(("/api/v1/optimizations/" + std::to_string(oid)).c_str())->status == 204);
     require_error(c.Get(("/api/v1/optimizations/" + std::to_string(oid)).c_str()), 404, "not_found");
+}
+
+TEST_CASE("program api: the optimization's feed range defaults to the run's machine, below 90 % of the rapid feed") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    auto admin = ts.admin();
+    const json machine = body(admin.Post("/api/v1/machines",
+                                         json{{"name", "slow mill"}, {"spindle_power_kW", 15}, {"spindle_torque_Nm", 100},
+                                              {"max_feed_mm_min", 5000}}.dump(),
+                                         "application/json"));
+    json spec = slot_spec_with_limit(400);
+    spec["machine_id"] = machine["id"];
+    const std::int64_t run_id = body(upload(c, slot_log_csv(1.0), spec, with_program(kSlotProgram, "slot.nc")))["id"];
+    REQUIRE(wait_finished(c, run_id, 30)["state"] == "done");
+    const std::string path = "/api/v1/runs/" + std::to_string(run_id) + "/optimizations";
+    auto r = c.Post(path.c_str(), "{}", "application/json");
+    REQUIRE(r->status == 202);
+    const json o = wait_optimization(c, json::parse(r->body)["id"]);
+    REQUIRE(o["params"]["max_feed_mm_min"] == 5000);
+    REQUIRE(o["state"] == "done");
+    for (const auto& b : o["result"]["blocks"]) REQUIRE(b["recommended_feed_mm_min"].get<double>() <= 5000);
+
+    // Without a machine: 90 % of the spec's rapid feed.
+    const std::int64_t bare = body(upload(c, slot_log_csv(1.0), slot_spec_with_limit(400), with_program(kSlotProgram, "slot.nc")))["id"];
+    REQUIRE(wait_finished(c, bare, 30)["state"] == "done");
+    auto r2 = c.Post(("/api/v1/runs/" + std::to_string(bare) + "/optimizations").c_str(), "{}", "application/json");
+    REQUIRE(r2->status == 202);
+    const double rapid = body(c.Get(("/api/v1/runs/" + std::to_string(bare)).c_str()))["inputs"]["spec"]["limits"]["rapid_feed_mm_min"];
+    REQUIRE(json::parse(r2->body)["params"]["max_feed_mm_min"].get<double>() == Approx(0.9 * rapid));
 }
