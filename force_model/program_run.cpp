@@ -51,10 +51,15 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
         mo.lead_s = *run.estimated_lead_s;
     }
     run.mapping = motion_io::map_blocks(motion, run.program, mo);
-    if (run.mapping.quality.matched == 0)
-        throw motion_io::NcProgramError(
-            fmt::format("{}: no log sample lies within {} mm of the program's path (wrong program or work offset?)",
-                        run.program.file, mo.max_distance_mm));
+    // The program starts where the log does, so its first move always meets the log; a log that
+    // mostly runs elsewhere is another program, or this one under another work offset. Blocks and
+    // comparisons taken from it would be wrong without a sign, so it is refused.
+    const auto& q = run.mapping.quality;
+    if (q.matched_fraction < kMinMatchedFraction)
+        throw motion_io::NcProgramError(fmt::format(
+            "{}: only {:.1f} % of the log's samples lie within {} mm of the program's path ({:.1f} % of the path reached; "
+            "at least {:.0f} % must): not this log's program, or the wrong work offset",
+            run.program.file, 100 * q.matched_fraction, mo.max_distance_mm, 100 * q.coverage, 100 * kMinMatchedFraction));
     if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
     return run;
 }

@@ -41,9 +41,12 @@ struct ProgramRun {
 motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, const RunSpec& spec,
                                               const motion_io::MotionModel& motion);
 
+// Fewer of the log's samples near the program's path than this: not the log's program.
+inline constexpr double kMinMatchedFraction = 0.5;
+
 // Maps the log onto the program and relabels `motion`'s blocks with the program's names when the
-// log has none that match (or settings.map_blocks). Throws motion_io::NcProgramError when no
-// sample lies near the program's path (wrong program or work offset).
+// log has none that match (or settings.map_blocks). Throws motion_io::NcProgramError when under
+// kMinMatchedFraction of the samples lie near the program's path (wrong program or work offset).
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
                                motion_io::MotionModel& motion);
 

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <array>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -59,6 +60,8 @@ struct IngestReport {
     std::map<std::string, ChannelReport> channels; // "pos", "feed", "spindle", "block", ...
     double feed_raw_min_mm_min = 0, feed_raw_max_mm_min = 0;         // plain differencing
     double feed_repaired_min_mm_min = 0, feed_repaired_max_mm_min = 0;
+    // Machine position of the first repaired sample (where an NC program of the log starts).
+    std::optional<std::array<double, 3>> first_position_mm;
     std::vector<IngestWarning> warnings;
 };
 

@@ -253,7 +253,7 @@ private:
                     } else if (g >= 54 - 1e-9 && g <= 59 + 1e-9 && std::abs(g - std::round(g)) < 1e-9) {
                         m_.wcs = fmt::format("G{}", static_cast<int>(std::lround(g)));
                         if (!opt_.work_offsets_mm.count(m_.wcs))
-                            fail(line_no, text, "no offset is set for this work coordinate system (give it with --work-offset)");
+                            fail(line_no, text, "no offset is set for this work coordinate system (set its offset: --work-offset in the CLI, nc_options.work_offsets_mm in the API)");
                     } else if (is_code(w, 'G', 40) || is_code(w, 'G', 43) || is_code(w, 'G', 44) || is_code(w, 'G', 49) ||
                                is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64) || is_code(w, 'G', 80) ||
                                is_code(w, 'G', 94)) {
@@ -328,7 +328,7 @@ private:
 
         const auto wcs = opt_.work_offsets_mm.find(m_.wcs);
         if (wcs == opt_.work_offsets_mm.end())
-            fail(line_no, m_.wcs, "no offset is set for this work coordinate system, active since the program start (give it with --work-offset)");
+            fail(line_no, m_.wcs, "no offset is set for this work coordinate system, active since the program start (set its offset: --work-offset in the CLI, nc_options.work_offsets_mm in the API)");
         const auto& offset = wcs->second;
         std::array<double, 3> target = m_.pos_mm;
         for (int a = 0; a < 3; ++a) {

@@ -350,6 +350,7 @@ void Repairer::emit_until(const Knot& a, const Knot& b, bool include_end) {
         const double f = std::sqrt(speed2) * 60.0;
         rep_min_ = have_rep_feed_ ? std::min(rep_min_, f) : f;
         rep_max_ = have_rep_feed_ ? std::max(rep_max_, f) : f;
+        if (!have_rep_feed_) first_position_mm_ = {s.p_mm[0], s.p_mm[1], s.p_mm[2]};
         have_rep_feed_ = true;
         out_.sample(s);
     }
@@ -421,6 +422,7 @@ void Repairer::fill_report(IngestReport& report) const {
     report.feed_raw_max_mm_min = raw_max_;
     report.feed_repaired_min_mm_min = rep_min_;
     report.feed_repaired_max_mm_min = rep_max_;
+    if (have_rep_feed_) report.first_position_mm = first_position_mm_;
 }
 
 double Repairer::feed_to_path_ratio() const {

@@ -7,6 +7,7 @@
 #include "motion_io/pipeline.hpp"
 
 #include <deque>
+#include <array>
 #include <optional>
 
 namespace cutload::motion_io::detail {
@@ -94,6 +95,7 @@ private:
     std::size_t best_period_reads_ = 0;
     bool have_raw_feed_ = false, have_rep_feed_ = false;
     double raw_min_ = 0, raw_max_ = 0, rep_min_ = 0, rep_max_ = 0;
+    std::array<double, 3> first_position_mm_{};
     double feed_integral_mm_ = 0, path_length_mm_ = 0;
 };
 

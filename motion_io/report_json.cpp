@@ -21,6 +21,7 @@ nlohmann::json report_to_json(const IngestReport& r) {
             {"feed_mm_min",
              {{"raw", {{"min", r.feed_raw_min_mm_min}, {"max", r.feed_raw_max_mm_min}}},
               {"repaired", {{"min", r.feed_repaired_min_mm_min}, {"max", r.feed_repaired_max_mm_min}}}}},
+            {"first_position_mm", r.first_position_mm ? nlohmann::json(*r.first_position_mm) : nlohmann::json(nullptr)},
             {"warnings", warnings}};
 }
 

@@ -194,7 +194,8 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
 
 // Stores the uploaded NC program beside the log and reads it once, so a bad program is a 400 now
 // rather than a failed job later. Positions are checked again by the job, against the log.
-json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json) {
+json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json,
+                      const std::optional<std::array<double, 3>>& start_mm) {
     const auto f = req.get_file_value("nc_program");
     if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
     json options = json::object();
@@ -208,8 +209,13 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     const force_model::ProgramSettings settings = program_settings(options);
     const std::string name = f.filename.empty() ? "program.nc" : fs::path(f.filename).filename().string();
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
-    motion_io::MotionModel origin;   // the log's first position is not known yet: start at machine zero
-    origin.x_mm = origin.y_mm = origin.z_mm = {0.0};
+    // Where the log starts, as the job will read it (the inspect report's first repaired sample).
+    motion_io::MotionModel origin;
+    if (start_mm) {
+        origin.x_mm = {(*start_mm)[0]};
+        origin.y_mm = {(*start_mm)[1]};
+        origin.z_mm = {(*start_mm)[2]};
+    }
     try {
         const auto program = motion_io::parse_nc_program(f.content, name, force_model::program_read_options(settings, spec, origin));
         if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
@@ -306,7 +312,10 @@ void create_run(Core& core, Ctx& x) {
         throw ApiError(400, "bad_log", msg);
     }
     json nc_program;
-    if (req.has_file("nc_program")) nc_program = store_nc_program(req, tmp, r.spec);
+    if (req.has_file("nc_program"))
+        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm);
+    else if (part(req, "nc_options"))
+        bad_request("part nc_options: given without nc_program (the options are for reading the NC program)");
     std::size_t rows = 0;
     for (const auto& [name, ch] : report.channels) rows = std::max(rows, ch.samples);
     if (rows > core.opt.max_log_rows)

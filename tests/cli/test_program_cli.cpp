@@ -151,6 +151,16 @@ TEST_CASE("a bad program is a one-line error naming file, line and word", "[cli]
     CHECK(r.output.find("G41") != std::string::npos);
     CHECK_FALSE(fs::exists(dir / "f.csv"));
 
+    // A program the log does not run: refused, naming how little of the log lies on it.
+    write(dir / "far.nc", "%\nN10 G90 G00 Y300.\nN20 G01 X504. F1200 S10000 M03\n%\n");
+    r = run("predict " + (dir / "slot.csv").string() + " --spec " + (dir / "slot.json").string() + " --out " +
+            (dir / "f.csv").string() + " --program " + (dir / "far.nc").string());
+    INFO(r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(r.output.find("far.nc: only") != std::string::npos);
+    CHECK(r.output.find("not this log's program") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "f.csv"));
+
     // The comparison outputs need a program.
     r = run("predict " + (dir / "slot.csv").string() + " --spec " + (dir / "slot.json").string() + " --out " +
             (dir / "f.csv").string() + " --compare " + (dir / "c.csv").string());

@@ -178,8 +178,26 @@ TEST_CASE("program api: bad programs and options are 400 naming line and word, l
     // A work system the program selects but nobody set.
     require_error(upload(c, log, slot_spec(), with_program("%\nN10 G55 G01 X1. F100\n%\n", "g55.nc")), 400, "bad_program",
                   "G55");
+    require_error(upload(c, log, slot_spec(), {{"nc_options", "{}", "", "application/json"}}), 400, "bad_request",
+                  "without nc_program");
     REQUIRE(files_under(ts.data_dir()) == 0);
     REQUIRE(body(c.Get("/api/v1/runs"))["items"].empty());
+
+    // The program is checked from where the log starts: an R arc whose chord only fits from there
+    // (10 mm from the log's start, 16.8 mm from machine zero) is accepted.
+    auto arc = upload(c, log, slot_spec(), with_program("%\nN10 G90 G17 G02 X-16. Y5. R5.1 F1200 S10000 M03\nN20 G01 X14.\n%\n", "arc.nc"));
+    INFO(arc->body);
+    REQUIRE(arc->status == 202);
+    REQUIRE(wait_finished(c, body(arc)["id"])["state"] == "done");
+
+    // A program the log does not run (it goes 300 mm away in Y; a quarter of the 20 mm log lies
+    // within 5 mm of its first move): the job fails saying so.
+    auto far = upload(c, slot_log_csv(1.0), slot_spec(), with_program("%\nN10 G90 G00 Y300.\nN20 G01 X504. F1200 S10000 M03\n%\n", "far.nc"));
+    REQUIRE(far->status == 202);
+    const json failed = wait_finished(c, body(far)["id"]);
+    REQUIRE(failed["state"] == "failed");
+    REQUIRE(failed["error"].get<std::string>().find("far.nc: only") != std::string::npos);
+    REQUIRE(failed["error"].get<std::string>().find("not this log's program, or the wrong work offset") != std::string::npos);
 
     // A run without a program has none of the program's results.
     const std::int64_t id = body(upload(c, log, slot_spec()))["id"];
