@@ -170,7 +170,7 @@ CREATE TABLE run_program (
   body TEXT NOT NULL               -- JSON: mapping quality, commanded summary, per-block comparison
 );
 CREATE TABLE optimizations (
-  id INTEGER PRIMARY KEY,
+  id INTEGER PRIMARY KEY AUTOINCREMENT,   -- never reused: a job outliving its row must not write into another
   run_id INTEGER NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
   state TEXT NOT NULL CHECK (state IN ('queued','running','done','failed','cancelled')),
   progress REAL NOT NULL DEFAULT 0,

@@ -402,8 +402,15 @@ void delete_run(Core& core, Ctx& x) {
     if (st.text(0) == "running")
         throw ApiError(409, "conflict", fmt::format("run {} is running: cancel it first (POST /api/v1/runs/{}/cancel)", id, id));
     const fs::path dir = core.data_dir / st.text(1);
+    // Its optimizations go with it; one being computed is stopped rather than left to run on
+    // (after the commit: a worker claiming a job holds the job lock while it writes).
+    std::vector<std::int64_t> optimizing;
+    auto running = c->prepare("SELECT id FROM optimizations WHERE run_id = ? AND state = 'running'");
+    running.bind(1, id);
+    while (running.step()) optimizing.push_back(running.i64(0));
     c->prepare("DELETE FROM runs WHERE id = ?").bind(1, id).run();
     tx.commit();
+    for (const std::int64_t oid : optimizing) core.jobs->cancel_running(Jobs::Kind::Optimization, oid);
     core.series_cache.forget_run(id);
     std::error_code ec;
     fs::remove_all(dir, ec);

@@ -136,20 +136,22 @@ void Jobs::worker() {
             if (stopping_) return;
             seq = wake_seq_;
         }
-        try {
-            job = claim();
-        } catch (const db::Error& e) {
-            spdlog::error("job queue: {}", e.what());
+        auto flag = std::make_shared<std::atomic<bool>>(false);
+        {
+            // Claimed and registered under one lock: a cancel never sees a job 'running' that no
+            // worker has registered yet.
+            std::lock_guard lk(mu_);
+            try {
+                job = claim();
+            } catch (const db::Error& e) {
+                spdlog::error("job queue: {}", e.what());
+            }
+            if (job) running_[{job->kind, job->id}] = flag;
         }
         if (!job) {
             std::unique_lock lk(mu_);
             cv_.wait_for(lk, std::chrono::seconds(2), [this, seq] { return stopping_ || wake_seq_ != seq; });
             continue;
-        }
-        auto flag = std::make_shared<std::atomic<bool>>(false);
-        {
-            std::lock_guard lk(mu_);
-            running_[{job->kind, job->id}] = flag;
         }
         if (job->kind == Kind::Run)
             execute(job->id, *flag);

@@ -43,6 +43,9 @@ httplib::MultipartFormDataItems with_program(const std::string& text, const std:
 // slot_log_csv(1.0) as a program: a straight slot from X-6 at F1200, N10 to half way, N20 on.
 const char* kSlotProgram = "%\nO0007 (SLOT)\nN10 G90 G21 G17 G01 X4. Y5. Z-2. F1200 S10000 M03\nN20 X14.\nM30\n%\n";
 
+// slot_log_csv(8.0) as a program: from X-6 at F1200 for 8 s (160 mm).
+const char* kSlotProgram8s = "%\nN10 G90 G21 G17 G01 X74. Y5. Z-2. F1200 S10000 M03\nN20 X154.\nM30\n%\n";
+
 json slot_spec_with_limit(double force_N) {
     json s = slot_spec();
     s["limits"] = {{"force_N", force_N}};
@@ -315,4 +318,35 @@ TEST_CASE("program api: the optimization's feed range defaults to the run's mach
     REQUIRE(r2->status == 202);
     const double rapid = body(c.Get(("/api/v1/runs/" + std::to_string(bare)).c_str()))["inputs"]["spec"]["limits"]["rapid_feed_mm_min"];
     REQUIRE(json::parse(r2->body)["params"]["max_feed_mm_min"].get<double>() == Approx(0.9 * rapid));
+}
+
+TEST_CASE("program api: deleting a run stops its running optimization, and optimization ids are never reused") {
+    TestServer ts;   // one worker: an optimization left running would hold it
+    auto c = ts.client(ts.write_key);
+    const std::int64_t run_id =
+        body(upload(c, slot_log_csv(8.0), slot_spec_with_limit(400), with_program(kSlotProgram8s, "slot8.nc")))["id"];
+    REQUIRE(wait_finished(c, run_id, 60)["state"] == "done");
+    const std::string path = "/api/v1/runs/" + std::to_string(run_id) + "/optimizations";
+    const json first = body(c.Post(path.c_str(), R"({"target": 0.3, "max_predictions": 20})", "application/json"));
+    const std::int64_t oid = first["id"];
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (get_json(c, "/api/v1/optimizations/" + std::to_string(oid))["state"] == "queued") {
+        REQUIRE(std::chrono::steady_clock::now() < until);
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    REQUIRE(c.Delete(("/api/v1/runs/" + std::to_string(run_id)).c_str())->status == 204);
+    require_error(c.Get(("/api/v1/optimizations/" + std::to_string(oid)).c_str()), 404, "not_found");
+
+    // A new run and its optimization get the worker and a new optimization id.
+    const std::int64_t next_run = body(upload(c, slot_log_csv(1.0), slot_spec_with_limit(400), with_program(kSlotProgram, "slot.nc")))["id"];
+    REQUIRE(wait_finished(c, next_run, 30)["state"] == "done");
+    const json next = body(c.Post(("/api/v1/runs/" + std::to_string(next_run) + "/optimizations").c_str(), "{}", "application/json"));
+    REQUIRE(next["id"].get<std::int64_t>() > oid);
+    const json done = wait_optimization(c, next["id"]);
+    REQUIRE(done["state"] == "done");
+    REQUIRE(done["params"]["target"] == 0.8);   // its own result, not the deleted job's
+    // The deleted run's job was stopped, not left to finish (it takes over a second on this log).
+    const std::string metrics = c.Get("/metrics")->body;
+    CHECK(metrics.find("cutload_optimizations_total{state=\"cancelled\"} 1\n") != std::string::npos);
+    CHECK(metrics.find("cutload_optimizations_total{state=\"done\"} 1\n") != std::string::npos);
 }
