@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -82,6 +83,12 @@ void run_optimize(const OptimizeArgs& a) {
                 "its limit; cycle %.3f s -> %.3f s; program -> %s\n",
                 100 * a.target, in_band, below, over, 100 * r.max_ratio_after, r.before.stats.simulated_s,
                 r.after.stats.simulated_s, a.out.c_str());
+    if (r.max_ratio_after > 1)
+        std::fprintf(stderr, "cutload: warning: with the new feeds %s still exceeds a limit (%.1f %% of it)%s\n",
+                     r.max_ratio_block.c_str(), 100 * r.max_ratio_after,
+                     std::any_of(r.blocks.begin(), r.blocks.end(), [&](const auto& b) { return b.block == r.max_ratio_block; })
+                         ? ""
+                         : ": its feed is not an F word the optimizer sets (a rapid, or a block that does not cut)");
 }
 
 void add_optimize(CLI::App& app) {

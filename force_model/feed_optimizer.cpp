@@ -38,6 +38,7 @@ struct Unit {
     std::vector<Point> history;
     double best_feasible_scale = 0;    // largest scale seen at or below the target (0: none yet)
     bool cuts = false, done = false, at_limit = false;
+    bool over_at_programmed = false;   // over the target at its programmed feed: never raised
 };
 
 double ratio(const std::array<double, kQuantities>& v, const std::array<double, kQuantities>& lim, int* which = nullptr) {
@@ -209,7 +210,10 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
             const std::array<double, kQuantities> v = s ? values_of(*s) : std::array<double, kQuantities>{};
             const double rr = ratio(v, lim);
             const double feed = feeds[u.blocks.front()];
-            if (r.predictions == 1) u.cuts = rr > 0;
+            if (r.predictions == 1) {
+                u.cuts = rr > 0;
+                u.over_at_programmed = rr > o.target;
+            }
             if (!u.cuts) {
                 u.done = true;
                 continue;
@@ -240,7 +244,11 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
                 // At most 4x per step: far from the current feed the affine model is extrapolated
                 // (below the minimum chip thickness a block stops cutting at all).
                 const double now = u.history.back().feed_mm_min;
-                const double f = std::clamp(next_feed(u, lim, aim), now / 4, now * 4);
+                double f = std::clamp(next_feed(u, lim, aim), now / 4, now * 4);
+                // A block's load also depends on its neighbours' feeds (what they leave, how the
+                // machine enters it), so its own history can point upwards even when it is over
+                // the target: a block over it as programmed is only ever slowed.
+                if (u.over_at_programmed) f = std::min(f, u.programmed_mm_min);
                 u.scale = std::clamp(f, o.min_feed_mm_min, max_feed) / u.programmed_mm_min;
             }
         feeds = feeds_for(units);
@@ -284,7 +292,11 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         if (bf.ratio_after > o.target + 1e-9 || !close) r.target_met = false;
         r.blocks.push_back(bf);
     }
-    for (const BlockSummary& b : r.after.blocks) r.max_ratio_after = std::max(r.max_ratio_after, ratio(values_of(b), lim));
+    for (const BlockSummary& b : r.after.blocks)
+        if (const double rr = ratio(values_of(b), lim); rr > r.max_ratio_after) {
+            r.max_ratio_after = rr;
+            r.max_ratio_block = b.block;
+        }
     return r;
 }
 

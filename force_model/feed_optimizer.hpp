@@ -44,6 +44,8 @@ struct FeedOptimization {
     int predictions = 0;
     bool target_met = false;           // every block at most at target (within tolerance of it or at a feed limit)
     double max_ratio_after = 0;        // largest quantity / limit after, over all blocks and limits
+    std::string max_ratio_block;       // where it is; over 1 means a limit is still exceeded (also
+                                       // in blocks whose F the optimizer does not set, e.g. rapids)
 };
 
 // `actual` must carry the program's block names (its own block channel or map_blocks()); it is

@@ -272,6 +272,8 @@ void run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
                       {"predictions", r.predictions},
                       {"target_met", r.target_met},
                       {"max_ratio_after", r.max_ratio_after},
+                      {"max_ratio_block", r.max_ratio_block},
+                      {"exceeds_limit", r.max_ratio_after > 1},
                       {"changed_blocks", changed},
                       {"cycle_before_s", r.before.stats.simulated_s},
                       {"cycle_after_s", r.after.stats.simulated_s}};

@@ -95,7 +95,8 @@ function resultSummary(opt) {
   const r = opt.result;
   const change = r.cycle_before_s ? ` (${num((100 * (r.cycle_after_s - r.cycle_before_s)) / r.cycle_before_s)} %)` : '';
   return `${r.changed_blocks} of ${r.blocks.length} blocks changed. Target ${pct(opt.params.target)} of each limit `
-    + `${r.target_met ? 'met' : 'not met'} (highest load after ${pct(r.max_ratio_after)}). `
+    + `${r.target_met ? 'met' : 'not met'} (highest load after ${pct(r.max_ratio_after)}${r.max_ratio_block ? ` in ${r.max_ratio_block}` : ''}). `
+    + (r.exceeds_limit ? `Warning: ${r.max_ratio_block} still exceeds a limit with these feeds; check it before running the program. ` : '')
     + `Cycle ${r.cycle_before_s.toFixed(2)} s before, ${r.cycle_after_s.toFixed(2)} s after${change}; `
     + `${r.predictions} predictions on the ${opt.params.basis} motion.`;
 }
@@ -115,7 +116,8 @@ export function optimizePanel(run) {
   const result = h('div', { id: 'optimize-result' });
   const section = h('section', { class: 'optimize', id: 'optimize', 'aria-labelledby': 'optimize-title' },
     h('h2', { id: 'optimize-title' }, 'Optimize feeds'),
-    h('p', { class: 'hint muted' }, 'Per block, the feed that brings the binding quantity (force, chip thickness or power) '
+    h('p', { class: 'hint muted' }, 'Per block, the feed that brings the binding quantity (peak force, torque, power, chip thickness or bending stress, '
+      + 'whichever is closest to its limit) '
       + 'to the target fraction of its limit within the machine\'s feed range; the program is rewritten with only its F words '
       + 'changed and predicted again.'),
     h('div', { class: 'optimize-form' },
