@@ -244,9 +244,13 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     });
     c.http.set_error_handler([&c](const httplib::Request& req, httplib::Response& res) {
         if (!res.body.empty()) return;
+        // httplib refuses a POST/PUT without Content-Length before any handler sees it.
+        const bool no_length = res.status == 400 && (req.method == "POST" || req.method == "PUT") &&
+                               !req.has_header("Content-Length") && !req.has_header("Transfer-Encoding");
         std::string msg = res.status == 404 ? fmt::format("no such resource: {} {}", req.method, req.path)
                         : res.status == 413 ? fmt::format("request body exceeds the limit of {} bytes", c.opt.max_body_bytes)
-                                            : fmt::format("HTTP {}", res.status);
+                        : no_length ? fmt::format("{} {}: send a body or Content-Length: 0 (curl: -d '' or -d '{{}}')", req.method, req.path)
+                                    : fmt::format("HTTP {}", res.status);
         res.set_content(error_body(status_code_name(res.status), msg).dump(), "application/json");
         c.metrics.request(req.method, "unmatched", res.status, 0);
     });

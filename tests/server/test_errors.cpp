@@ -1,6 +1,11 @@
 // Rejected requests: each gets a 4xx JSON error naming the problem and leaves nothing behind.
 #include "harness.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <sqlite3.h>
 
 using namespace cutload::test;
@@ -134,4 +139,26 @@ TEST_CASE("errors: static files are served without path traversal") {
         REQUIRE(r->status == 404);
         REQUIRE(r->body.find("TOP-SECRET-CONTENT") == std::string::npos);
     }
+}
+
+TEST_CASE("errors: a POST without Content-Length is told how to send an empty body") {
+    TestServer ts;
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    REQUIRE(fd >= 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(ts.srv->port()));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0);
+    const std::string request = "POST /api/v1/runs/1/optimizations HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer " +
+                                ts.write_key + "\r\nConnection: close\r\n\r\n";
+    REQUIRE(::send(fd, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size()));
+    std::string answer;
+    char buf[4096];
+    for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;) answer.append(buf, static_cast<std::size_t>(n));
+    ::close(fd);
+    INFO(answer);
+    REQUIRE(answer.rfind("HTTP/1.1 400", 0) == 0);
+    REQUIRE(answer.find("\"code\":\"bad_request\"") != std::string::npos);
+    REQUIRE(answer.find("send a body or Content-Length: 0") != std::string::npos);
 }
