@@ -287,7 +287,10 @@ void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
     };
     auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
     try {
-        run_optimization(pool_, data_dir_, opt_.use_opencl, id, cancel, progress);
+        if (!run_optimization(pool_, data_dir_, opt_.use_opencl, id, cancel, progress)) {
+            spdlog::info("optimization {} was deleted while computing; nothing stored", id);
+            return;
+        }
         metrics_.optimization_finished("done", elapsed_s());
         spdlog::info("optimization {} done in {:.2f} s", id, elapsed_s());
     } catch (const force_model::Cancelled&) {

@@ -207,7 +207,7 @@ json optimization_params(const json& body) {
     return p;
 }
 
-void run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, std::int64_t id,
+bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, std::int64_t id,
                       const std::atomic<bool>& cancel, const std::function<void(double)>& progress) {
     json params, inputs;
     fs::path dir;
@@ -218,7 +218,7 @@ void run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
             "SELECT o.params, r.inputs, r.upload_dir, r.base_run FROM optimizations o JOIN runs r ON r.id = o.run_id "
             "WHERE o.id = ?");
         st.bind(1, id);
-        if (!st.step()) return;   // deleted meanwhile
+        if (!st.step()) return false;   // deleted meanwhile
         params = json::parse(st.text(0));
         inputs = json::parse(st.text(1));
         dir = data_dir / st.text(2);
@@ -287,6 +287,7 @@ void run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
         .bind(3, db::now_iso())
         .bind(4, id)
         .run();
+    return c->changes() > 0;
 }
 
 }  // namespace cutload::server

@@ -35,9 +35,10 @@ std::string comparison_csv(const json& blocks);
 // Feed optimization request body as stored params; ApiError 400 naming the key.
 json optimization_params(const json& body);
 
-// Computes optimization `id` (claimed, state 'running') and stores its result. Throws
-// force_model::Cancelled when `cancel` is set; other exceptions are the job's failure.
-void run_optimization(DbPool& pool, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
+// Computes optimization `id` (claimed, state 'running') and stores its result; false when its row
+// was deleted meanwhile (nothing stored). Throws force_model::Cancelled when `cancel` is set;
+// other exceptions are the job's failure.
+bool run_optimization(DbPool& pool, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
                       const std::atomic<bool>& cancel, const std::function<void(double)>& progress);
 
 }  // namespace cutload::server

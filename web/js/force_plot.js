@@ -128,9 +128,13 @@ export class ForcePlot {
   }
 
   async load() {
+    // The commanded series is an extra: if it cannot be loaded the actual forces still plot.
     const [w, wc] = await Promise.all([
       this.fetchWindow(undefined, undefined, OVERVIEW_POINTS),
-      this.fetchCommanded?.(undefined, undefined, OVERVIEW_POINTS) ?? null,
+      (this.fetchCommanded?.(undefined, undefined, OVERVIEW_POINTS) ?? Promise.resolve(null)).catch((e) => {
+        console.warn('commanded forces unavailable:', e);
+        return null;
+      }),
     ]);
     this.extent = [w.from_s, w.to_s];
     this.overview = windowColumns(w);

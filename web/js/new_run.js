@@ -89,7 +89,9 @@ function programOptions() {
     const offsets = {};
     for (const item of c.work_offsets_mm.value.split(';').map((x) => x.trim()).filter(Boolean)) {
       const m = /^(G5[4-9])\s*=\s*(.+)$/i.exec(item);
-      const xyz = m ? m[2].split(',').map((x) => Number(x.trim())) : [];
+      const parts = m ? m[2].split(',').map((x) => x.trim()) : [];
+      // Number('') is 0: an empty component must not pass as zero.
+      const xyz = parts.every((x) => x !== '') ? parts.map(Number) : [];
       if (!m || xyz.length !== 3 || !xyz.every(Number.isFinite)) {
         errors.push([c.work_offsets_mm, `nc_options.work_offsets_mm: '${item}' is not G54..G59=x,y,z (mm)`]);
         break;

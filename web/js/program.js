@@ -169,15 +169,23 @@ export function optimizePanel(run) {
     return active;
   }
 
-  async function poll(oid) {
+  // A failed poll (a network blip, a restarting server) is retried with a growing delay while
+  // the job may still be running; only an answer that the job is gone ends the following.
+  async function poll(oid, failures = 0) {
     if (stopped) return;
     try {
       const opt = await api.optimization(oid);
       if (stopped) return;
+      error.textContent = '';
       if (show(opt)) timer = setTimeout(() => poll(oid), POLL_MS);
     } catch (e) {
-      busy(false);
+      if (stopped) return;
       error.textContent = errorText(e);
+      if (e.status === 404 || failures >= 8) {
+        busy(false);
+        return;
+      }
+      timer = setTimeout(() => poll(oid, failures + 1), POLL_MS * 2 ** Math.min(failures + 1, 5));
     }
   }
 
