@@ -62,4 +62,11 @@ inline double speed_mm_min(const MotionModel& m, std::size_t i) {
 inline std::string source_path(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
 inline std::string shared_path(const std::string& rel) { return std::string(CUTLOAD_SHARED_DIR) + "/" + rel; }
 
+// How many times a warning code was reported (0 when it was not).
+inline std::size_t warning_count(const IngestReport& r, const std::string& code) {
+    for (const auto& w : r.warnings)
+        if (w.code == code) return w.count;
+    return 0;
+}
+
 }  // namespace cutload::motion_io::test

@@ -8,12 +8,6 @@ using namespace cutload::motion_io::test;
 
 namespace {
 
-std::size_t warning_count(const IngestReport& r, const std::string& code) {
-    for (const auto& w : r.warnings)
-        if (w.code == code) return w.count;
-    return 0;
-}
-
 const std::string kOkuma = "data/real/okuma_multus_shdr/okuma.txt";
 
 }  // namespace

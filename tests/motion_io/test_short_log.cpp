@@ -7,16 +7,6 @@
 using namespace cutload::motion_io;
 using namespace cutload::motion_io::test;
 
-namespace {
-
-std::size_t warning_count(const IngestReport& r, const std::string& code) {
-    for (const auto& w : r.warnings)
-        if (w.code == code) return w.count;
-    return 0;
-}
-
-}  // namespace
-
 TEST_CASE("a short log (about 80 reads) is timed on the 4 ms grid: steady feed within 1 %, with a warning",
           "[repair][short]") {
     const double feed = 6000;
