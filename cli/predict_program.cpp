@@ -84,7 +84,7 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
     settings.rapid_mm_min = o.rapid_mm_min;
     settings.block_lead_ms = o.block_lead_ms;
     settings.map_blocks = o.map_blocks;
-    auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, motion));
+    auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
     run.run = force_model::prepare_program_run(std::move(program), settings, motion);
     run.active = true;
     return run;

@@ -78,14 +78,22 @@ std::vector<BlockComparison> compare_program(const motion_io::NcProgram& program
     return out;
 }
 
+const std::vector<std::string>& comparison_columns() {
+    static const std::vector<std::string> cols{
+        "block", "rapid", "programmed_feed_mm_min", "samples", "max_deviation_mm", "mean_deviation_mm",
+        "actual_min_feed_mm_min", "actual_mean_feed_mm_min", "actual_max_feed_mm_min", "feed_deficit_pct",
+        "feed_surge_pct", "commanded_duration_s", "actual_duration_s", "commanded_peak_force_N", "actual_peak_force_N",
+        "force_difference_N", "force_difference_pct"};
+    return cols;
+}
+
 void write_comparison_csv(const std::vector<BlockComparison>& rows, const std::string& path) {
     const std::string tmp = path + ".tmp";
     {
         std::ofstream out(tmp, std::ios::trunc);
         if (!out) throw std::runtime_error("cannot write " + tmp);
-        out << "block,rapid,programmed_feed_mm_min,samples,max_deviation_mm,mean_deviation_mm,actual_min_feed_mm_min,"
-               "actual_mean_feed_mm_min,actual_max_feed_mm_min,feed_deficit_pct,feed_surge_pct,commanded_duration_s,"
-               "actual_duration_s,commanded_peak_force_N,actual_peak_force_N,force_difference_N,force_difference_pct\n";
+        for (std::size_t i = 0; i < comparison_columns().size(); ++i) out << (i ? "," : "") << comparison_columns()[i];
+        out << '\n';
         for (const BlockComparison& r : rows)
             out << fmt::format("{},{},{:.1f},{},{:.4f},{:.4f},{:.1f},{:.1f},{:.1f},{:.2f},{:.2f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f},{:.2f}\n",
                                r.block, r.rapid ? 1 : 0, r.programmed_feed_mm_min, r.samples, r.max_deviation_mm,

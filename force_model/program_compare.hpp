@@ -36,6 +36,9 @@ std::vector<BlockComparison> compare_program(const motion_io::NcProgram& program
                                              const motion_io::BlockMapping& mapping, const Prediction& commanded_prediction,
                                              const Prediction& actual_prediction, const motion_io::CommandedOptions& commanded);
 
+// The CSV columns of write_comparison_csv, in order (also the service's comparison CSV).
+const std::vector<std::string>& comparison_columns();
+
 void write_comparison_csv(const std::vector<BlockComparison>& rows, const std::string& path);
 
 // The comparison as extra BLOCKS.csv columns, matched by block name (empty for a block the

@@ -23,14 +23,19 @@ bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgra
 
 }  // namespace
 
+std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& motion) {
+    if (motion.x_mm.empty()) return std::nullopt;
+    return std::array<double, 3>{motion.x_mm.front(), motion.y_mm.front(), motion.z_mm.front()};
+}
+
 motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, const RunSpec& spec,
-                                              const motion_io::MotionModel& motion) {
+                                              std::optional<std::array<double, 3>> start_mm) {
     motion_io::NcReadOptions ro;
     ro.work_offsets_mm = motion_io::default_work_offsets(spec.offset_mm);
     for (const auto& [name, v] : settings.work_offsets_mm) ro.work_offsets_mm[name] = v;
     ro.ignore_words = settings.ignore_words;
     ro.decimal_less_is_increment = settings.decimal_less_is_increment;
-    if (!motion.x_mm.empty()) ro.start_mm = std::array<double, 3>{motion.x_mm.front(), motion.y_mm.front(), motion.z_mm.front()};
+    ro.start_mm = start_mm;
     return ro;
 }
 

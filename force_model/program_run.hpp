@@ -37,9 +37,13 @@ struct ProgramRun {
 };
 
 // How to read the program against this spec and log: default work offsets from the spec's setup
-// offset, overridden by settings; the machine starts at the log's first position.
+// offset, overridden by settings; the machine starts at the log's first position (`start_mm`:
+// log_start_mm(), or an inspect report's first_position_mm).
 motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, const RunSpec& spec,
-                                              const motion_io::MotionModel& motion);
+                                              std::optional<std::array<double, 3>> start_mm);
+
+// The log's first position (nullopt for an empty log).
+std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& motion);
 
 // Fewer of the log's samples near the program's path than this: not the log's program.
 inline constexpr double kMinMatchedFraction = 0.5;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace cutload::motion_io::detail {
 namespace {
@@ -180,23 +181,19 @@ double nominal_period_in(double lo, double hi, double near) {
 // allow. In the seed's pattern the read phase only alternates between two values and wanders
 // slowly, so 20 readings allow about +-2 %: too loose for a feed. CNCs run their position loop
 // at a nominal period, a round number of milliseconds (the seed's FANUC: 4 ms), so the roundest
-// period in the range is taken; without one, the period that maximises the window. Either way
-// the error is bounded by the range, and the caller warns. Without a nominal period inside it
-// the scan's own period stands.
-UpdatePeriod refine_by_tick_bounds(const std::vector<PosRead>& reads, double T0) {
-    UpdatePeriod out;
-    out.period_s = out.min_s = out.max_s = T0;
-    out.short_stretch = true;
+// period in the range is taken, its error bounded by the range (the caller warns). Without a
+// nominal period inside it: nullopt (motion that changes speed can put a reading near a tick on
+// its neighbour, and the range then misses the true period).
+std::optional<UpdatePeriod> nominal_period_from_bounds(const std::vector<PosRead>& reads, double T0) {
     const double search_lo = T0 / 1.05, search_hi = T0 * 1.05;
     // The ticks are assigned on the trial grid, the period of least roughness: not re-assigned
     // on the widest window's, which a slow wander of the read phase can pull off by a few per
     // cent, where a reading at a change of motion then lands on another tick.
     const double phase = best_phase(reads.data(), reads.size(), T0, -1, kFinePhases);
-    if (phase < 0) return out;
+    if (phase < 0) return std::nullopt;
     const std::vector<TickBound> bounds = tick_bounds(reads, T0, phase);
     const double T = widest_window_period(bounds, search_lo, search_hi);
-    out.period_s = out.min_s = out.max_s = T;
-    if (window_width(bounds, T) <= 0) return out;   // stamps too noisy to bound the period
+    if (window_width(bounds, T) <= 0) return std::nullopt;   // stamps too noisy to bound the period
     // Ends of the range where the window closes (it is concave: one interval).
     auto edge = [&](double inside, double outside) {
         if (window_width(bounds, outside) > 0) return outside;
@@ -206,17 +203,12 @@ UpdatePeriod refine_by_tick_bounds(const std::vector<PosRead>& reads, double T0)
         }
         return inside;
     };
+    UpdatePeriod out;
     out.min_s = edge(T, search_lo);
     out.max_s = edge(T, search_hi);
-    const double nominal = nominal_period_in(out.min_s, out.max_s, T);
-    if (nominal > 0) {
-        out.period_s = nominal;
-        out.nominal = true;
-    } else {
-        // Motion that changes speed can put a reading near a tick on its neighbour, and the
-        // range then misses the true period: the least-roughness period is the safer guess.
-        out.period_s = T0;
-    }
+    out.period_s = nominal_period_in(out.min_s, out.max_s, T);
+    out.nominal = true;
+    if (out.period_s == 0) return std::nullopt;
     return out;
 }
 
@@ -296,8 +288,8 @@ UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
     // (per cent closer than the scan there), and if it fits the readings.
     if (reads.size() <= kShortStretchReads) {
         if (const double T = scan(kFinePhases); T > 0) {
-            const UpdatePeriod bounded = refine_by_tick_bounds(reads, T);
-            if (bounded.nominal && accepted(bounded.period_s)) return bounded;
+            const std::optional<UpdatePeriod> bounded = nominal_period_from_bounds(reads, T);
+            if (bounded && accepted(bounded->period_s)) return *bounded;
         }
     }
     // Otherwise the scan, refined by the phase drift where the stretch is long enough; with fewer

@@ -31,11 +31,10 @@ inline constexpr std::size_t kMinPeriodPairs = 12;
 
 struct UpdatePeriod {
     double period_s = 0;   // 0: not estimated
-    // Set when the readings were too few to measure the period by its phase drift: the range of
-    // periods their time stamps allow, and whether a nominal (round) period inside it was taken.
-    bool short_stretch = false;
-    double min_s = 0, max_s = 0;
+    // Set when the readings were too few to measure the period by its phase drift and the nominal
+    // (round) period inside the range their time stamps allow, [min_s, max_s], was taken.
     bool nominal = false;
+    double min_s = 0, max_s = 0;
 };
 
 // Estimated update period from readings of a moving machine; period 0 when the readings show no

@@ -170,7 +170,7 @@ void Repairer::process_batch(bool final) {
             const UpdatePeriod found = estimate_update_period(
                 std::vector<PosRead>(pending_.begin() + static_cast<long>(begin), pending_.begin() + static_cast<long>(end)));
             period_s_ = found.period_s;
-            if (period_s_ > 0 && found.short_stretch) warn_short_stretch(found, end - begin);
+            if (period_s_ > 0 && found.nominal) warn_short_stretch(found, end - begin);
         }
     }
     // The last reading stays for the next batch: timing a reading looks at its successor.
@@ -205,13 +205,10 @@ void Repairer::process_batch(bool final) {
 // Too few readings to measure the period by its phase drift: say what the time stamps allowed
 // and what was taken, so a user can judge a feed that rests on it.
 void Repairer::warn_short_stretch(const UpdatePeriod& found, std::size_t reads) {
-    const std::string taken = found.nominal
-        ? fmt::format("the nominal {:.3f} ms inside it taken", found.period_s * 1e3)
-        : fmt::format("{:.4f} ms taken (no round period inside it)", found.period_s * 1e3);
     diag_.warn("period_short_log", session_first_line_,
                fmt::format("CNC update period from {} position readings only (too few to measure its drift): the "
-                           "time stamps allow {:.3f} to {:.3f} ms; {}",
-                           reads, found.min_s * 1e3, found.max_s * 1e3, taken));
+                           "time stamps allow {:.3f} to {:.3f} ms; the nominal {:.3f} ms inside it taken",
+                           reads, found.min_s * 1e3, found.max_s * 1e3, found.period_s * 1e3));
 }
 
 double Repairer::wrap_half_period(double d) const { return d - period_s_ * std::round(d / period_s_); }

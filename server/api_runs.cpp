@@ -209,15 +209,9 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     const force_model::ProgramSettings settings = program_settings(options);
     const std::string name = f.filename.empty() ? "program.nc" : fs::path(f.filename).filename().string();
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
-    // Where the log starts, as the job will read it (the inspect report's first repaired sample).
-    motion_io::MotionModel origin;
-    if (start_mm) {
-        origin.x_mm = {(*start_mm)[0]};
-        origin.y_mm = {(*start_mm)[1]};
-        origin.z_mm = {(*start_mm)[2]};
-    }
     try {
-        const auto program = motion_io::parse_nc_program(f.content, name, force_model::program_read_options(settings, spec, origin));
+        // From where the log starts, as the job will read it (the inspect report's first sample).
+        const auto program = motion_io::parse_nc_program(f.content, name, force_model::program_read_options(settings, spec, start_mm));
         if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
             throw ApiError(400, "bad_program", fmt::format("{}: the program has no motion block", name));
     } catch (const motion_io::NcProgramError& e) {

@@ -74,15 +74,6 @@ json comparison_json(const force_model::BlockComparison& r) {
             {"force_difference_pct", r.force_difference_pct}};
 }
 
-const std::vector<std::string>& comparison_columns() {
-    static const std::vector<std::string> cols{
-        "block", "rapid", "programmed_feed_mm_min", "samples", "max_deviation_mm", "mean_deviation_mm",
-        "actual_min_feed_mm_min", "actual_mean_feed_mm_min", "actual_max_feed_mm_min", "feed_deficit_pct",
-        "feed_surge_pct", "commanded_duration_s", "actual_duration_s", "commanded_peak_force_N", "actual_peak_force_N",
-        "force_difference_N", "force_difference_pct"};
-    return cols;
-}
-
 double peak_force_of(const force_model::Prediction& p, const std::string& block) {
     for (const auto& b : p.blocks)
         if (b.block == block) return b.peak_force_N;
@@ -136,7 +127,7 @@ force_model::ProgramRun load_program_run(const json& inputs, const fs::path& upl
     const auto settings = program_settings(nc.value("options", json::object()));
     const std::string name = nc.value("filename", std::string("program.nc"));
     auto program = motion_io::parse_nc_program(read_text(upload_dir / nc.at("stored_as").get<std::string>()), name,
-                                               force_model::program_read_options(settings, spec, motion));
+                                               force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
     return force_model::prepare_program_run(std::move(program), settings, motion);
 }
 
@@ -152,11 +143,11 @@ json program_body(const ProgramResult& r, const json& commanded_summary) {
 
 std::string comparison_csv(const json& blocks) {
     std::string out;
-    for (const auto& c : comparison_columns()) out += (out.empty() ? "" : ",") + c;
+    for (const auto& c : force_model::comparison_columns()) out += (out.empty() ? "" : ",") + c;
     out += '\n';
     for (const auto& b : blocks) {
         bool first = true;
-        for (const auto& c : comparison_columns()) {
+        for (const auto& c : force_model::comparison_columns()) {
             if (!first) out += ',';
             first = false;
             const json& v = b.at(c);
