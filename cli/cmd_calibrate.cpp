@@ -2,7 +2,7 @@
 //                   [--axes MATRIX] --out MATERIAL.json
 // Identifies Ktc, Krc, Kac, Kte, Kre, Kae from the steady mean forces of straight dynamometer tests
 // and saves them as the run spec's `material` object (docs/compare_calibrate.md).
-#include "cli/commands.hpp"
+#include "commands.hpp"
 #include "force_model/calibrate.hpp"
 #include "force_model/measurement.hpp"
 

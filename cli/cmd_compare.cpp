@@ -1,7 +1,7 @@
 // cutload compare --predicted FORCES.csv --measured FILE [--axes MATRIX] [--offset-s S] [--json] ...
 // Aligns a dynamometer record with a prediction and prints error metrics per axis, overall and per
 // NC block (docs/compare_calibrate.md).
-#include "cli/commands.hpp"
+#include "commands.hpp"
 #include "force_model/compare.hpp"
 #include "force_model/measurement.hpp"
 

@@ -1,6 +1,8 @@
 // cutload inspect LOG [--format csv|shdr] [--map FILE] [--units mm|in] [--feed-units U] [--json]
-#include "cli/commands.hpp"
-#include "motion_io/motion_io_ext.hpp"
+#include "commands.hpp"
+#include "motion_io/motion_io.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <fmt/format.h>
 

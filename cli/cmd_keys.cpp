@@ -1,6 +1,6 @@
 // cutload keys create | list | revoke: API keys of the service. A new key is printed once, on the
 // last line of output; only its SHA-256 is stored, so listings show the key's prefix, never the key.
-#include "cli/commands.hpp"
+#include "commands.hpp"
 #include "server/server.hpp"
 
 #include <cstdio>

@@ -2,8 +2,8 @@
 // Per block, the feed that brings the binding load (peak force, torque, power, chip thickness or
 // bending stress) to the target fraction of its limit; writes the program back with only the F
 // words changed and shows the prediction at the new feeds.
-#include "cli/commands.hpp"
-#include "cli/predict_program.hpp"
+#include "commands.hpp"
+#include "predict_program.hpp"
 #include "force_model/feed_optimizer.hpp"
 
 #include <fmt/format.h>

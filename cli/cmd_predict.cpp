@@ -1,8 +1,8 @@
 // cutload predict LOG --spec RUN.json --out FORCES.csv [--blocks BLOCKS.csv] [--device opencl|cpu]
 // Reads and repairs the dry-run log, predicts cutting forces over it and writes the per-step and
 // per-block results; prints a short summary with the flagged blocks.
-#include "cli/commands.hpp"
-#include "cli/predict_program.hpp"
+#include "commands.hpp"
+#include "predict_program.hpp"
 #include "force_model/force_model.hpp"
 
 #include <cstdio>

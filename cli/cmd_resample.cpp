@@ -1,5 +1,5 @@
 // cutload resample LOG --step-ms S --out FILE.csv [--format csv|shdr] [--map FILE] [--units mm|in] [--feed-units U]
-#include "cli/commands.hpp"
+#include "commands.hpp"
 
 #include <fmt/format.h>
 

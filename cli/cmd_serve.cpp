@@ -1,6 +1,6 @@
 // cutload serve: the HTTP service (see docs/api.md). SIGINT / SIGTERM stop it gracefully:
 // running jobs get --drain-s seconds to finish and are re-queued otherwise.
-#include "cli/commands.hpp"
+#include "commands.hpp"
 #include "server/server.hpp"
 
 #include <csignal>

@@ -1,4 +1,4 @@
-#include "cli/commands.hpp"
+#include "commands.hpp"
 #include "force_model/force_model.hpp"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
-#include "cli/predict_program.hpp"
+#include "predict_program.hpp"
 
-#include "cli/commands.hpp"
+#include "commands.hpp"
 
 #include <fmt/format.h>
 

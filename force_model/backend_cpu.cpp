@@ -1,6 +1,6 @@
 // The scalar path: the kernels' C++ twins on the host stock, one thread. Work runs when it is
 // queued, so wait() has nothing to wait for.
-#include "force_model/engine.hpp"
+#include "engine.hpp"
 
 namespace cutload::force_model {
 

@@ -3,8 +3,8 @@
 #pragma once
 
 #include "force_model/force_model.hpp"
-#include "force_model/stock.hpp"
-#include "force_model/tool_geometry.hpp"
+#include "stock.hpp"
+#include "tool_geometry.hpp"
 #include "kernels/engine_kernels.hpp"
 
 #include <memory>

@@ -1,4 +1,5 @@
 #include "force_model/feed_optimizer.hpp"
+#include "motion_io/hermite.hpp"
 
 #include <fmt/format.h>
 
@@ -112,19 +113,15 @@ motion_io::MotionModel retime_motion(const motion_io::MotionModel& m, const std:
             const double u = single ? 0.0 : std::clamp((T - tau[i - a]) / dt, 0.0, 1.0);
             const double k0 = scale_of(i), k1 = scale_of(i1);
             // Cubic Hermite in the new time, slopes = old velocities x their block's scale.
-            const double h00 = 2 * u * u * u - 3 * u * u + 1, h10 = u * u * u - 2 * u * u + u;
-            const double h01 = -2 * u * u * u + 3 * u * u, h11 = u * u * u - u * u;
-            const double d00 = (6 * u * u - 6 * u) / dt, d10 = 3 * u * u - 4 * u + 1;
-            const double d01 = (-6 * u * u + 6 * u) / dt, d11 = 3 * u * u - 2 * u;
             const std::vector<double>* pos[3] = {&m.x_mm, &m.y_mm, &m.z_mm};
             const std::vector<double>* vel[3] = {&m.vx_mm_s, &m.vy_mm_s, &m.vz_mm_s};
             std::vector<double>* opos[3] = {&out.x_mm, &out.y_mm, &out.z_mm};
             std::vector<double>* ovel[3] = {&out.vx_mm_s, &out.vy_mm_s, &out.vz_mm_s};
             for (int ax = 0; ax < 3; ++ax) {
-                const double p0 = (*pos[ax])[i], p1 = (*pos[ax])[i1];
-                const double v0 = (*vel[ax])[i] * k0, v1 = (*vel[ax])[i1] * k1;
-                opos[ax]->push_back(h00 * p0 + h10 * dt * v0 + h01 * p1 + h11 * dt * v1);
-                ovel[ax]->push_back(single ? 0.0 : d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1);
+                const motion_io::HermiteSegment seg{(*pos[ax])[i], (*vel[ax])[i] * k0, (*pos[ax])[i1],
+                                                    (*vel[ax])[i1] * k1, dt};
+                opos[ax]->push_back(seg.position(u));
+                ovel[ax]->push_back(single ? 0.0 : seg.velocity(u));
             }
             const double rpm = m.spindle_rpm[i] + u * (m.spindle_rpm[i1] - m.spindle_rpm[i]);
             const double angle = j == 0 ? m.spindle_angle_deg[a] : out.spindle_angle_deg.back() + 6.0 * 0.5 * (out.spindle_rpm.back() + rpm) * h;

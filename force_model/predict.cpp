@@ -9,9 +9,11 @@
 // Time steps: one per angle_step_deg of spindle rotation (the log's own spindle angle). Intervals
 // where the tool cannot reach material (coarse tile map of stock tops) are written one row per
 // motion sample and never evaluated per angle step. See docs/force_model.md.
-#include "force_model/engine.hpp"
-#include "force_model/summary.hpp"
+#include "engine.hpp"
+#include "summary.hpp"
+
 #include "kernels/opencl_runtime.hpp"
+#include "motion_io/hermite.hpp"
 
 #include <algorithm>
 #include <array>
@@ -315,20 +317,21 @@ private:
         // angle(dt) - a0 = qa dt^2 + qb dt (spindle speed linear between samples).
         const double qa = 3 * (r1 - r0) / h, qb = 6 * r0;
         const bool constant_speed = std::abs(qa) * h * h < 1e-9 * std::abs(qb) * h;
-        // The same cubic Hermite as motion_io::sample_between, as polynomials in u = dt / h:
+        // The motion's cubic Hermite as polynomials in u = dt / h:
         // position c0 + c1 u + c2 u^2 + c3 u^3, velocity d0 + d1 u + d2 u^2.
         const double inv_h = 1 / h;
         double c0[3], c1[3], c2[3], c3[3], d1[3], d2[3], d0[3];
         const std::vector<double>* P[3] = {&m_.x_mm, &m_.y_mm, &m_.z_mm};
         const std::vector<double>* V[3] = {&m_.vx_mm_s, &m_.vy_mm_s, &m_.vz_mm_s};
         for (int c = 0; c < 3; ++c) {
-            const double p0 = (*P[c])[i] + spec_.offset_mm[c], p1 = (*P[c])[i + 1] + spec_.offset_mm[c];
-            const double v0 = (*V[c])[i], v1 = (*V[c])[i + 1];
-            c0[c] = p0;
-            c1[c] = h * v0;
-            c2[c] = 3 * (p1 - p0) - h * (2 * v0 + v1);
-            c3[c] = 2 * (p0 - p1) + h * (v0 + v1);
-            d0[c] = v0;
+            const motion_io::HermiteSegment seg{(*P[c])[i] + spec_.offset_mm[c], (*V[c])[i],
+                                                (*P[c])[i + 1] + spec_.offset_mm[c], (*V[c])[i + 1], h};
+            const auto poly = seg.coefficients();
+            c0[c] = poly[0];
+            c1[c] = poly[1];
+            c2[c] = poly[2];
+            c3[c] = poly[3];
+            d0[c] = seg.v0;
             d1[c] = 2 * c2[c] * inv_h;
             d2[c] = 3 * c3[c] * inv_h;
         }

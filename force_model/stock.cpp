@@ -1,4 +1,4 @@
-#include "force_model/stock.hpp"
+#include "stock.hpp"
 
 #include <sys/mman.h>
 #include <unistd.h>

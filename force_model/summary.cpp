@@ -1,4 +1,4 @@
-#include "force_model/summary.hpp"
+#include "summary.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // Internal: per-block summaries and overload flags from the engine's rows.
 #pragma once
 
-#include "force_model/engine.hpp"
+#include "engine.hpp"
 
 #include <vector>
 

@@ -1,4 +1,4 @@
-#include "force_model/tool_geometry.hpp"
+#include "tool_geometry.hpp"
 
 #include <cmath>
 #include <numbers>

@@ -1,4 +1,4 @@
-#include "motion_io/clock.hpp"
+#include "clock.hpp"
 
 #include <algorithm>
 #include <cmath>

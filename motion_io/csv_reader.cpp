@@ -1,5 +1,5 @@
 // Stage "parse + validate" for CSV logs: one line at a time, never the whole file.
-#include "motion_io/pipeline.hpp"
+#include "pipeline.hpp"
 
 #include <fmt/format.h>
 

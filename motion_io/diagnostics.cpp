@@ -1,4 +1,4 @@
-#include "motion_io/pipeline.hpp"
+#include "pipeline.hpp"
 
 #include <fmt/format.h>
 

@@ -1,8 +1,8 @@
 // The ingest pipeline's driver: reader -> Sequencer -> Repairer -> sink (model, CSV, nothing).
 #include "motion_io/motion_io.hpp"
-#include "motion_io/pipeline.hpp"
-#include "motion_io/repair.hpp"
-#include "motion_io/sequencer.hpp"
+#include "pipeline.hpp"
+#include "repair.hpp"
+#include "sequencer.hpp"
 
 #include <fmt/format.h>
 

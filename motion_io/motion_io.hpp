@@ -5,6 +5,8 @@
 //   parse -> validate -> align channels -> drop stale repeats -> smooth -> resample -> attribute blocks
 #pragma once
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -103,5 +105,10 @@ IngestReport inspect(const std::string& path, const ReadOptions& opt);
 // Writes t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block; returns rows written.
 std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,
                             IngestReport* report = nullptr);
+
+// The report as one JSON object: file, format, duration_s, sessions, blocks,
+// channels.<name>.{samples, interval_s.{min,median,max}, update_period_s, stale_dropped},
+// feed_mm_min.{raw,repaired}.{min,max}, warnings[{code, count, message}].
+nlohmann::json report_to_json(const IngestReport& report);
 
 }  // namespace cutload::motion_io

@@ -1,3 +1,4 @@
+#include "motion_io/hermite.hpp"
 #include "motion_io/motion_io.hpp"
 
 #include <cmath>
@@ -10,18 +11,15 @@ MotionState sample_between(const MotionModel& m, std::size_t i, double t_s) {
     const double t0 = m.t_s[i], t1 = m.t_s[i + 1];
     const double h = t1 - t0;
     const double u = h > 0 ? (t_s - t0) / h : 0.0;
-    const double u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
-    const double d00 = 6 * u2 - 6 * u, d10 = 3 * u2 - 4 * u + 1, d01 = -6 * u2 + 6 * u, d11 = 3 * u2 - 2 * u;
 
     const std::vector<double>* p[3] = {&m.x_mm, &m.y_mm, &m.z_mm};
     const std::vector<double>* v[3] = {&m.vx_mm_s, &m.vy_mm_s, &m.vz_mm_s};
     MotionState s;
     s.t_s = t_s;
     for (int k = 0; k < 3; ++k) {
-        const double p0 = (*p[k])[i], p1 = (*p[k])[i + 1], v0 = (*v[k])[i], v1 = (*v[k])[i + 1];
-        s.pos_mm[k] = h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1;
-        s.vel_mm_s[k] = h > 0 ? (d00 * p0 + d01 * p1) / h + d10 * v0 + d11 * v1 : v0;
+        const HermiteSegment seg{(*p[k])[i], (*v[k])[i], (*p[k])[i + 1], (*v[k])[i + 1], h};
+        s.pos_mm[k] = seg.position(u);
+        s.vel_mm_s[k] = seg.velocity(u);
     }
     // Spindle speed is linear between samples, so the angle (its integral) is quadratic: exact
     // for a linearly changing speed and consistent with the stored angles at both ends.

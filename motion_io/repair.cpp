@@ -1,4 +1,6 @@
-#include "motion_io/repair.hpp"
+#include "repair.hpp"
+
+#include "motion_io/hermite.hpp"
 
 #include <fmt/format.h>
 
@@ -326,15 +328,13 @@ void Repairer::emit_until(const Knot& a, const Knot& b, bool include_end) {
         if (!(t < b.t_s || (include_end && t <= b.t_s + 1e-12))) break;
         ++grid_i_;
         const double u = std::clamp((t - a.t_s) / h, 0.0, 1.0);
-        const double u2 = u * u, u3 = u2 * u;
-        const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
-        const double d00 = 6 * u2 - 6 * u, d10 = 3 * u2 - 4 * u + 1, d01 = -6 * u2 + 6 * u, d11 = 3 * u2 - 2 * u;
         GridSample s;
         s.t_s = t;
         double speed2 = 0;
         for (int ax = 0; ax < 3; ++ax) {
-            s.p_mm[ax] = h00 * a.p[ax] + h10 * h * a.v[ax] + h01 * b.p[ax] + h11 * h * b.v[ax];
-            s.v_mm_s[ax] = (d00 * a.p[ax] + d01 * b.p[ax]) / h + d10 * a.v[ax] + d11 * b.v[ax];
+            const HermiteSegment seg{a.p[ax], a.v[ax], b.p[ax], b.v[ax], h};
+            s.p_mm[ax] = seg.position(u);
+            s.v_mm_s[ax] = seg.velocity(u);
             speed2 += s.v_mm_s[ax] * s.v_mm_s[ax];
         }
         s.spindle_rpm = spindle_rpm_at(t);

@@ -3,8 +3,8 @@
 // cubic Hermite (C1) interpolant, integrate the spindle angle and attribute blocks.
 #pragma once
 
-#include "motion_io/clock.hpp"
-#include "motion_io/pipeline.hpp"
+#include "clock.hpp"
+#include "pipeline.hpp"
 
 #include <deque>
 #include <array>

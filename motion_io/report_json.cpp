@@ -1,4 +1,6 @@
-#include "motion_io/motion_io_ext.hpp"
+#include "motion_io/motion_io.hpp"
+
+#include <nlohmann/json.hpp>
 
 namespace cutload::motion_io {
 

@@ -1,6 +1,6 @@
 // Stage "align channels": puts records in time order, splits sessions, merges single-axis
 // position items into 3-D positions and, for event-driven logs, makes "value held" explicit.
-#include "motion_io/sequencer.hpp"
+#include "sequencer.hpp"
 
 #include <fmt/format.h>
 

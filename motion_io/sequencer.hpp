@@ -1,7 +1,7 @@
 // Internal: the "align channels" stage (see sequencer.cpp).
 #pragma once
 
-#include "motion_io/pipeline.hpp"
+#include "pipeline.hpp"
 
 #include <array>
 #include <deque>

@@ -6,7 +6,7 @@
 // Which data items feed which channel comes from a key map (built-in defaults or a JSON file,
 // docs/formats.md). A first pass collects only the key names present, so the highest-priority
 // candidate that the log actually contains is chosen; both passes stream line by line.
-#include "motion_io/pipeline.hpp"
+#include "pipeline.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>

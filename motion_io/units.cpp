@@ -1,5 +1,5 @@
 // Unit names accepted in CSV headers, --units / --feed-units and SHDR map files.
-#include "motion_io/pipeline.hpp"
+#include "pipeline.hpp"
 
 #include <algorithm>
 #include <cctype>

@@ -1,8 +1,8 @@
 // Routes: /api/v1/thresholds (rules), /api/v1/alerts (raised by finished runs, acknowledged by
 // people) and /api/v1/webhooks (subscriptions and their delivery log).
-#include "server/core.hpp"
-#include "server/results.hpp"
-#include "server/webhooks.hpp"
+#include "core.hpp"
+#include "results.hpp"
+#include "webhooks.hpp"
 
 #include <fmt/format.h>
 

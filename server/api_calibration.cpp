@@ -6,8 +6,8 @@
 // tests is capped; the body size is capped by the server as for every route (413).
 #include "force_model/calibrate.hpp"
 #include "force_model/measurement.hpp"
-#include "server/core.hpp"
-#include "server/library.hpp"
+#include "core.hpp"
+#include "library.hpp"
 
 #include <fmt/format.h>
 

@@ -1,7 +1,7 @@
 // Routes: /api/v1/machines, /api/v1/tools, /api/v1/materials (full CRUD, names unique).
 #include "force_model/force_model.hpp"
-#include "server/core.hpp"
-#include "server/library.hpp"
+#include "core.hpp"
+#include "library.hpp"
 
 #include <fmt/format.h>
 

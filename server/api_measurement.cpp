@@ -6,9 +6,9 @@
 // recomputed on GET, so a changed force engine never serves a stale report.
 #include "force_model/compare.hpp"
 #include "force_model/measurement.hpp"
-#include "server/core.hpp"
-#include "server/durable_file.hpp"
-#include "server/series.hpp"
+#include "core.hpp"
+#include "durable_file.hpp"
+#include "series.hpp"
 
 #include <fcntl.h>
 #include <fmt/format.h>

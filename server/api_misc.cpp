@@ -1,6 +1,6 @@
 // Routes: /healthz, /metrics, /api/v1/openapi.json.
-#include "server/core.hpp"
-#include "server/jobs.hpp"
+#include "core.hpp"
+#include "jobs.hpp"
 
 #include <fmt/format.h>
 

@@ -1,9 +1,9 @@
 // Routes of runs uploaded with an NC program: the commanded-vs-actual comparison, the program as
 // uploaded, and feed optimizations (jobs that recommend per-block feeds and write the program back).
-#include "server/core.hpp"
-#include "server/jobs.hpp"
-#include "server/library.hpp"
-#include "server/program.hpp"
+#include "core.hpp"
+#include "jobs.hpp"
+#include "library.hpp"
+#include "program.hpp"
 
 #include <fmt/format.h>
 

@@ -2,14 +2,14 @@
 // (blocks, forces, motion) with window decimation and CSV.
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
-#include "server/core.hpp"
-#include "server/durable_file.hpp"
-#include "server/gzip.hpp"
-#include "server/jobs.hpp"
-#include "server/library.hpp"
-#include "server/number_text.hpp"
-#include "server/program.hpp"
-#include "server/series.hpp"
+#include "core.hpp"
+#include "durable_file.hpp"
+#include "gzip.hpp"
+#include "jobs.hpp"
+#include "library.hpp"
+#include "number_text.hpp"
+#include "program.hpp"
+#include "series.hpp"
 
 #include <fcntl.h>
 #include <fmt/format.h>

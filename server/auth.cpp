@@ -1,4 +1,4 @@
-#include "server/auth.hpp"
+#include "auth.hpp"
 
 #include <fmt/format.h>
 #include <openssl/evp.h>

@@ -2,7 +2,7 @@
 // SHA-256, which is enough for keys of this entropy (no dictionary to attack).
 #pragma once
 
-#include "server/common.hpp"
+#include "common.hpp"
 
 namespace cutload::server {
 

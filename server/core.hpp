@@ -2,9 +2,9 @@
 // the route registration helper that applies auth, error mapping and metrics to every handler.
 #pragma once
 
-#include "server/common.hpp"
-#include "server/metrics.hpp"
-#include "server/series.hpp"
+#include "common.hpp"
+#include "metrics.hpp"
+#include "series.hpp"
 
 #include <httplib.h>
 

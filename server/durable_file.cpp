@@ -1,4 +1,4 @@
-#include "server/durable_file.hpp"
+#include "durable_file.hpp"
 
 #include <fmt/format.h>
 

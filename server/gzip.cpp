@@ -1,4 +1,4 @@
-#include "server/gzip.hpp"
+#include "gzip.hpp"
 
 #include <zlib.h>
 

@@ -1,7 +1,7 @@
-#include "server/jobs.hpp"
+#include "jobs.hpp"
 
-#include "server/program.hpp"
-#include "server/results.hpp"
+#include "program.hpp"
+#include "results.hpp"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>

@@ -7,8 +7,8 @@
 
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
-#include "server/common.hpp"
-#include "server/metrics.hpp"
+#include "common.hpp"
+#include "metrics.hpp"
 
 #include <filesystem>
 #include <map>

@@ -1,7 +1,7 @@
 // Internal to server: the machine, tool and material libraries that run specs may reference.
 #pragma once
 
-#include "server/common.hpp"
+#include "common.hpp"
 
 namespace cutload::server {
 

@@ -1,7 +1,7 @@
-#include "server/program.hpp"
+#include "program.hpp"
 
-#include "server/jobs.hpp"
-#include "server/results.hpp"
+#include "jobs.hpp"
+#include "results.hpp"
 
 #include <fmt/format.h>
 

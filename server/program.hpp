@@ -4,7 +4,7 @@
 
 #include "force_model/feed_optimizer.hpp"
 #include "force_model/program_run.hpp"
-#include "server/common.hpp"
+#include "common.hpp"
 
 #include <atomic>
 #include <filesystem>

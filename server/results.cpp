@@ -1,7 +1,7 @@
-#include "server/results.hpp"
+#include "results.hpp"
 
-#include "server/program.hpp"
-#include "server/series.hpp"
+#include "program.hpp"
+#include "series.hpp"
 
 #include <fmt/format.h>
 

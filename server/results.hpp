@@ -4,7 +4,7 @@
 
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
-#include "server/common.hpp"
+#include "common.hpp"
 
 namespace cutload::server {
 

@@ -1,4 +1,4 @@
-#include "server/series.hpp"
+#include "series.hpp"
 
 #include <fmt/format.h>
 

@@ -2,11 +2,11 @@
 
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
-#include "server/auth.hpp"
-#include "server/core.hpp"
-#include "server/gzip.hpp"
-#include "server/jobs.hpp"
-#include "server/webhooks.hpp"
+#include "auth.hpp"
+#include "core.hpp"
+#include "gzip.hpp"
+#include "jobs.hpp"
+#include "webhooks.hpp"
 
 #include <fcntl.h>
 #include <fmt/format.h>

@@ -1,4 +1,4 @@
-#include "server/webhooks.hpp"
+#include "webhooks.hpp"
 
 #include <arpa/inet.h>
 #include <fmt/format.h>

@@ -2,8 +2,8 @@
 // attempts and every attempt logged. Pending rows survive restarts (they are in the database).
 #pragma once
 
-#include "server/common.hpp"
-#include "server/metrics.hpp"
+#include "common.hpp"
+#include "metrics.hpp"
 
 #include <thread>
 

@@ -1,0 +1,13 @@
+# Runs COMMAND (a list) and passes only if it fails and its output contains every text in EXPECT.
+execute_process(COMMAND ${COMMAND} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+set(all "${out}${err}")
+if(rc EQUAL 0)
+  message(FATAL_ERROR "expected a failure, but it succeeded:\n${all}")
+endif()
+foreach(text ${EXPECT})
+  string(FIND "${all}" "${text}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "failed as expected, but without \"${text}\":\n${all}")
+  endif()
+endforeach()
+message("failed as expected (exit ${rc}), naming: ${EXPECT}")

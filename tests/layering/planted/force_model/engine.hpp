@@ -1,0 +1,2 @@
+#pragma once
+#include "force_model/force_model.hpp"

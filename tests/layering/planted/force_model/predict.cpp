@@ -1,0 +1,3 @@
+#include "engine.hpp"
+#include "cli/commands.hpp"
+int predict() { return 0; }

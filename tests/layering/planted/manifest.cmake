@@ -1,0 +1,10 @@
+# A two-layer tree with two planted breaks of the rule (see ../CMakeLists.txt).
+list(APPEND CUTLOAD_LAYERS force_model cli)
+set(LAYER_force_model_DIR "force_model")
+set(LAYER_force_model_PUBLIC "force_model.hpp")
+set(LAYER_force_model_DEPENDS "")
+set(LAYER_force_model_PRIVATE_DEPENDS "")
+set(LAYER_cli_DIR "cli")
+set(LAYER_cli_PUBLIC "")
+set(LAYER_cli_DEPENDS "")
+set(LAYER_cli_PRIVATE_DEPENDS "force_model")
