@@ -178,7 +178,8 @@ bool Machine::has_errors() const {
 std::size_t Machine::index_of(char axis_name) const {
     for (std::size_t i = 0; i < chain.size(); ++i)
         if (chain[i].name == axis_name) return i;
-    throw MachineError(fmt::format("machine \"{}\" has no axis {}", name, axis_name));
+    throw MachineError(name.empty() ? fmt::format("the machine has no axis {}", axis_name)
+                                    : fmt::format("machine \"{}\" has no axis {}", name, axis_name));
 }
 
 void set_errors(Machine& machine, const json& errors, const std::string& path) {

@@ -71,6 +71,20 @@ TEST_CASE("the bundled BC head-table machine, written as a form-shaping code, lo
     CHECK(m.chain[m.index_of('X')].lower == -1200);
 }
 
+TEST_CASE("machine kinds follow where the rotary axes sit; positions name their axes", "[machine]") {
+    const Machine hh = machine_fixtures::ca_head_head();
+    CHECK(hh.kind() == MachineKind::HeadHead);
+    CHECK(std::string(kind_name(hh.kind())) == "head-head");
+    // No axis on the workpiece side: the bed frame is the workpiece frame.
+    const Frame bed = bed_to_workpiece(hh, positions(hh, {{'X', -10}, {'C', 40}, {'A', 30}}));
+    CHECK(bed.R == Eigen::Matrix3d::Identity());
+    CHECK(bed.origin_mm == Eigen::Vector3d::Zero());
+    CHECK(parse_machine(json::parse(R"({"code": "b X Y Z t"})")).kind() == MachineKind::ThreeAxis);
+    CHECK(parse_machine(json::parse(R"({"code": "A b X Y Z t", "axes": {"A": {"pivot_mm": [0, 0, 0]}}})")).kind() ==
+          MachineKind::FourAxisTable);
+    CHECK_THROWS_WITH(positions(hh, {{'B', 10}}), "machine \"CA head-head with an offset fork\" has no axis B");
+}
+
 TEST_CASE("a form-shaping code and the explicit form give the same chain", "[machine]") {
     json explicit_form = json::parse(R"({
       "workpiece_side": [
