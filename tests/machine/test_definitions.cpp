@@ -71,7 +71,7 @@ TEST_CASE("the bundled BC head-table machine, written as a form-shaping code, lo
     CHECK(m.chain[m.index_of('X')].lower == -1200);
 }
 
-TEST_CASE("machine kinds follow where the rotary axes sit; positions name their axes", "[machine]") {
+TEST_CASE("machine kinds follow where the rotary axes sit, and positions name their axes", "[machine]") {
     const Machine hh = machine_fixtures::ca_head_head();
     CHECK(hh.kind() == MachineKind::HeadHead);
     CHECK(std::string(kind_name(hh.kind())) == "head-head");
