@@ -7,9 +7,9 @@
 // docs/formats.md). A first pass collects only the key names present, so the highest-priority
 // candidate that the log actually contains is chosen; both passes stream line by line.
 #include "pipeline.hpp"
+#include "motion_io/shdr.hpp"
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include <charconv>
 #include <cmath>
@@ -19,138 +19,9 @@
 namespace cutload::motion_io::detail {
 namespace {
 
-struct KeyMap {
-    std::vector<std::string> position, x, y, z, feed, spindle, block;
-    std::string length_unit = "mm";
-    std::string feed_unit = "mm/s";   // MTConnect's unit for PATH_FEEDRATE
-    std::string spindle_unit = "rpm";
-};
-
-KeyMap default_map() {
-    KeyMap m;
-    m.position = {"path_pos", "p1LPathPos", "Lp1LPathPos", "PathPos"};
-    m.x = {"X1actw", "Xact", "Xabs", "Xpos", "X1actm"};
-    m.y = {"Y1actw", "YI1actw", "Yact", "Yabs", "Ypos", "Y1actm", "YI1actm"};
-    m.z = {"Z1actw", "Zact", "Zabs", "Zpos", "Z1actm"};
-    m.feed = {"p1Fact", "path_feedrate", "Fact", "Frt"};
-    // The milling (tool) spindle first: on Okuma multitasking controls S6 turns the cutter while
-    // S1/S2 turn the workpiece; a plain machining centre only has S1.
-    m.spindle = {"S6speed", "S1speed", "Sspeed", "spindle_speed", "Srpm"};
-    m.block = {"p1BlockNumber", "line", "block", "p1linenumber"};
-    return m;
-}
-
-KeyMap load_map(const std::string& path) {
-    KeyMap m = default_map();
-    if (path.empty()) return m;
-    std::ifstream in(path);
-    if (!in) throw IngestError(fmt::format("{}: cannot open SHDR map file", path));
-    nlohmann::json j;
-    try {
-        in >> j;
-    } catch (const nlohmann::json::parse_error& e) {
-        throw IngestError(fmt::format("{}: not valid JSON: {}", path, e.what()));
-    }
-    if (!j.is_object()) throw IngestError(fmt::format("{}: expected a JSON object mapping channels to keys", path));
-    const std::map<std::string, std::vector<std::string>*> lists{
-        {"position", &m.position}, {"x", &m.x}, {"y", &m.y}, {"z", &m.z},
-        {"feed", &m.feed}, {"spindle", &m.spindle}, {"block", &m.block}};
-    for (const auto& [key, value] : j.items()) {
-        if (key == "units") {
-            if (!value.is_object()) throw IngestError(fmt::format("{}: key 'units': expected an object", path));
-            for (const auto& [u, v] : value.items()) {
-                if (!v.is_string()) throw IngestError(fmt::format("{}: key 'units.{}': expected a string", path, u));
-                std::string* dst = u == "length" ? &m.length_unit : u == "feed" ? &m.feed_unit
-                                 : u == "spindle" ? &m.spindle_unit : nullptr;
-                if (!dst) throw IngestError(fmt::format("{}: key 'units.{}': expected length, feed or spindle", path, u));
-                *dst = v.get<std::string>();
-            }
-            continue;
-        }
-        const auto it = lists.find(key);
-        if (it == lists.end())
-            throw IngestError(fmt::format("{}: unknown key '{}' (expected position, x, y, z, feed, spindle, block, units)",
-                                          path, key));
-        std::vector<std::string> keys;
-        if (value.is_string()) {
-            keys.push_back(value.get<std::string>());
-        } else if (value.is_array()) {
-            for (const auto& k : value) {
-                if (!k.is_string()) throw IngestError(fmt::format("{}: key '{}': expected strings", path, key));
-                keys.push_back(k.get<std::string>());
-            }
-        } else {
-            throw IngestError(fmt::format("{}: key '{}': expected a data-item key or a list of keys", path, key));
-        }
-        *it->second = std::move(keys);
-    }
-    return m;
-}
-
-void split_pipes(std::string_view line, std::vector<std::string_view>& out) {
-    out.clear();
-    std::size_t start = 0;
-    while (true) {
-        const std::size_t bar = line.find('|', start);
-        if (bar == std::string_view::npos) {
-            out.push_back(line.substr(start));
-            return;
-        }
-        out.push_back(line.substr(start, bar - start));
-        start = bar + 1;
-    }
-}
-
-constexpr std::string_view kMultiline = "--multiline--";
-
-bool is_condition(const std::vector<std::string_view>& f) {
-    if (f.size() != 7) return false;
-    if (f[2] == "NORMAL" || f[2] == "WARNING" || f[2] == "FAULT") return true;
-    return f[2] == "UNAVAILABLE" && f[3].empty() && f[4].empty() && f[5].empty() && f[6].empty();
-}
-
-// Days since 1970-01-01 of a civil date (proleptic Gregorian).
-std::int64_t days_from_civil(std::int64_t y, unsigned m, unsigned d) {
-    y -= m <= 2;
-    const std::int64_t era = (y >= 0 ? y : y - 399) / 400;
-    const auto yoe = static_cast<unsigned>(y - era * 400);
-    const unsigned doy = (153 * (m + (m > 2 ? -3 : 9)) + 2) / 5 + d - 1;
-    const unsigned doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    return era * 146097 + static_cast<std::int64_t>(doe) - 719468;
-}
-
-struct Stamp {
-    std::int64_t sec = 0;
-    double frac = 0;
-};
-
-bool parse_int(std::string_view s, int& v) {
-    const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    return ec == std::errc() && p == s.data() + s.size();
-}
-
-// "2022-08-08T13:51:34.7167146Z", optionally followed by "@duration".
-std::optional<Stamp> parse_stamp(std::string_view s) {
-    if (const auto at = s.find('@'); at != std::string_view::npos) s = s.substr(0, at);
-    if (!s.empty() && s.back() == 'Z') s.remove_suffix(1);
-    if (s.size() < 19 || s[4] != '-' || s[7] != '-' || (s[10] != 'T' && s[10] != ' ') || s[13] != ':' || s[16] != ':')
-        return std::nullopt;
-    int y, mo, d, h, mi, se;
-    if (!parse_int(s.substr(0, 4), y) || !parse_int(s.substr(5, 2), mo) || !parse_int(s.substr(8, 2), d) ||
-        !parse_int(s.substr(11, 2), h) || !parse_int(s.substr(14, 2), mi) || !parse_int(s.substr(17, 2), se))
-        return std::nullopt;
-    Stamp st;
-    st.sec = days_from_civil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d)) * 86400 + h * 3600 + mi * 60 + se;
-    if (s.size() > 19) {
-        if (s[19] != '.') return std::nullopt;
-        double f = 0;
-        const std::string frac = "0" + std::string(s.substr(19));
-        const auto [p, ec] = std::from_chars(frac.data(), frac.data() + frac.size(), f);
-        if (ec != std::errc() || p != frac.data() + frac.size()) return std::nullopt;
-        st.frac = f;
-    }
-    return st;
-}
+// The key map, the line tokenizer and the time stamp parser live in shdr_keys.cpp / shdr_line.cpp
+// (public in motion_io/shdr.hpp) so the live sources read lines exactly as this reader does.
+using KeyMap = ShdrKeyMap;
 
 const std::string* first_present(const std::vector<std::string>& candidates, const std::set<std::string, std::less<>>& seen) {
     for (const auto& k : candidates)
@@ -161,7 +32,7 @@ const std::string* first_present(const std::vector<std::string>& candidates, con
 class ShdrReader {
 public:
     ShdrReader(const std::string& path, const ReadOptions& opt, Diagnostics& diag, BlockTable& blocks, RecordSink& out)
-        : path_(path), opt_(opt), diag_(diag), blocks_(blocks), out_(out), map_(load_map(opt.map_file)) {}
+        : path_(path), opt_(opt), diag_(diag), blocks_(blocks), out_(out), map_(load_shdr_key_map(opt.map_file)) {}
 
     void run() {
         choose_keys(scan_keys());
@@ -169,40 +40,30 @@ public:
         if (!in) diag_.fail(0, "cannot open file");
         std::string line;
         std::size_t line_no = 0;
-        std::string multiline_end;
+        ShdrLineTokenizer tokens;
         while (std::getline(in, line)) {
             ++line_no;
-            if (!line.empty() && line.back() == '\r') line.pop_back();
-            if (!multiline_end.empty()) {
-                if (line == multiline_end) multiline_end.clear();
-                continue;
-            }
-            if (line.empty() || line.front() == '*') continue;
-            split_pipes(line, fields_);
-            if (fields_.size() < 3) {
+            const ShdrLineKind kind = tokens.next(line);
+            if (kind == ShdrLineKind::Short)
                 diag_.warn("shdr_short_line", line_no, "line without 'timestamp|key|value'; skipped");
-                continue;
-            }
-            if (fields_.back().substr(0, kMultiline.size()) == kMultiline) {
-                multiline_end = std::string(fields_.back());
-                continue;
-            }
-            if (fields_[1].substr(0, 1) == "@" || is_condition(fields_)) continue;
-            const auto stamp = parse_stamp(fields_[0]);
+            if (kind != ShdrLineKind::Data) continue;
+            const auto& fields = tokens.fields();
+            const auto stamp = parse_iso_time(fields[0]);
             if (!stamp)
                 diag_.fail(line_no, fmt::format("'{}' is not an ISO 8601 time stamp (expected e.g. 2022-08-08T13:51:34.7167146Z)",
-                                                fields_[0]));
+                                                fields[0]));
             if (!have_origin_) {
                 origin_sec_ = stamp->sec;
                 have_origin_ = true;
             }
             const double t_s = static_cast<double>(stamp->sec - origin_sec_) + stamp->frac;
-            if ((fields_.size() - 1) % 2 != 0)
+            if (tokens.odd_fields())
                 diag_.warn("shdr_odd_fields", line_no, "odd number of key/value fields; the last one ignored");
-            for (std::size_t i = 1; i + 1 < fields_.size(); i += 2) handle(fields_[i], fields_[i + 1], t_s, line_no);
+            for (std::size_t i = 1; i + 1 < fields.size(); i += 2) handle(fields[i], fields[i + 1], t_s, line_no);
         }
-        if (!multiline_end.empty())
-            diag_.warn("shdr_unterminated", line_no, fmt::format("multi-line block never closed by '{}'", multiline_end));
+        if (tokens.in_multiline())
+            diag_.warn("shdr_unterminated", line_no,
+                       fmt::format("multi-line block never closed by '{}'", tokens.multiline_terminator()));
         out_.finish();
     }
 
@@ -215,7 +76,7 @@ private:
         if (!in) diag_.fail(0, "cannot open file");
         std::string line;
         while (std::getline(in, line)) {
-            split_pipes(line, fields_);
+            split_shdr_fields(line, fields_);
             for (std::size_t i = 1; i < fields_.size(); i += 2)
                 if (auto it = wanted.find(fields_[i]); it != wanted.end()) seen.insert(*it);
         }
@@ -241,10 +102,8 @@ private:
         if (const auto* k = first_present(map_.spindle, seen)) keys_.emplace(*k, Chan::Spindle);
         if (const auto* k = first_present(map_.block, seen)) keys_.emplace(*k, Chan::Block);
         try {
-            length_mm_ = length_factor_mm(opt_.length_unit.value_or(map_.length_unit));
-            feed_mm_min_ = feed_factor_mm_min(opt_.feed_unit.value_or(
-                opt_.length_unit && !opt_.feed_unit ? *opt_.length_unit + "/s" : map_.feed_unit));
-            spindle_rpm_ = speed_factor_rpm(map_.spindle_unit);
+            const ShdrUnitFactors f = shdr_unit_factors(map_, opt_);
+            length_mm_ = f.length_mm, feed_mm_min_ = f.feed_mm_min, spindle_rpm_ = f.spindle_rpm;
         } catch (const std::invalid_argument& e) {
             diag_.fail(0, e.what());
         }
@@ -337,7 +196,7 @@ Format detect_format(const std::string& path, Diagnostics& diag) {
         if (line.empty() || line.front() == '#' || line.front() == '*') continue;
         // An SHDR line starts with an ISO time stamp followed by '|'.
         const auto bar = line.find('|');
-        if (bar != std::string::npos && parse_stamp(std::string_view(line).substr(0, bar))) return Format::Shdr;
+        if (bar != std::string::npos && parse_iso_time(std::string_view(line).substr(0, bar))) return Format::Shdr;
         return Format::Csv;
     }
     diag.fail(0, "empty file: nothing to read");
