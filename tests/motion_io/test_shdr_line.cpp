@@ -70,7 +70,7 @@ TEST_CASE("the line tokenizer classifies an adapter's lines as the file reader s
     CHECK(tok.next("2022-08-08T13:51:34Z|X1actw|2") == ShdrLineKind::Data);
 }
 
-TEST_CASE("a key map file replaces the channels it names; unit factors follow map and options", "[shdr]") {
+TEST_CASE("a key map file replaces the channels it names, and unit factors follow map and options", "[shdr]") {
     const ShdrKeyMap d = default_shdr_key_map();
     CHECK(d.position.front() == "path_pos");
     const ShdrUnitFactors df = shdr_unit_factors(d);
