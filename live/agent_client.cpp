@@ -402,6 +402,7 @@ private:
                                                                origin_ + prefix_, next_seq_)));
         connected_ = true;
         failures_ = 0;
+        warnings_ = 0;
         {
             std::lock_guard<std::mutex> lock(mu_);
             instance_ = doc.instance_id;

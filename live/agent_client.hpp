@@ -31,7 +31,7 @@ struct AgentOptions {
                                                       // the stream is dead after twice as long without a byte
     std::chrono::milliseconds poll_interval{250};     // Poll: pause between requests once caught up
     std::chrono::milliseconds request_timeout{5000};  // connect, and read for probe / current / polled sample
-    std::size_t max_document_bytes = 64u << 20;       // a larger document is a protocol error
+    std::size_t max_document_bytes = 16u << 20;       // a larger document is a protocol error
     Backoff backoff;
 };
 

@@ -43,7 +43,8 @@ struct StreamsDocument {
     std::uint64_t instance_id = 0;
     std::uint64_t first_sequence = 0, last_sequence = 0, next_sequence = 0;
     // Samples and events of the device, sorted by sequence (the document groups them by
-    // component). Conditions are left out. Keyed by the probe's name for their dataItemId.
+    // component). Conditions are left out; a data set's entries become "key=value key=value".
+    // Keyed by the probe's name for their dataItemId.
     std::vector<Observation> observations;
     std::vector<std::string> warnings;   // observations skipped (no time stamp, no sequence)
     bool has_error(std::string_view code) const;

@@ -85,8 +85,10 @@ public:
     // Clears `out`, then waits up to `wait` for data and fills it with what arrived. Returns as
     // soon as anything arrived (a batch holds what one read brought, at most a few thousand
     // observations), after an event, when `wait` elapsed (empty batch), or when `cancel` was set
-    // (checked at least every 50 ms). Network trouble never throws: it arrives as events while
-    // the source keeps reconnecting. Call it at least every half heartbeat so that pings go out.
+    // (checked at least every 50 ms). A connection attempt may hold it longer, up to the
+    // source's connect timeout (SHDR; 2 s by default). Network trouble never throws: it arrives
+    // as events while the source keeps reconnecting. Call it again well within a heartbeat: the
+    // SHDR source sends its pings from inside next().
     virtual void next(Batch& out, std::chrono::milliseconds wait, const std::atomic<bool>& cancel) = 0;
     // "shdr://host:port" or "http://host:port/device".
     virtual std::string describe() const = 0;

@@ -18,6 +18,8 @@ struct ShdrOptions {
     std::string host = "127.0.0.1";
     int port = 7878;   // the adapters' customary port
     Backoff backoff;
+    // One connection attempt (all addresses of the host) may hold next() this long; a cancel
+    // still ends it within 50 ms.
     std::chrono::milliseconds connect_timeout{2000};
     // With no heartbeat agreed (an adapter that never answers '* PING'), the connection counts as
     // dead after this long without data (the MTConnect agent's legacy timeout is 600 s too).

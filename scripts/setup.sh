@@ -8,7 +8,7 @@ PACKAGES=(
   build-essential cmake pkg-config git ca-certificates
   libeigen3-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo
   nlohmann-json3-dev libcpp-httplib-dev libsqlite3-dev sqlite3 catch2
-  libcli11-dev libspdlog-dev libfmt-dev
+  libcli11-dev libspdlog-dev libfmt-dev libpugixml-dev
   curl
 )
 
