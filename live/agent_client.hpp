@@ -12,11 +12,9 @@
 #include "live/agent_xml.hpp"
 #include "live/live.hpp"
 
-#include <condition_variable>
-#include <deque>
 #include <memory>
-#include <mutex>
-#include <thread>
+#include <string>
+#include <vector>
 
 namespace cutload::live {
 
