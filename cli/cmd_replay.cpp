@@ -94,12 +94,13 @@ void add_replay(CLI::App& app) {
         ->capture_default_str();
     sub->add_flag("--loop", a->opt.loop, "Start again at the end (stamps keep increasing)");
     sub->add_option("--heartbeat-ms", a->heartbeat_ms, "Heartbeat announced in '* PONG <ms>'")
-        ->check(CLI::Range(1L, 1800000L))
+        ->check(CLI::Range(1L, 600000L))
         ->capture_default_str();
     sub->add_option("--max-pause-s", a->max_pause_s, "Shorten silences in the log to this many seconds (default: keep)")
         ->check(CLI::Range(0.0, 86400.0));
     sub->add_flag("--exit-at-end", a->exit_at_end, "Exit after the last line instead of serving on");
     add_log_options(*sub, a->opt.read);
+    sub->get_option("--map")->description("CSV logs: the keys and units to write, an SHDR key map (docs/live.md)");
     sub->callback([a] { run_replay(*a); });
 }
 
