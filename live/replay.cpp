@@ -278,11 +278,14 @@ private:
     void start_pass() {
         rewind();
         // Rounded to whole microseconds so that the shifted stamps keep the log's own digits.
-        std::int64_t start = wall_now_ns() / 1000 * 1000;
+        const std::int64_t now_ns = wall_now_ns() / 1000 * 1000;
+        std::int64_t start = now_ns;
         if (sent_any_) start = std::max(start, max_sent_ns_ + kPassGapNs);
         offset_ns_ = start - first_ns_;
         log_clock_ns_ = first_ns_;
-        due_ = Clock::now();
+        // The pause between passes is delivered like any other (divided by the speed), so at
+        // speed 1 the stamps stay with the wall clock pass after pass.
+        due_ = Clock::now() + std::chrono::nanoseconds(std::llround(static_cast<double>(start - now_ns) / opt_.speed));
         have_pending_ = false;
         advance();
     }
