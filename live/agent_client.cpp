@@ -3,6 +3,8 @@
 // batches through a short queue.
 #include "live/agent_client.hpp"
 
+#include "events.hpp"
+
 #include <fmt/format.h>
 #include <httplib.h>
 
@@ -21,15 +23,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr std::size_t kMaxQueuedBatches = 64;
 constexpr std::size_t kObservationsPerBatch = 4096;
-constexpr unsigned kMaxWarnings = 20;
-
-SourceEvent event(EventKind kind, std::string message) {
-    SourceEvent e;
-    e.kind = kind;
-    e.at = WallClock::now();
-    e.message = std::move(message);
-    return e;
-}
 
 std::string percent_encode(const std::string& s) {
     std::string out;
@@ -263,17 +256,14 @@ private:
     }
 
     void warn(const std::string& what) {
-        ++warnings_;
-        if (warnings_ < kMaxWarnings) push_events({event(EventKind::Warning, what)});
-        else if (warnings_ == kMaxWarnings)
-            push_events({event(EventKind::Warning, what + " (further warnings not reported)")});
+        if (auto e = limited_warning(warnings_, what)) push_events({std::move(*e)});
     }
 
     void failure(const std::string& why) {
         ++failures_;
         const auto retry = opt_.backoff.delay(failures_);
         next_attempt_ = Clock::now() + retry;
-        SourceEvent e = event(connected_ ? EventKind::Disconnected : EventKind::ConnectFailed,
+        SourceEvent e = make_event(connected_ ? EventKind::Disconnected : EventKind::ConnectFailed,
                               fmt::format("{}: {}; retrying in {} ms", origin_ + prefix_, why, retry.count()));
         e.retry_in = retry;
         connected_ = false;
@@ -378,16 +368,16 @@ private:
         const double gap_s = std::chrono::duration<double>(WallClock::now() - last_data_wall_).count();
         const bool behind = synced_ && !restarted && (out_of_range || next_seq_ < doc.first_sequence);
         if (restarted) {
-            events.push_back(event(EventKind::Restarted, fmt::format("agent restarted: instanceId {} -> {}; "
+            events.push_back(make_event(EventKind::Restarted, fmt::format("agent restarted: instanceId {} -> {}; "
                                                                      "probed again", instance_, doc.instance_id)));
-            SourceEvent g = event(EventKind::Gap, fmt::format("observations after sequence {} of the old instance and "
+            SourceEvent g = make_event(EventKind::Gap, fmt::format("observations after sequence {} of the old instance and "
                                                               "before sequence {} of the new one not received",
                                                               next_seq_ == 0 ? 0 : next_seq_ - 1, doc.next_sequence));
             g.gap_s = gap_s;
             g.last_stamp_ns = last_stamp_ns_;
             events.push_back(std::move(g));
         } else if (behind) {
-            SourceEvent g = event(EventKind::Gap, fmt::format("sequences {} to {} no longer held by the agent (first "
+            SourceEvent g = make_event(EventKind::Gap, fmt::format("sequences {} to {} no longer held by the agent (first "
                                                               "held: {}); resynchronised from /current",
                                                               next_seq_, doc.next_sequence - 1, doc.first_sequence));
             g.gap_s = gap_s;
@@ -398,7 +388,7 @@ private:
         }
         const bool take_snapshot = !synced_ || restarted || behind;
         if (!connected_ || !events.empty())
-            events.push_back(event(EventKind::Connected,
+            events.push_back(make_event(EventKind::Connected,
                                    take_snapshot ? fmt::format("synchronised with {} (device {}, instanceId {}) at "
                                                                "sequence {}", origin_ + prefix_, device_name_,
                                                                doc.instance_id, doc.next_sequence)

@@ -1,6 +1,7 @@
 // SHDR adapter client (live/shdr_client.hpp): connection and heartbeat, then lines to observations.
 #include "live/shdr_client.hpp"
 
+#include "events.hpp"
 #include "net.hpp"
 
 #include <fmt/format.h>
@@ -20,17 +21,8 @@ namespace cutload::live {
 namespace {
 
 constexpr std::chrono::milliseconds kCancelSlice{50};
-constexpr unsigned kMaxWarnings = 20;   // per connection; then one summary
 // The MTConnect agent ignores a PONG period of 30 min or more as bogus; so do we.
 constexpr std::chrono::milliseconds kMaxHeartbeat{30 * 60 * 1000};
-
-SourceEvent event(EventKind kind, std::string message) {
-    SourceEvent e;
-    e.kind = kind;
-    e.at = WallClock::now();
-    e.message = std::move(message);
-    return e;
-}
 
 }  // namespace
 
@@ -43,10 +35,7 @@ ShdrClient::~ShdrClient() {
 bool ShdrClient::connected() const { return fd_ >= 0; }
 
 void ShdrClient::warn(LineBatch& out, const std::string& what) {
-    ++warnings_;
-    if (warnings_ < kMaxWarnings) out.events.push_back(event(EventKind::Warning, what));
-    else if (warnings_ == kMaxWarnings)
-        out.events.push_back(event(EventKind::Warning, what + " (further warnings on this connection not reported)"));
+    if (auto e = limited_warning(warnings_, what)) out.events.push_back(std::move(*e));
 }
 
 void ShdrClient::lose(LineBatch& out, const std::string& why) {
@@ -58,7 +47,7 @@ void ShdrClient::lose(LineBatch& out, const std::string& why) {
     ++failures_;   // a drop counts as a failure: an adapter that accepts and hangs up backs off too
     const auto retry = opt_.backoff.delay(failures_);
     next_attempt_ = Clock::now() + retry;
-    SourceEvent e = event(EventKind::Disconnected,
+    SourceEvent e = make_event(EventKind::Disconnected,
                           fmt::format("{}:{}: {}; reconnecting in {} ms", opt_.host, opt_.port, why, retry.count()));
     e.retry_in = retry;
     out.events.push_back(std::move(e));
@@ -72,7 +61,7 @@ void ShdrClient::try_connect(LineBatch& out, const std::atomic<bool>& cancel) {
         ++failures_;
         const auto retry = opt_.backoff.delay(failures_);
         next_attempt_ = Clock::now() + retry;
-        SourceEvent e = event(EventKind::ConnectFailed, fmt::format("cannot connect to {}:{}: {}; retrying in {} ms",
+        SourceEvent e = make_event(EventKind::ConnectFailed, fmt::format("cannot connect to {}:{}: {}; retrying in {} ms",
                                                                     opt_.host, opt_.port, error, retry.count()));
         e.retry_in = retry;
         out.events.push_back(std::move(e));
@@ -82,10 +71,10 @@ void ShdrClient::try_connect(LineBatch& out, const std::atomic<bool>& cancel) {
     warnings_ = 0;
     const auto now = Clock::now();
     const WallClock::time_point wall_now = WallClock::now();
-    out.events.push_back(event(EventKind::Connected, fmt::format("connected to {}:{}", opt_.host, opt_.port)));
+    out.events.push_back(make_event(EventKind::Connected, fmt::format("connected to {}:{}", opt_.host, opt_.port)));
     if (had_connection_) {
         // An adapter keeps no history: what it sent while we were away is lost.
-        SourceEvent g = event(EventKind::Gap, fmt::format("no connection to {}:{} for {:.3f} s", opt_.host, opt_.port,
+        SourceEvent g = make_event(EventKind::Gap, fmt::format("no connection to {}:{} for {:.3f} s", opt_.host, opt_.port,
                                                           std::chrono::duration<double>(wall_now - last_rx_wall_).count()));
         g.gap_s = std::chrono::duration<double>(wall_now - last_rx_wall_).count();
         out.events.push_back(std::move(g));
@@ -228,10 +217,7 @@ std::string ShdrSource::describe() const {
 }
 
 void ShdrSource::warn(Batch& out, const std::string& what) {
-    ++warnings_;
-    if (warnings_ < kMaxWarnings) out.events.push_back(event(EventKind::Warning, what));
-    else if (warnings_ == kMaxWarnings)
-        out.events.push_back(event(EventKind::Warning, what + " (further warnings on this connection not reported)"));
+    if (auto e = limited_warning(warnings_, what)) out.events.push_back(std::move(*e));
 }
 
 void ShdrSource::next(Batch& out, std::chrono::milliseconds wait, const std::atomic<bool>& cancel) {

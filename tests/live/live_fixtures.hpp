@@ -16,6 +16,7 @@
 #include <charconv>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <sstream>
@@ -30,6 +31,10 @@ using namespace std::chrono_literals;
 
 inline std::string source_path(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
 inline std::string okuma_log() { return std::string(CUTLOAD_SHARED_DIR) + "/data/real/okuma_multus_shdr/okuma.txt"; }
+// A scratch file name of this process: several worktrees may run the suite at once.
+inline std::string temp_path(const std::string& name) {
+    return (std::filesystem::temp_directory_path() / ("cutload_live_" + std::to_string(::getpid()) + "_" + name)).string();
+}
 
 struct Timed {
     SourceEvent event;

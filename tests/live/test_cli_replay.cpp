@@ -63,7 +63,7 @@ TEST_CASE("cutload replay refuses bad input with one line and a non-zero exit", 
     struct Case {
         std::string args, says;
     };
-    const std::string shdr = (std::filesystem::temp_directory_path() / "cutload_cli_replay.txt").string();
+    const std::string shdr = temp_path("cli_replay.txt");
     std::ofstream(shdr) << "2022-08-08T10:00:00Z|Xact|1\n";
     const std::vector<Case> cases{
         {"replay", "LOG is required"},

@@ -19,10 +19,6 @@ using namespace cutload::live::test;
 
 namespace {
 
-std::string temp_path(const std::string& name) {
-    return (std::filesystem::temp_directory_path() / ("cutload_live_test_" + name)).string();
-}
-
 std::string write_file(const std::string& name, const std::string& text) {
     const std::string p = temp_path(name);
     std::ofstream(p, std::ios::binary) << text;

@@ -31,7 +31,7 @@ double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::d
 
 TEST_CASE("the SHDR client receives every line of a replayed log in order", "[shdr]") {
     // The demo log as the replay sends it, written out here to compare with.
-    const std::string shdr = (std::filesystem::temp_directory_path() / "cutload_live_test_lines.txt").string();
+    const std::string shdr = temp_path("lines.txt");
     std::FILE* f = std::fopen(shdr.c_str(), "wb");
     REQUIRE(f);
     const std::size_t n = write_csv_as_shdr(source_path("data/demo_dryrun.csv"), {}, f);
@@ -63,7 +63,7 @@ TEST_CASE("the SHDR client receives every line of a replayed log in order", "[sh
 }
 
 TEST_CASE("the heartbeat is agreed by PING/PONG and keeps a quiet connection alive", "[shdr]") {
-    const std::string log = (std::filesystem::temp_directory_path() / "cutload_live_test_hb.txt").string();
+    const std::string log = temp_path("hb.txt");
     std::ofstream(log) << "2022-08-08T10:00:00.000Z|Xact|1\n";
     ReplayOptions ro = replay_of(log, 1.0);
     ro.heartbeat = 250ms;
@@ -260,4 +260,26 @@ TEST_CASE("source addresses are checked: shdr://host[:port], http(s)://host[:por
     CHECK_THROWS_WITH(open_source("ftp://host"), Catch::Contains("expected shdr://"));
     CHECK(parse_host_port("10.0.0.5:7878").port == 7878);
     CHECK_THROWS_WITH(parse_host_port("10.0.0.5"), Catch::Contains("no port"));
+}
+
+TEST_CASE("a stream of garbage gives 20 warnings and one saying the rest are not reported", "[shdr]") {
+    ScriptedAdapter adapter([](int fd, const std::atomic<bool>& stop) {
+        std::string line;
+        read_line(fd, line, stop);
+        std::string junk;
+        for (int i = 0; i < 50; ++i) junk += "no pipes here " + std::to_string(i) + "\n";
+        send_text(fd, junk + "2022-08-08T13:51:35Z|c|3\n");
+        while (read_line(fd, line, stop)) {
+        }
+    });
+    ShdrOptions o;
+    o.port = adapter.port();
+    ShdrSource src(o);
+    Collected c;
+    REQUIRE(collect(src, c, [](const Collected& x) { return !x.observations.empty(); }, 5s));
+    collect(src, c, [](const Collected&) { return false; }, 100ms);
+    REQUIRE(c.count(EventKind::Warning) == 21);
+    CHECK(c.events.back().event.message == "more warnings on this connection are not reported");
+    CHECK(c.events[1].event.message.find("no pipes here 0") != std::string::npos);
+    CHECK(c.observations.size() == 1);
 }
