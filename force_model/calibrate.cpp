@@ -173,92 +173,11 @@ Regressors engine_regressors(const ToolSpec& tool, const CutTest& test, const En
     return r;
 }
 
-SteadyForce steady_mean_force(const Measurement& mm, double spindle_rpm, const SteadyOptions& opt) {
-    if (!mm.tool_machine_axes) throw MeasurementError(mm.source + ": map the measurement to machine axes first");
-    if (!(spindle_rpm > 0)) throw SpecError("spindle_rpm: must be > 0");
-    const double per_rev = mm.rate_Hz * 60.0 / spindle_rpm;   // samples per revolution
-    const auto revs = static_cast<std::size_t>(std::floor(static_cast<double>(mm.size()) / per_rev));
-    if (revs < static_cast<std::size_t>(opt.min_revolutions))
-        throw MeasurementError(fmt::format("{}: {} whole revolutions recorded at {:g} rpm; at least {} are needed",
-                                           mm.source, revs, spindle_rpm, opt.min_revolutions));
-    auto first_sample = [&](std::size_t j) { return static_cast<std::size_t>(std::llround(j * per_rev)); };
-    auto mean_over = [&](std::size_t i0, std::size_t i1) {
-        double s[3] = {0, 0, 0};
-        for (std::size_t i = i0; i < i1; ++i) {
-            s[0] += mm.fx_N[i];
-            s[1] += mm.fy_N[i];
-            s[2] += mm.fz_N[i];
-        }
-        const double n = static_cast<double>(i1 - i0);
-        return std::array<double, 3>{s[0] / n, s[1] / n, s[2] / n};
-    };
-    auto norm = [](const std::array<double, 3>& a, const std::array<double, 3>& b) {
-        return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-    };
-
-    SteadyForce out;
-    std::size_t s0 = 0, s1 = 0;   // steady revolutions [s0, s1)
-    std::vector<std::array<double, 3>> rev(revs);
-    for (std::size_t j = 0; j < revs; ++j) rev[j] = mean_over(first_sample(j), first_sample(j + 1));
-    if (opt.t_start_s || opt.t_end_s) {
-        const double a = opt.t_start_s.value_or(mm.t_s(0)), b = opt.t_end_s.value_or(mm.t_s(mm.size() - 1));
-        auto rev_at = [&](double t) { return (t - mm.t0_s) * mm.rate_Hz / per_rev; };
-        s0 = static_cast<std::size_t>(std::max(0.0, std::ceil(rev_at(a))));
-        s1 = static_cast<std::size_t>(std::clamp(std::floor(rev_at(b)), 0.0, static_cast<double>(revs)));
-        if (s1 <= s0)
-            throw MeasurementError(fmt::format("{}: no whole revolution in the steady window [{:g}, {:g}] s",
-                                               mm.source, a, b));
-    } else {
-        // Cutting revolutions, relative to the first revolution (the record starts in air).
-        std::vector<double> level(revs);
-        for (std::size_t j = 0; j < revs; ++j) level[j] = norm(rev[j], rev[0]);
-        const double top = *std::max_element(level.begin(), level.end());
-        if (top <= 0) throw MeasurementError(mm.source + ": the force never changes: no cut found");
-        std::size_t c0 = revs, c1 = 0;
-        for (std::size_t j = 0; j < revs; ++j)
-            if (level[j] > opt.threshold * top) c0 = std::min(c0, j), c1 = j + 1;
-        std::vector<double> cutting(level.begin() + static_cast<long>(c0), level.begin() + static_cast<long>(c1));
-        std::nth_element(cutting.begin(), cutting.begin() + static_cast<long>(cutting.size() / 2), cutting.end());
-        const double median = cutting[cutting.size() / 2];
-        // Five-revolution moving mean against noise; it smears the ramps by two revolutions, which
-        // the trim below takes off again.
-        std::vector<double> smooth(revs);
-        for (std::size_t j = 0; j < revs; ++j) {
-            const std::size_t a = j >= 2 ? j - 2 : 0, b = std::min(revs, j + 3);
-            double sum = 0;
-            for (std::size_t i = a; i < b; ++i) sum += level[i];
-            smooth[j] = sum / static_cast<double>(b - a);
-        }
-        for (std::size_t j = c0; j < c1;) {
-            std::size_t k = j;
-            while (k < c1 && std::abs(smooth[k] - median) <= opt.tolerance * median) ++k;
-            if (k - j > s1 - s0) s0 = j, s1 = k;
-            j = k + 1;
-        }
-        if (s1 - s0 > 4) s0 += 2, s1 -= 2;
-        if (s1 - s0 < static_cast<std::size_t>(opt.min_revolutions))
-            throw MeasurementError(fmt::format(
-                "{}: no steady cut: the longest run of revolutions within {:g} % of the median cutting force is {} "
-                "(at least {} needed); give the steady window explicitly",
-                mm.source, 100 * opt.tolerance, s1 - s0, opt.min_revolutions));
-    }
-    // Zero offset from the revolutions before the cut started, with one revolution of margin.
-    std::size_t idle_end = s0;
-    if (!(opt.t_start_s || opt.t_end_s)) {
-        const double top_level = norm(rev[s0], rev[0]);
-        idle_end = 0;
-        while (idle_end < s0 && norm(rev[idle_end], rev[0]) < 0.05 * top_level) ++idle_end;
-    }
-    if (idle_end >= 2) {
-        out.zero_N = mean_over(0, first_sample(idle_end - 1));
-        out.zeroed = true;
-    }
-    const auto mean = mean_over(first_sample(s0), first_sample(s1));
-    for (int ax = 0; ax < 3; ++ax) out.mean_N[ax] = mean[ax] - out.zero_N[ax];
-    out.revolutions = static_cast<int>(s1 - s0);
-    out.t_start_s = mm.t_s(first_sample(s0));
-    out.t_end_s = mm.t_s(first_sample(s1) - 1);
-    return out;
+double tooth_air_fraction(const ToolSpec& tool, const CutTest& test) {
+    if (tool.shape != ToolShape::Flat || test.mode == Immersion::Slot || tool.flutes < 1) return 0.0;
+    const auto [p0, p1] = immersion_window(test, tool.diameter_mm);
+    const double lag = test.axial_mm * std::tan(tool.helix_deg * pi / 180.0) / (tool.diameter_mm / 2);
+    return std::max(0.0, 1.0 - (p1 - p0 + std::abs(lag)) / (2 * pi / tool.flutes));
 }
 
 std::array<double, 3> to_feed_frame(const std::array<double, 3>& f, double feed_direction_deg) {

@@ -10,6 +10,7 @@
 #include "force_model/compare.hpp"
 #include "force_model/force_model.hpp"
 #include "force_model/measurement.hpp"
+#include "force_model/zero_drift.hpp"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -55,26 +56,72 @@ struct EngineRegressorOptions {
 };
 Regressors engine_regressors(const ToolSpec& tool, const CutTest& test, const EngineRegressorOptions& opt = {});
 
-// Steady segment of a measured straight cut (measurement already in tool / machine axes).
-// Revolution means are formed from the spindle speed; the zero offset is the mean of the
-// revolutions before the cut; cutting revolutions exceed `threshold` of the largest mean force;
-// the steady segment is the longest run of cutting revolutions whose 5-revolution moving mean stays
-// within `tolerance` of their median, less two revolutions at each end. The tolerance is tight
-// because an entry ramp ends flat: at 5 % ramp revolutions got in and biased slot means by 2.5 %.
+// Steady segment of a measured straight cut (measurement already in tool / machine axes) and its
+// mean force less the dynamometer's zero offset. Real records are often the steady part only (no
+// idle lead-in) and drift by a few newtons, so the detector (docs/compare_calibrate.md) works on
+// revolution means and on each revolution's tooth-passing ripple, which neither the offset nor the
+// drift touches:
+// - idle revolutions are those without ripple; those at the start are the lead-in, those at the end
+//   the idle tail; cutting revolutions have at least `threshold` of the typical (90th percentile)
+//   ripple;
+// - the drift is the line through the lead-in and the tail when both exist, else the trend of the
+//   steady revolution means;
+// - the steady segment is the longest run of cutting revolutions whose 5-revolution moving mean,
+//   drift removed, stays within `tolerance` of their median, less two revolutions at each end. The
+//   tolerance is tight because an entry ramp ends flat: at 5 % ramp revolutions got in and biased
+//   slot means by 2.5 %;
+// - the zero offset at the window's centre is, in this order: given, from the lead-in, from the
+//   idle tail (each carried along the drift), or estimated from the air between tooth passes when
+//   the cut has some (`tooth_air_fraction`); with none of these the record is refused.
+enum class SteadyDetector {
+    Robust,
+    // The first detector, kept to show what it cannot do: cut levels relative to the first
+    // revolution (which must be idle), no drift, zero offset from the lead-in or none.
+    FirstRevolution,
+};
 struct SteadyOptions {
     double threshold = 0.5;
     double tolerance = 0.02;
     int min_revolutions = 3;
     std::optional<double> t_start_s, t_end_s;   // explicit steady window (file time): no detection
+    // The zero offset at the record's first sample (tool / machine axes); the drift found is added
+    // from there. Empty: found in the record.
+    std::optional<std::array<double, 3>> zero_N;
+    // For the estimate from the air between tooth passes: the number of flutes and the share of each
+    // tooth period in which no edge cuts (tooth_air_fraction). 0: no estimate.
+    int flutes = 0;
+    double air_fraction = 0;
+    SteadyDetector detector = SteadyDetector::Robust;
 };
 struct SteadyForce {
     double t_start_s = 0, t_end_s = 0;
     int revolutions = 0;
+    bool window_given = false;
     std::array<double, 3> mean_N{};   // machine axes, zero offset removed
-    std::array<double, 3> zero_N{};   // the zero offset removed (0 when the cut starts the record)
+    std::array<double, 3> zero_N{};   // the zero offset removed: its value at the window's centre
     bool zeroed = false;
+    ZeroLine zero;                    // the zero offset over time, where it came from, the drift
+    std::array<double, 3> drift_N() const {   // drift over the window
+        const double span = t_end_s - t_start_s;
+        return {zero.drift_N_per_s[0] * span, zero.drift_N_per_s[1] * span, zero.drift_N_per_s[2] * span};
+    }
 };
+
+// A record whose steady window or zero offset cannot be found; `need` says what to give instead
+// (each front end names its own way of giving it).
+class SteadyError : public MeasurementError {
+public:
+    enum class Need { Window, Zero };
+    SteadyError(const std::string& what, Need need) : MeasurementError(what), need(need) {}
+    Need need;
+};
+
 SteadyForce steady_mean_force(const Measurement& mapped, double spindle_rpm, const SteadyOptions& opt = {});
+
+// Share of each tooth period in which no edge of a flat end mill cuts in this test: one less the
+// immersion angle and the helix lag over the depth (a tan(helix) / R), over the tooth pitch. 0 for a
+// slot, for other tool shapes (whose lag this formula does not give) and when the edges overlap.
+double tooth_air_fraction(const ToolSpec& tool, const CutTest& test);
 
 std::array<double, 3> to_feed_frame(const std::array<double, 3>& machine_N, double feed_direction_deg);
 

@@ -514,6 +514,60 @@ double find_offset_s(const PredictedTrace& predicted, const Measurement& measure
     return tp0 - measured.t0_s + best_lag / fs;
 }
 
+namespace {
+
+// The zero offset of the compared samples (prediction time t_s): from the samples where the
+// prediction is exactly zero (see CompareOptions::remove_zero), or given at the record's first
+// sample (prediction time t_record_s).
+ZeroLine zero_line(const std::vector<double>& t_s, const std::vector<float> (&mf)[3], const std::vector<float> (&pf)[3],
+                   const CompareOptions& opt, double t_record_s) {
+    constexpr std::size_t kMinAir = 100;
+    std::vector<std::size_t> air;
+    std::size_t first_cut = t_s.size(), last_cut = 0;
+    for (std::size_t i = 0; i < t_s.size(); ++i) {
+        if (pf[0][i] == 0 && pf[1][i] == 0 && pf[2][i] == 0) {
+            air.push_back(i);
+        } else {
+            first_cut = std::min(first_cut, i);
+            last_cut = i;
+        }
+    }
+    ZeroLine z;
+    if (air.size() >= kMinAir) {
+        std::size_t lead = 0, tail = 0;
+        double tm = 0;
+        for (std::size_t i : air) {
+            lead += i < first_cut;
+            tail += i > last_cut && first_cut < t_s.size();
+            tm += t_s[i];
+        }
+        tm /= static_cast<double>(air.size());
+        z.source = lead >= kMinAir ? ZeroSource::LeadIn : tail >= kMinAir ? ZeroSource::IdleTail : ZeroSource::Estimated;
+        z.t_s = tm;
+        double stt = 0;
+        for (std::size_t i : air) stt += (t_s[i] - tm) * (t_s[i] - tm);
+        const bool spread = t_s[air.back()] - t_s[air.front()] >= 0.5 * (t_s.back() - t_s.front()) && stt > 0;
+        for (std::size_t ax = 0; ax < 3; ++ax) {
+            double sf = 0, stf = 0;
+            for (std::size_t i : air) {
+                sf += mf[ax][i];
+                stf += (t_s[i] - tm) * mf[ax][i];
+            }
+            z.zero_N[ax] = sf / static_cast<double>(air.size());
+            if (spread) z.drift_N_per_s[ax] = stf / stt;
+        }
+        if (spread) z.drift_source = DriftSource::Idle;
+    }
+    if (opt.zero_N) {
+        z.source = ZeroSource::Given;
+        z.zero_N = *opt.zero_N;
+        z.t_s = t_record_s;
+    }
+    return z;
+}
+
+}  // namespace
+
 Comparison compare(const PredictedTrace& predicted, const Measurement& measured, const CompareOptions& opt) {
     require_prediction(predicted);
     require_mapped(measured);
@@ -550,20 +604,13 @@ Comparison compare(const PredictedTrace& predicted, const Measurement& measured,
             "[{:g}, {:g}] s within the window [{:g}, {:g}] s",
             measured.source, measured.t_s(0), measured.t_s(measured.size() - 1), out.offset_s,
             predicted.samples.front().t_s, predicted.samples.back().t_s, opt.t_start_s, opt.t_end_s));
-    if (opt.remove_zero) {
-        double sum[3] = {0, 0, 0};
-        std::size_t n_air = 0;
-        for (std::size_t i = 0; i < s.size(); ++i)
-            if (pf[0][i] == 0 && pf[1][i] == 0 && pf[2][i] == 0) {
-                for (int ax = 0; ax < 3; ++ax) sum[ax] += mf[ax][i];
-                ++n_air;
-            }
-        if (n_air >= 100) {
-            out.zero_removed = true;
-            for (int ax = 0; ax < 3; ++ax) {
-                out.zero_N[ax] = sum[ax] / static_cast<double>(n_air);
-                for (float& v : mf[ax]) v = static_cast<float>(v - out.zero_N[ax]);
-            }
+    if (opt.remove_zero) out.zero = zero_line(s.t_s, mf, pf, opt, measured.t_s(0) + out.offset_s);
+    if (out.zero.source != ZeroSource::None) {
+        out.zero_removed = true;
+        for (int ax = 0; ax < 3; ++ax) {
+            out.zero_N[ax] = out.zero.zero_N[static_cast<std::size_t>(ax)];
+            for (std::size_t i = 0; i < s.size(); ++i)
+                mf[ax][i] = static_cast<float>(mf[ax][i] - out.zero.at(s.t_s[i])[static_cast<std::size_t>(ax)]);
         }
     }
     for (int ax = 0; ax < 3; ++ax) {
@@ -652,6 +699,7 @@ nlohmann::json to_json(const Comparison& c) {
             {"cutoff_Hz", c.cutoff_Hz},
             {"averaging", averaging_name(c.averaging)},
             {"zero_removed_N", c.zero_removed ? nlohmann::json{c.zero_N[0], c.zero_N[1], c.zero_N[2]} : nlohmann::json()},
+            {"zero", to_json(c.zero)},
             {"overall", scope_json(c.overall)},
             {"blocks", blocks}};
 }

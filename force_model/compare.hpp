@@ -7,9 +7,11 @@
 
 #include "force_model/force_model.hpp"
 #include "force_model/measurement.hpp"
+#include "force_model/zero_drift.hpp"
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -42,9 +44,15 @@ struct CompareOptions {
     double cutoff_Hz = 1000;
     Averaging averaging = Averaging::None;
     int flutes = 0;   // needed for Averaging::ToothPeriod
-    // Subtract the measured mean over the samples where the prediction is exactly zero (the tool in
-    // air): the dynamometer's zero offset. Needs at least 100 such samples, else nothing is removed.
+    // Subtract the dynamometer's zero offset, found from the samples where the prediction is exactly
+    // zero (the tool in air: before and after the cut, and between tooth passes in partial
+    // immersion). Needs at least 100 such samples, else nothing is removed. Where they spread over at
+    // least half the compared span, the zero is a least-squares line through them (the amplifier's
+    // drift), else their mean.
     bool remove_zero = true;
+    // The zero offset at the record's first sample (tool / machine axes), instead of the one found;
+    // the drift is still taken from the air samples where they allow.
+    std::optional<std::array<double, 3>> zero_N;
 };
 
 // Metrics of predicted minus measured. nrmse = rmse / measured peak-to-peak; peak_error_N =
@@ -69,7 +77,11 @@ struct Comparison {
     double rate_Hz = 0, cutoff_Hz = 0;
     Averaging averaging = Averaging::None;
     bool zero_removed = false;
-    double zero_N[3] = {0, 0, 0};      // the measured zero offset removed (tool / machine axes)
+    // The zero offset removed (tool / machine axes) at zero.t_s: the mean time of the air samples, or
+    // the record's first sample when given; zero.at(t) over time (prediction time), with its source
+    // and drift.
+    double zero_N[3] = {0, 0, 0};
+    ZeroLine zero;
     ScopeMetrics overall;
     std::vector<ScopeMetrics> blocks;
     // The compared series (after filtering and averaging), for plots: prediction time.

@@ -406,14 +406,36 @@ AxisMatrix parse_axis_matrix(const std::string& text) {
     return a;
 }
 
+std::array<double, 3> parse_force_vector(const std::string& text) {
+    const auto fields = split(text, ',');
+    if (fields.size() != 3)
+        throw MeasurementError(fmt::format("force `{}`: {} numbers where three (Fx,Fy,Fz) are needed", text,
+                                           fields.size()));
+    std::array<double, 3> f{};
+    static const char* names[3] = {"Fx", "Fy", "Fz"};
+    for (std::size_t i = 0; i < 3; ++i) {
+        const auto v = number(fields[i]);
+        if (!v || !std::isfinite(*v))
+            throw MeasurementError(fmt::format("force `{}`: {} `{}` is not a number", text, names[i], fields[i]));
+        f[i] = *v;
+    }
+    return f;
+}
+
+std::array<double, 3> to_tool_machine_axes(const std::array<double, 3>& f, const AxisMatrix& a,
+                                           bool measured_on_workpiece) {
+    const double s = measured_on_workpiece ? -1.0 : 1.0;
+    return {s * (a[0] * f[0] + a[1] * f[1] + a[2] * f[2]), s * (a[3] * f[0] + a[4] * f[1] + a[5] * f[2]),
+            s * (a[6] * f[0] + a[7] * f[1] + a[8] * f[2])};
+}
+
 void map_to_tool_machine_axes(Measurement& m, const AxisMatrix& a, bool measured_on_workpiece) {
     if (m.tool_machine_axes) throw MeasurementError(m.source + ": the measurement is already in machine axes");
-    const double s = measured_on_workpiece ? -1.0 : 1.0;
     for (std::size_t i = 0; i < m.size(); ++i) {
-        const double f[3] = {m.fx_N[i], m.fy_N[i], m.fz_N[i]};
-        m.fx_N[i] = static_cast<float>(s * (a[0] * f[0] + a[1] * f[1] + a[2] * f[2]));
-        m.fy_N[i] = static_cast<float>(s * (a[3] * f[0] + a[4] * f[1] + a[5] * f[2]));
-        m.fz_N[i] = static_cast<float>(s * (a[6] * f[0] + a[7] * f[1] + a[8] * f[2]));
+        const auto f = to_tool_machine_axes({m.fx_N[i], m.fy_N[i], m.fz_N[i]}, a, measured_on_workpiece);
+        m.fx_N[i] = static_cast<float>(f[0]);
+        m.fy_N[i] = static_cast<float>(f[1]);
+        m.fz_N[i] = static_cast<float>(f[2]);
     }
     m.tool_machine_axes = true;
 }

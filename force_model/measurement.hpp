@@ -58,5 +58,13 @@ AxisMatrix parse_axis_matrix(const std::string& text);
 // F_tool_machine = -A F_dyn for a force measured on the workpiece (the dynamometer carries the
 // workpiece), +A F_dyn when measured_on_workpiece is false. Throws when already mapped.
 void map_to_tool_machine_axes(Measurement& m, const AxisMatrix& dyn_to_machine, bool measured_on_workpiece = true);
+// The same conversion for one vector given in the record's own channels (a zero offset read off the
+// amplifier, say).
+std::array<double, 3> to_tool_machine_axes(const std::array<double, 3>& dyn_N, const AxisMatrix& dyn_to_machine,
+                                           bool measured_on_workpiece = true);
+
+// Three comma-separated numbers (Fx, Fy, Fz in the record's channels); throws MeasurementError
+// naming the bad element.
+std::array<double, 3> parse_force_vector(const std::string& text);
 
 }  // namespace cutload::force_model
