@@ -1,4 +1,4 @@
-// cutload calibrate --tool TOOL.json --test FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE ...
+// cutload calibrate --tool TOOL.json --test FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE[:FROM_S-TO_S[:ZERO]] ...
 //                   [--axes MATRIX] --out MATERIAL.json
 // Identifies Ktc, Krc, Kac, Kte, Kre, Kae from the steady mean forces of straight dynamometer tests
 // and saves them as the run spec's `material` object (docs/compare_calibrate.md).
@@ -9,9 +9,12 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
+#include <utility>
 
 namespace cutload::cli {
 namespace {
@@ -22,46 +25,94 @@ struct CalibrateArgs {
     double feed_deg = 0;
 };
 
+constexpr const char* kTestFields =
+    "FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE[:FROM_S-TO_S[:ZERO_FX,ZERO_FY,ZERO_FZ]]";
+
 struct TestArg {
     std::string file;
     force_model::CutTest test;
+    std::optional<double> from_s, to_s;                 // steady window, record time
+    std::optional<std::array<double, 3>> zero_dyn_N;    // zero offset at the record's start, its channels
 };
 
-// FILE:RPM:FEED:AXIAL:RADIAL:MODE, split from the right so the file name may hold colons.
+double number_field(const std::string& text, const char* field, const std::string& value) {
+    try {
+        std::size_t used = 0;
+        const double v = std::stod(value, &used);
+        if (used != value.size() || !std::isfinite(v)) throw std::invalid_argument("trailing");
+        return v;
+    } catch (const std::exception&) {
+        throw UsageError(fmt::format("--test `{}`: {} `{}` is not a number", text, field, value));
+    }
+}
+
+// FROM_S-TO_S: two times (either may be negative) joined by a hyphen.
+std::pair<double, double> parse_window(const std::string& text, const std::string& field) {
+    std::size_t used = 0;
+    double from = 0, to = 0;
+    try {
+        from = std::stod(field, &used);
+        if (used >= field.size() || field[used] != '-') throw std::invalid_argument("no hyphen");
+        std::size_t rest = 0;
+        to = std::stod(field.substr(used + 1), &rest);
+        if (used + 1 + rest != field.size() || !std::isfinite(from) || !std::isfinite(to))
+            throw std::invalid_argument("trailing");
+    } catch (const std::exception&) {
+        throw UsageError(fmt::format("--test `{}`: steady window `{}` is not FROM_S-TO_S (e.g. 0.25-0.75, seconds "
+                                     "of the record's time)",
+                                     text, field));
+    }
+    if (!(to > from))
+        throw UsageError(fmt::format("--test `{}`: steady window `{}` ends before it starts", text, field));
+    return {from, to};
+}
+
+// Fields are split at colons; MODE is the last of the last three fields that names a mode, so the
+// file name may hold colons and the window and zero may follow.
 TestArg parse_test(const std::string& text, double feed_deg) {
     std::vector<std::string> parts;
-    std::string rest = text;
-    for (int i = 0; i < 5; ++i) {
-        const auto colon = rest.rfind(':');
-        if (colon == std::string::npos)
-            throw UsageError(fmt::format("--test `{}`: expected FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE",
-                                         text));
-        parts.insert(parts.begin(), rest.substr(colon + 1));
-        rest.resize(colon);
+    for (std::size_t start = 0;;) {
+        const auto colon = text.find(':', start);
+        parts.push_back(text.substr(start, colon == std::string::npos ? std::string::npos : colon - start));
+        if (colon == std::string::npos) break;
+        start = colon + 1;
     }
-    TestArg t;
-    t.file = rest;
-    static const char* fields[4] = {"SPINDLE_RPM", "FEED_MM_MIN", "AXIAL_MM", "RADIAL_MM"};
-    double v[4];
-    for (int i = 0; i < 4; ++i) {
-        try {
-            std::size_t used = 0;
-            v[i] = std::stod(parts[static_cast<std::size_t>(i)], &used);
-            if (used != parts[static_cast<std::size_t>(i)].size()) throw std::invalid_argument("trailing");
-        } catch (const std::exception&) {
-            throw UsageError(fmt::format("--test `{}`: {} `{}` is not a number", text, fields[i], parts[i]));
+    if (parts.size() < 6) throw UsageError(fmt::format("--test `{}`: expected {}", text, kTestFields));
+    std::size_t mode = parts.size() - 1;   // no mode word: the sixth field from the right is read as one
+    for (std::size_t back = 1; back <= 3 && back + 5 <= parts.size(); ++back) {
+        const std::string& p = parts[parts.size() - back];
+        if (p == "slot" || p == "up" || p == "down") {
+            mode = parts.size() - back;
+            break;
         }
     }
+    TestArg t;
+    for (std::size_t i = 0; i + 4 < mode; ++i) t.file += (i ? ":" : "") + parts[i];
+    static const char* fields[4] = {"SPINDLE_RPM", "FEED_MM_MIN", "AXIAL_MM", "RADIAL_MM"};
+    double v[4];
+    for (std::size_t i = 0; i < 4; ++i) v[i] = number_field(text, fields[i], parts[mode - 4 + i]);
     t.test.spindle_rpm = v[0];
     t.test.feed_mm_min = v[1];
     t.test.axial_mm = v[2];
     t.test.radial_mm = v[3];
     try {
-        t.test.mode = force_model::parse_immersion(parts[4]);
+        t.test.mode = force_model::parse_immersion(parts[mode]);
     } catch (const force_model::SpecError& e) {
-        throw UsageError(fmt::format("--test `{}`: {}", text, e.what()));
+        throw UsageError(fmt::format("--test `{}`: {} (fields: {})", text, e.what(), kTestFields));
     }
     t.test.feed_direction_deg = feed_deg;
+    if (mode + 1 < parts.size() && !parts[mode + 1].empty()) {
+        const auto [from, to] = parse_window(text, parts[mode + 1]);
+        t.from_s = from;
+        t.to_s = to;
+    }
+    if (mode + 2 < parts.size()) {
+        try {
+            t.zero_dyn_N = force_model::parse_force_vector(parts[mode + 2]);
+        } catch (const force_model::MeasurementError& e) {
+            throw UsageError(fmt::format("--test `{}`: zero offset: {}", text, e.what()));
+        }
+    }
     return t;
 }
 
@@ -85,6 +136,26 @@ force_model::ToolSpec load_tool(const std::string& path) {
     } catch (const force_model::SpecError& e) {
         throw UsageError(path + ": " + e.what());
     }
+}
+
+const char* zero_phrase(force_model::ZeroSource s) {
+    switch (s) {
+        case force_model::ZeroSource::LeadIn: return "from the idle lead-in";
+        case force_model::ZeroSource::IdleTail: return "from the idle tail";
+        case force_model::ZeroSource::Given: return "given";
+        case force_model::ZeroSource::Estimated: return "estimated from the air between tooth passes";
+        case force_model::ZeroSource::None: break;
+    }
+    return "none";
+}
+
+const char* drift_phrase(force_model::DriftSource s) {
+    switch (s) {
+        case force_model::DriftSource::Idle: return "from the lead-in to the tail";
+        case force_model::DriftSource::Cut: return "trend of the steady revolutions";
+        case force_model::DriftSource::None: break;
+    }
+    return "none found";
 }
 
 void warn_out_of_spec(const force_model::Material& m) {
@@ -118,28 +189,44 @@ void run_calibrate(const CalibrateArgs& a) {
         } catch (const force_model::SpecError& e) {
             throw UsageError(fmt::format("--test `{}`: {}", text, e.what()));
         }
+        const bool on_workpiece = a.measured_on == "workpiece";
+        force_model::SteadyOptions sopt;
+        sopt.t_start_s = t.from_s;
+        sopt.t_end_s = t.to_s;
+        if (t.zero_dyn_N) sopt.zero_N = force_model::to_tool_machine_axes(*t.zero_dyn_N, axes, on_workpiece);
+        sopt.flutes = tool.flutes;
+        sopt.air_fraction = force_model::tooth_air_fraction(tool, t.test);
         force_model::SteadyForce steady;
         try {
             force_model::Measurement m = force_model::read_measurement(t.file);
-            force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
-            steady = force_model::steady_mean_force(m, t.test.spindle_rpm);
+            force_model::map_to_tool_machine_axes(m, axes, on_workpiece);
+            steady = force_model::steady_mean_force(m, t.test.spindle_rpm, sopt);
+        } catch (const force_model::SteadyError& e) {
+            throw UsageError(fmt::format(
+                "{} ({})", e.what(),
+                e.need == force_model::SteadyError::Need::Window
+                    ? "as the 7th --test field FROM_S-TO_S, in the record's time"
+                    : "as the 8th --test field ZERO_FX,ZERO_FY,ZERO_FZ: the record's reading with no load at its "
+                      "first sample, in its own channels"));
         } catch (const force_model::MeasurementError& e) {
             throw UsageError(e.what());
         }
-        regs.push_back(a.model == "closed-form" ? force_model::closed_form_regressors(tool, t.test)
-                                                : force_model::engine_regressors(tool, t.test, engine));
         means.push_back(force_model::to_feed_frame(steady.mean_N, t.test.feed_direction_deg));
-        std::printf("%s: %s, %.6g rpm, %.6g mm/min, ap %.6g mm, ae %.6g mm: steady %.4f-%.4f s (%d rev), zero %s, "
-                    "mean F (%.3f, %.3f, %.3f) N\n",
+        const auto drift = steady.drift_N();
+        std::printf("%s: %s, %.6g rpm, %.6g mm/min, ap %.6g mm, ae %.6g mm: steady %.4f-%.4f s (%d rev, %s), zero "
+                    "(%.3f, %.3f, %.3f) N removed (%s), drift (%.3f, %.3f, %.3f) N over the window (%s), mean F "
+                    "(%.3f, %.3f, %.3f) N\n",
                     t.file.c_str(), force_model::immersion_name(t.test.mode), t.test.spindle_rpm, t.test.feed_mm_min,
                     t.test.axial_mm, t.test.radial_mm, steady.t_start_s, steady.t_end_s, steady.revolutions,
-                    steady.zeroed ? fmt::format("({:.3f}, {:.3f}, {:.3f}) N removed", steady.zero_N[0],
-                                                steady.zero_N[1], steady.zero_N[2])
-                                        .c_str()
-                                  : "not removed (no idle revolutions before the cut)",
-                    means.back()[0], means.back()[1], means.back()[2]);
+                    steady.window_given ? "window given" : "detected", steady.zero_N[0], steady.zero_N[1],
+                    steady.zero_N[2], zero_phrase(steady.zero.source), drift[0], drift[1], drift[2],
+                    drift_phrase(steady.zero.drift_source), means.back()[0], means.back()[1], means.back()[2]);
         tests.push_back(t);
     }
+    // The regressors (engine time) only once every record has been read: a bad one fails at once.
+    for (const TestArg& t : tests)
+        regs.push_back(a.model == "closed-form" ? force_model::closed_form_regressors(tool, t.test)
+                                                : force_model::engine_regressors(tool, t.test, engine));
     const force_model::CalibrationFit fit = force_model::fit_mean_forces(regs, means, a.name);
     const auto k = force_model::coefficients_of(fit.material);
     std::printf("fit (%s regressors, %zu equations): rms residual %.3f N (%.2f %% of the mean forces), condition "
@@ -169,7 +256,9 @@ void add_calibrate(CLI::App& app) {
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--test", a->tests,
-                    "FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE, mode slot|up|down; repeat per test")
+                    std::string(kTestFields) +
+                        ": mode slot|up|down; optional steady window (record time) and zero offset (the record's "
+                        "channels at its start); repeat per test")
         ->required();
     cmd->add_option("--axes", a->axes, "Dynamometer-to-machine axis matrix, nine numbers, row-major");
     cmd->add_option("--out", a->out, "MATERIAL.json: the run spec's material object")->required();

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -15,7 +16,7 @@ namespace cutload::cli {
 namespace {
 
 struct CompareArgs {
-    std::string predicted, measured, axes, measured_on = "workpiece", average = "none", report_csv, trace_csv;
+    std::string predicted, measured, axes, measured_on = "workpiece", average = "none", report_csv, trace_csv, zero;
     std::optional<double> offset_s, t_start_s, t_end_s;
     double cutoff_Hz = 1000;
     int flutes = 0;
@@ -37,6 +38,32 @@ void print_scope(const force_model::ScopeMetrics& m) {
     }
 }
 
+void print_zero(const force_model::Comparison& c, bool keep_zero) {
+    if (!c.zero_removed) {
+        std::printf("zero offset: not removed (%s)\n",
+                    keep_zero ? "--keep-zero"
+                              : "fewer than 100 samples where the prediction is in air; --zero-N gives it");
+        return;
+    }
+    const char* source = "given";
+    switch (c.zero.source) {
+        case force_model::ZeroSource::LeadIn: source = "measured where the prediction is in air: idle lead-in"; break;
+        case force_model::ZeroSource::IdleTail: source = "measured where the prediction is in air: idle tail"; break;
+        case force_model::ZeroSource::Estimated:
+            source = "measured where the prediction is in air: between tooth passes";
+            break;
+        case force_model::ZeroSource::Given:
+        case force_model::ZeroSource::None: break;
+    }
+    std::printf("zero offset removed: (%.3f, %.3f, %.3f) N at %.4f s (%s); ", c.zero_N[0], c.zero_N[1], c.zero_N[2],
+                c.zero.t_s, source);
+    if (c.zero.drift_source == force_model::DriftSource::None)
+        std::printf("drift: none found (the air samples span less than half the window)\n");
+    else
+        std::printf("drift (%.4f, %.4f, %.4f) N/s (line through the air samples)\n", c.zero.drift_N_per_s[0],
+                    c.zero.drift_N_per_s[1], c.zero.drift_N_per_s[2]);
+}
+
 void run_compare(const CompareArgs& a) {
     try {
         const force_model::PredictedTrace predicted = force_model::read_forces_csv(a.predicted);
@@ -44,6 +71,10 @@ void run_compare(const CompareArgs& a) {
         const force_model::AxisMatrix axes =
             a.axes.empty() ? force_model::kIdentityAxes : force_model::parse_axis_matrix(a.axes);
         force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
+        std::optional<std::array<double, 3>> zero;
+        if (!a.zero.empty())
+            zero = force_model::to_tool_machine_axes(force_model::parse_force_vector(a.zero), axes,
+                                                     a.measured_on == "workpiece");
 
         force_model::CompareOptions opt;
         opt.offset_s = a.offset_s;
@@ -53,6 +84,7 @@ void run_compare(const CompareArgs& a) {
         opt.averaging = averaging_of(a.average);
         opt.flutes = a.flutes;
         opt.remove_zero = !a.keep_zero;
+        opt.zero_N = zero;
         const force_model::Comparison c = force_model::compare(predicted, m, opt);
 
         if (!a.report_csv.empty()) force_model::write_comparison_csv(c, a.report_csv);
@@ -76,11 +108,7 @@ void run_compare(const CompareArgs& a) {
         else
             std::printf("filter: none; ");
         std::printf("averaging: %s\n", force_model::averaging_name(c.averaging));
-        if (c.zero_removed)
-            std::printf("zero offset removed: (%.3f, %.3f, %.3f) N (measured mean where the prediction is in air)\n",
-                        c.zero_N[0], c.zero_N[1], c.zero_N[2]);
-        else
-            std::printf("zero offset: not removed\n");
+        print_zero(c, a.keep_zero);
         std::printf("%-12s %-3s %8s %10s %9s %7s %10s %7s\n", "scope", "ax", "samples", "mean_err_N", "rmse_N", "nrmse",
                     "peak_err_N", "corr");
         print_scope(c.overall);
@@ -118,8 +146,13 @@ void add_compare(CLI::App& app) {
     cmd->add_option("--flutes", a->flutes, "Number of flutes (for --average tooth)")->check(CLI::Range(1, 16));
     cmd->add_option("--report-csv", a->report_csv, "Write the metrics as CSV (scope, axis, metrics)");
     cmd->add_option("--trace-csv", a->trace_csv, "Write the compared series (for plots)");
-    cmd->add_flag("--keep-zero", a->keep_zero,
-                  "Keep the measured zero offset (default: subtract the measured mean where the prediction is in air)");
+    auto* zero_opt = cmd->add_option("--zero-N", a->zero,
+                    "Zero offset FX,FY,FZ at the record's first sample, in its own channels (default: found where the "
+                    "prediction is in air)");
+    auto* keep = cmd->add_flag("--keep-zero", a->keep_zero,
+                               "Keep the measured zero offset (default: subtract the zero offset and drift measured "
+                               "where the prediction is in air)");
+    keep->excludes(zero_opt);
     cmd->add_flag("--json", a->json, "Print the report as JSON");
     cmd->callback([a] {
         if (!a->report_csv.empty()) check_output_path(a->report_csv, "--report-csv");

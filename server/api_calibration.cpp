@@ -11,7 +11,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 namespace cutload::server {
@@ -23,6 +26,8 @@ struct UploadedTest {
     std::string file;
     std::string content;
     force_model::CutTest test;
+    std::optional<double> from_s, to_s;                 // steady window, record time
+    std::optional<std::array<double, 3>> zero_dyn_N;    // zero offset at the record's start, its channels
 };
 
 std::optional<std::string> part(const httplib::Request& req, const char* name) {
@@ -82,7 +87,8 @@ double number_field(const json& cond, const std::string& file, const char* key) 
 force_model::CutTest cut_test_of(const json& cond, const std::string& file, const force_model::ToolSpec& tool) {
     if (!cond.is_object()) bad_request(fmt::format("part tests: '{}': conditions must be an object", file));
     for (const auto& [key, value] : cond.items()) {
-        static const char* known[] = {"spindle_rpm", "feed_mm_min", "axial_mm", "radial_mm", "mode", "feed_direction_deg"};
+        static const char* known[] = {"spindle_rpm", "feed_mm_min", "axial_mm", "radial_mm", "mode",
+                                      "feed_direction_deg", "from_s", "to_s", "zero_N"};
         if (std::find_if(std::begin(known), std::end(known), [&](const char* k) { return key == k; }) == std::end(known))
             bad_request(fmt::format("part tests: '{}': unknown key {}", file, key));
     }
@@ -128,7 +134,22 @@ std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const fo
             if (other.file == f.filename) bad_request(fmt::format("test file name '{}' is used twice", f.filename));
         if (!conditions.contains(f.filename))
             bad_request(fmt::format("part tests: no conditions for test file '{}'", f.filename));
-        tests.push_back({f.filename, f.content, cut_test_of(conditions[f.filename], f.filename, tool)});
+        const json& cond = conditions[f.filename];
+        UploadedTest t{f.filename, f.content, cut_test_of(cond, f.filename, tool), std::nullopt, std::nullopt, std::nullopt};
+        if (cond.contains("from_s")) t.from_s = number_field(cond, f.filename, "from_s");
+        if (cond.contains("to_s")) t.to_s = number_field(cond, f.filename, "to_s");
+        if (t.from_s && t.to_s && !(*t.to_s > *t.from_s))
+            bad_request(fmt::format("part tests: '{}': to_s must be after from_s", f.filename));
+        if (cond.contains("zero_N")) {
+            const json& z = cond["zero_N"];
+            if (!z.is_array() || z.size() != 3 ||
+                !std::all_of(z.begin(), z.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
+                bad_request(fmt::format("part tests: '{}': zero_N must be three numbers (Fx, Fy, Fz in the record's "
+                                        "channels)",
+                                        f.filename));
+            t.zero_dyn_N = std::array<double, 3>{z[0].get<double>(), z[1].get<double>(), z[2].get<double>()};
+        }
+        tests.push_back(std::move(t));
     }
     for (const auto& [name, cond] : conditions.items())
         if (std::none_of(tests.begin(), tests.end(), [&](const UploadedTest& t) { return t.file == name; }))
@@ -180,7 +201,21 @@ void calibrate(Core& core, Ctx& x) {
             std::istringstream in(t.content);
             force_model::Measurement m = force_model::read_measurement(in, t.file);
             force_model::map_to_tool_machine_axes(m, axes, on_workpiece);
-            steady.push_back(force_model::steady_mean_force(m, t.test.spindle_rpm));
+            force_model::SteadyOptions sopt;
+            sopt.t_start_s = t.from_s;
+            sopt.t_end_s = t.to_s;
+            if (t.zero_dyn_N) sopt.zero_N = force_model::to_tool_machine_axes(*t.zero_dyn_N, axes, on_workpiece);
+            sopt.flutes = tool.flutes;
+            sopt.air_fraction = force_model::tooth_air_fraction(tool, t.test);
+            steady.push_back(force_model::steady_mean_force(m, t.test.spindle_rpm, sopt));
+        } catch (const force_model::SteadyError& e) {
+            throw ApiError(400, "bad_measurement",
+                           fmt::format("{} ({})", e.what(),
+                                       e.need == force_model::SteadyError::Need::Window
+                                           ? fmt::format("from_s and to_s in the conditions of '{}', record time", t.file)
+                                           : fmt::format("zero_N in the conditions of '{}': the record's reading with "
+                                                         "no load at its first sample, in its own channels",
+                                                         t.file)));
         } catch (const force_model::MeasurementError& e) {
             throw ApiError(400, "bad_measurement", e.what());
         }
@@ -207,9 +242,14 @@ void calibrate(Core& core, Ctx& x) {
                             {"radial_mm", t.radial_mm},
                             {"steady_from_s", s.t_start_s},
                             {"steady_to_s", s.t_end_s},
+                            {"window_source", s.window_given ? "given" : "detected"},
                             {"revolutions", s.revolutions},
                             {"zero_removed", s.zeroed},
                             {"zero_N", vec3(s.zero_N)},
+                            {"zero_source", force_model::zero_source_name(s.zero.source)},
+                            {"drift_source", force_model::drift_source_name(s.zero.drift_source)},
+                            {"drift_N_per_s", vec3(s.zero.drift_N_per_s)},
+                            {"drift_N", vec3(s.drift_N())},
                             {"mean_force_feed_frame_N", vec3(means[i])},
                             {"residual_rms_N", fit.group_rms_residual_N[i]}});
     }

@@ -15,10 +15,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <optional>
 
 namespace cutload::server {
 namespace fs = std::filesystem;
@@ -74,7 +76,8 @@ force_model::PredictedTrace stored_trace(Core& core, db::Connection& c, const Ru
 struct Settings {
     force_model::AxisMatrix axes = force_model::kIdentityAxes;
     bool on_workpiece = true;
-    force_model::CompareOptions opt;
+    std::optional<std::array<double, 3>> zero_dyn_N;   // given zero offset, the record's channels at its start
+    force_model::CompareOptions opt;                   // opt.zero_N is set from zero_dyn_N when comparing
 };
 
 json settings_json(const Settings& s) {
@@ -82,6 +85,7 @@ json settings_json(const Settings& s) {
     j["offset_s"] = s.opt.offset_s ? json(*s.opt.offset_s) : json(nullptr);
     j["from_s"] = s.opt.t_start_s > -1e299 ? json(s.opt.t_start_s) : json(nullptr);
     j["to_s"] = s.opt.t_end_s < 1e299 ? json(s.opt.t_end_s) : json(nullptr);
+    j["zero_N"] = s.zero_dyn_N ? json(*s.zero_dyn_N) : json(nullptr);
     return j;
 }
 
@@ -93,6 +97,8 @@ Settings settings_from(const json& j) {
     if (!j.at("offset_s").is_null()) s.opt.offset_s = j["offset_s"].get<double>();
     if (!j.at("from_s").is_null()) s.opt.t_start_s = j["from_s"].get<double>();
     if (!j.at("to_s").is_null()) s.opt.t_end_s = j["to_s"].get<double>();
+    // Absent in settings stored before the zero offset could be given.
+    if (j.contains("zero_N") && !j["zero_N"].is_null()) s.zero_dyn_N = j["zero_N"].get<std::array<double, 3>>();
     return s;
 }
 
@@ -128,6 +134,13 @@ Settings settings_from_parts(const httplib::Request& req) {
             bad_request(fmt::format("part measured_on: '{}' is not workpiece or tool", *m));
         s.on_workpiece = *m == "workpiece";
     }
+    if (auto z = part(req, "zero_N")) {
+        try {
+            s.zero_dyn_N = force_model::parse_force_vector(*z);
+        } catch (const force_model::MeasurementError& e) {
+            bad_request(fmt::format("part zero_N: {}", e.what()));
+        }
+    }
     s.opt.offset_s = number_part(req, "offset_s");
     if (auto v = number_part(req, "from_s")) s.opt.t_start_s = *v;
     if (auto v = number_part(req, "to_s")) s.opt.t_end_s = *v;
@@ -155,7 +168,9 @@ Compared compare_file(const force_model::PredictedTrace& trace, const fs::path& 
     try {
         Compared r{force_model::read_measurement(file.string()), {}};
         force_model::map_to_tool_machine_axes(r.m, s.axes, s.on_workpiece);
-        r.c = force_model::compare(trace, r.m, s.opt);
+        force_model::CompareOptions opt = s.opt;
+        if (s.zero_dyn_N) opt.zero_N = force_model::to_tool_machine_axes(*s.zero_dyn_N, s.axes, s.on_workpiece);
+        r.c = force_model::compare(trace, r.m, opt);
         return r;
     } catch (const force_model::MeasurementError& e) {
         throw ApiError(400, "bad_measurement", replace_all(e.what(), file.string(), shown_name));
@@ -174,7 +189,7 @@ json report_json(const Compared& r, const json& stored) {
 }
 
 // The measured series as recorded (unfiltered), in tool / machine axes, shifted to prediction time
-// and less the zero offset the comparison removed, in [from_s, to_s]: raw when it fits max_points,
+// and less the zero offset (and drift) the comparison removed, in [from_s, to_s]: raw when it fits max_points,
 // else the min / max of each of max_points equal buckets, the shape of /forces answers.
 json measured_series(const Compared& r, double from_s, double to_s, std::size_t max_points) {
     const force_model::Measurement& m = r.m;
@@ -182,7 +197,7 @@ json measured_series(const Compared& r, double from_s, double to_s, std::size_t 
     auto t_of = [&](std::size_t i) { return m.t_s(i) + shift_s; };
     const std::vector<float>* ch[3] = {&m.fx_N, &m.fy_N, &m.fz_N};
     auto value = [&](int a, std::size_t i) {
-        return (*ch[a])[i] - static_cast<float>(r.c.zero_removed ? r.c.zero_N[a] : 0.0);
+        return (*ch[a])[i] - static_cast<float>(r.c.zero_removed ? r.c.zero.at(t_of(i))[static_cast<std::size_t>(a)] : 0.0);
     };
     auto index_at = [&](double t) {
         const double k = std::ceil((t - shift_s - m.t0_s) * m.rate_Hz - 1e-6);

@@ -175,3 +175,89 @@ TEST_CASE("calibration: bad tests are 400 naming the problem and store nothing")
 
     REQUIRE(material_count(c) == 0);
 }
+
+TEST_CASE("calibration: steady-only drifting records with a steady window and a zero offset given per test") {
+    // Slot records of the steady part only (no idle recording, no air between tooth passes), drifting
+    // by 5 % of the mean force: each test gives its window (record time) and the amplifier's reading
+    // with no load at the record's start (its channels).
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    TempDir dir;
+    json conditions = json::object();
+    httplib::MultipartFormDataItems items{{"tool", tool_json().dump(), "", ""}, {"axes", kSeedAxes, "", ""}};
+    std::vector<std::pair<double, double>> windows;
+    for (std::size_t i = 0; i < std::size(kFeedsPerTooth); ++i) {
+        const double feed = kFeedsPerTooth[i];
+        const auto cut = calib::straight_cut(feed, kAxialMm, calib::Side::Slot, 0, kRpm);
+        fm::PredictOptions o;
+        o.device = fm::Device::Cpu;
+        calib::DynoOptions dyno;
+        const auto [from_s, to_s] = calib::full_engagement_span_s(feed, kRpm);
+        dyno.record_from_s = from_s;
+        dyno.record_to_s = to_s;
+        dyno.noise_rel = 0.005;
+        dyno.drift_rel = {0.05, -0.05, 0.05};
+        dyno.seed = 800 + static_cast<unsigned>(i);
+        const std::string path = (dir.path() / "dyno.csv").string();
+        const calib::DynoRecord rec = calib::write_dyno_file(fm::predict(cut.motion, cut.spec, o), path, dyno);
+        std::ifstream in(path);
+        const std::string file = fmt::format("steady{}.csv", i);
+        items.push_back({"test", std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()),
+                         file, "text/csv"});
+        // A window inside the record, a few revolutions in from each end.
+        windows.emplace_back(rec.t_first_s + 0.02, rec.t_last_s - 0.02);
+        conditions[file] = {{"spindle_rpm", kRpm},
+                            {"feed_mm_min", feed * calib::test_tool().flutes * kRpm},
+                            {"axial_mm", kAxialMm},
+                            {"mode", "slot"},
+                            {"from_s", windows.back().first},
+                            {"to_s", windows.back().second},
+                            {"zero_N", rec.offset_at(rec.t_first_s, dyno)}};
+    }
+    auto post = [&](const json& cond) {
+        auto parts = items;
+        parts.push_back({"tests", cond.dump(), "", "application/json"});
+        return c.Post("/api/v1/calibrations", parts);
+    };
+    auto r = post(conditions);
+    REQUIRE(r->status == 200);
+    const json got = body(r);
+    INFO(got.dump());
+    const auto want = fm::coefficients_of(calib::true_material());
+    for (std::size_t k = 0; k < 6; ++k) {
+        const double identified = got["material"][fm::kCoefficientKeys[k]].get<double>();
+        INFO(fm::kCoefficientKeys[k] << ": identified " << identified << ", true " << want[k]);
+        CHECK(std::abs(identified / want[k] - 1) < 0.03);
+    }
+    REQUIRE(got["tests"].size() == 3);
+    for (std::size_t i = 0; i < 3; ++i) {
+        const json& t = got["tests"][i];
+        CHECK(t["window_source"] == "given");
+        CHECK(t["zero_source"] == "given");
+        CHECK(t["drift_source"] == "cut");
+        CHECK(t["steady_from_s"].get<double>() >= windows[i].first - 1e-4);
+        CHECK(t["steady_to_s"].get<double>() <= windows[i].second + 1e-4);
+        CHECK(t["steady_to_s"].get<double>() - t["steady_from_s"].get<double>() >
+              windows[i].second - windows[i].first - 2 * 60 / kRpm);
+        // The drift is reported per axis, in N/s and over the window: the two agree.
+        for (std::size_t ax = 0; ax < 3; ++ax)
+            CHECK(t["drift_N"][ax].get<double>() ==
+                  Approx(t["drift_N_per_s"][ax].get<double>() *
+                         (t["steady_to_s"].get<double>() - t["steady_from_s"].get<double>())));
+    }
+
+    // Without zero_N nothing in these records tells the zero: 400 naming the key that gives it.
+    json no_zero = conditions;
+    no_zero["steady1.csv"].erase("zero_N");
+    require_error(post(no_zero), 400, "bad_measurement", "zero_N in the conditions of 'steady1.csv'");
+    json bad_zero = conditions;
+    bad_zero["steady0.csv"]["zero_N"] = {1, 2};
+    require_error(post(bad_zero), 400, "bad_request", "zero_N must be three numbers");
+    json backwards = conditions;
+    backwards["steady2.csv"]["to_s"] = backwards["steady2.csv"]["from_s"].get<double>() - 0.1;
+    require_error(post(backwards), 400, "bad_request", "to_s must be after from_s");
+    json outside = conditions;
+    outside["steady0.csv"]["from_s"] = 50;
+    outside["steady0.csv"]["to_s"] = 51;
+    require_error(post(outside), 400, "bad_measurement", "no whole revolution in the steady window");
+}

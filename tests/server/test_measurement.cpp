@@ -112,6 +112,29 @@ TEST_CASE("measurement: a run's own forces as a dynamometer record compare near 
                   "bad_measurement");
     REQUIRE(c.Get(route.c_str())->status == 200);
 
+    // A zero offset given in the record's channels (Fx, Fy, Fz as recorded) is mapped like the forces,
+    // -A z for a record of the workpiece, and removed instead of the one found in air: this record has
+    // none, so the mean errors become A z, with A swapping X and Y.
+    require_error(c.Post(route.c_str(), httplib::MultipartFormDataItems{{"file", dyno, "dyno.csv", ""},
+                                                                       {"zero_N", "1,2", "", ""}}),
+                  400, "bad_request", "zero_N");
+    auto zeroed = items;
+    zeroed.push_back({"zero_N", "1,2,3", "", ""});
+    REQUIRE(c.Post(route.c_str(), zeroed)->status == 201);
+    const json given = body(c.Get(route.c_str()))["report"];
+    INFO(given.dump());
+    REQUIRE(given["settings"]["zero_N"] == json::array({1, 2, 3}));
+    REQUIRE(given["zero"]["source"] == "given");
+    REQUIRE(given["zero"]["N"][0].get<double>() == Approx(-2));
+    REQUIRE(given["zero"]["N"][1].get<double>() == Approx(-1));
+    REQUIRE(given["zero"]["N"][2].get<double>() == Approx(-3));
+    REQUIRE(given["overall"]["x"]["mean_error_N"].get<double>() == Approx(-2).margin(0.01));
+    REQUIRE(given["overall"]["y"]["mean_error_N"].get<double>() == Approx(-1).margin(0.01));
+    REQUIRE(given["overall"]["z"]["mean_error_N"].get<double>() == Approx(-3).margin(0.01));
+    // Found in air instead, it is about nothing.
+    REQUIRE(rep["zero"]["source"] != "given");
+    for (int ax = 0; ax < 3; ++ax) REQUIRE(std::abs(rep["zero"]["N"][ax].get<double>()) < 0.01 * peak_N);
+
     REQUIRE(c.Delete(route.c_str())->status == 204);
     REQUIRE(files_under(dir) == files_before);
     require_error(c.Get(route.c_str()), 404, "not_found");
