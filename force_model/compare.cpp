@@ -522,15 +522,30 @@ namespace {
 ZeroLine zero_line(const std::vector<double>& t_s, const std::vector<float> (&mf)[3], const std::vector<float> (&pf)[3],
                    const CompareOptions& opt, double t_record_s) {
     constexpr std::size_t kMinAir = 100;
+    // An air sample is kGuard samples from any cutting one: with an offset a fraction of a sample off,
+    // the measured force at the edge of a tooth pass is already rising where the prediction is still 0.
+    constexpr std::size_t kGuard = 2;
     std::vector<std::size_t> air;
-    std::size_t first_cut = t_s.size(), last_cut = 0;
-    for (std::size_t i = 0; i < t_s.size(); ++i) {
-        if (pf[0][i] == 0 && pf[1][i] == 0 && pf[2][i] == 0) {
-            air.push_back(i);
-        } else {
-            first_cut = std::min(first_cut, i);
-            last_cut = i;
+    std::size_t first_cut = t_s.size(), last_cut = 0, last_cut_seen = 0;
+    bool any_cut = false;
+    const std::size_t n = t_s.size();
+    auto cutting = [&](std::size_t i) { return pf[0][i] != 0 || pf[1][i] != 0 || pf[2][i] != 0; };
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!cutting(i)) continue;
+        first_cut = std::min(first_cut, i);
+        last_cut = i;
+    }
+    for (std::size_t i = 0, next_cut = 0; i < n; ++i) {
+        if (cutting(i)) {
+            any_cut = true;
+            last_cut_seen = i;
+            continue;
         }
+        if (next_cut <= i) {
+            next_cut = i + 1;
+            while (next_cut < n && !cutting(next_cut)) ++next_cut;
+        }
+        if ((!any_cut || i - last_cut_seen > kGuard) && (next_cut >= n || next_cut - i > kGuard)) air.push_back(i);
     }
     ZeroLine z;
     if (air.size() >= kMinAir) {
@@ -547,16 +562,26 @@ ZeroLine zero_line(const std::vector<double>& t_s, const std::vector<float> (&mf
         double stt = 0;
         for (std::size_t i : air) stt += (t_s[i] - tm) * (t_s[i] - tm);
         const bool spread = t_s[air.back()] - t_s[air.front()] >= 0.5 * (t_s.back() - t_s.front()) && stt > 0;
+        const double n_air = static_cast<double>(air.size());
+        std::array<double, 3> slope{}, standard_error{};
         for (std::size_t ax = 0; ax < 3; ++ax) {
-            double sf = 0, stf = 0;
+            double sf = 0, sff = 0, stf = 0;
             for (std::size_t i : air) {
                 sf += mf[ax][i];
+                sff += double(mf[ax][i]) * mf[ax][i];
                 stf += (t_s[i] - tm) * mf[ax][i];
             }
-            z.zero_N[ax] = sf / static_cast<double>(air.size());
-            if (spread) z.drift_N_per_s[ax] = stf / stt;
+            z.zero_N[ax] = sf / n_air;
+            if (stt > 0) {
+                slope[ax] = stf / stt;
+                const double residual = std::max(0.0, sff - sf * sf / n_air - slope[ax] * slope[ax] * stt) / (n_air - 2);
+                standard_error[ax] = std::sqrt(residual / stt);
+            }
         }
-        if (spread) z.drift_source = DriftSource::Idle;
+        if (spread && drift_significant(slope, standard_error)) {
+            z.drift_N_per_s = slope;
+            z.drift_source = DriftSource::Idle;
+        }
     }
     if (opt.zero_N) {
         z.source = ZeroSource::Given;

@@ -154,18 +154,32 @@ std::array<double, 3> robust_slope_over(const std::vector<double>& t, const std:
                               std::vector<Vec3>(v.begin() + static_cast<long>(a), v.begin() + static_cast<long>(b)));
 }
 
-// Least squares: for a window known to be steady, where it has about half the variance.
-std::array<double, 3> slope_over(const std::vector<double>& t, const std::vector<Vec3>& v, std::size_t a, std::size_t b) {
+// Least squares: for a window known to be steady, where it has about half the variance. Empty
+// when the slope does not stand out from the scatter of the points (drift_significant).
+std::optional<Vec3> slope_over(const std::vector<double>& t, const std::vector<Vec3>& v, std::size_t a, std::size_t b) {
+    if (b - a < 3) return std::nullopt;
+    const double n = static_cast<double>(b - a);
     double tm = 0;
-    for (std::size_t j = a; j < b; ++j) tm += t[j] / static_cast<double>(b - a);
+    Vec3 vm{};
+    for (std::size_t j = a; j < b; ++j) {
+        tm += t[j] / n;
+        for (std::size_t ax = 0; ax < 3; ++ax) vm[ax] += v[j][ax] / n;
+    }
     double stt = 0;
     Vec3 stv{};
     for (std::size_t j = a; j < b; ++j) {
         stt += (t[j] - tm) * (t[j] - tm);
-        for (std::size_t ax = 0; ax < 3; ++ax) stv[ax] += (t[j] - tm) * v[j][ax];
+        for (std::size_t ax = 0; ax < 3; ++ax) stv[ax] += (t[j] - tm) * (v[j][ax] - vm[ax]);
     }
-    if (!(stt > 0)) return {};
-    return {stv[0] / stt, stv[1] / stt, stv[2] / stt};
+    if (!(stt > 0)) return std::nullopt;
+    Vec3 slope{}, residual{}, standard_error{};
+    for (std::size_t ax = 0; ax < 3; ++ax) slope[ax] = stv[ax] / stt;
+    for (std::size_t j = a; j < b; ++j)
+        for (std::size_t ax = 0; ax < 3; ++ax)
+            residual[ax] += std::pow(v[j][ax] - vm[ax] - slope[ax] * (t[j] - tm), 2) / (n - 2);
+    for (std::size_t ax = 0; ax < 3; ++ax) standard_error[ax] = std::sqrt(residual[ax] / stt);
+    if (!drift_significant(slope, standard_error)) return std::nullopt;
+    return slope;
 }
 
 // Samples folded over one tooth period: per bin of phase, the sums of the samples and their squares.
@@ -383,11 +397,28 @@ SteadyForce robust_steady(const Revolutions& r, const SteadyOptions& opt) {
         zero.source = ZeroSource::IdleTail;
         std::tie(zero.zero_N, zero.t_s) = *tail_level;
     }
+    // Drift between the idle stretches, if it stands out from the scatter of their revolution means.
+    bool idle_drift_known = false;
     if (lead_level && tail_level && tail_level->second > lead_level->second) {
-        zero.drift_source = DriftSource::Idle;
+        idle_drift_known = true;
+        Vec3 slope{}, scatter{}, standard_error{};
         for (std::size_t ax = 0; ax < 3; ++ax)
-            zero.drift_N_per_s[ax] =
-                (tail_level->first[ax] - lead_level->first[ax]) / (tail_level->second - lead_level->second);
+            slope[ax] = (tail_level->first[ax] - lead_level->first[ax]) / (tail_level->second - lead_level->second);
+        if (lead + tail >= 3) {
+            for (std::size_t j = 0; j < revs; ++j) {
+                const auto* level = j < lead ? &*lead_level : j >= revs - tail ? &*tail_level : nullptr;
+                if (!level) continue;
+                for (std::size_t ax = 0; ax < 3; ++ax)
+                    scatter[ax] += std::pow(mean[j][ax] - level->first[ax], 2) / static_cast<double>(lead + tail - 2);
+            }
+            for (std::size_t ax = 0; ax < 3; ++ax)
+                standard_error[ax] = std::sqrt(scatter[ax] * (1.0 / static_cast<double>(lead) + 1.0 / static_cast<double>(tail))) /
+                                     (tail_level->second - lead_level->second);
+        }
+        if (lead + tail < 3 || drift_significant(slope, standard_error)) {
+            zero.drift_source = DriftSource::Idle;
+            zero.drift_N_per_s = slope;
+        }
     }
     // Revolution means less the zero as far as it is known (0 when it is not: then the scale of the
     // tolerance includes the offset, which is small beside a cutting force).
@@ -408,10 +439,11 @@ SteadyForce robust_steady(const Revolutions& r, const SteadyOptions& opt) {
             throw MeasurementError(fmt::format("{}: no whole revolution in the steady window [{:g}, {:g}] s; the record "
                                                "covers [{:g}, {:g}] s",
                                                mm.source, a, b, mm.t_s(0), mm.t_s(mm.size() - 1)));
-        if (zero.drift_source == DriftSource::None && s1 - s0 >= 2) {
-            zero.drift_source = DriftSource::Cut;
-            zero.drift_N_per_s = slope_over(t, level, s0, s1);
-        }
+        if (!idle_drift_known)
+            if (const auto slope = slope_over(t, level, s0, s1)) {
+                zero.drift_source = DriftSource::Cut;
+                zero.drift_N_per_s = *slope;
+            }
     } else {
         // First pass, drift unknown: a loose tolerance finds the bulk of the steady cut.
         const Vec3 m1 = median_of(level, c0, c1);
@@ -419,19 +451,22 @@ SteadyForce robust_steady(const Revolutions& r, const SteadyOptions& opt) {
         if (r1 - r0 < 2) no_steady_cut(mm, opt, r1 - r0);
         // Second pass, drift removed, at the tolerance.
         std::vector<Vec3> flat = level;
-        if (zero.drift_source == DriftSource::None) {
-            zero.drift_source = DriftSource::Cut;
-            zero.drift_N_per_s = robust_slope_over(t, level, r0, r1);
+        if (!idle_drift_known) {
+            const Vec3 slope = robust_slope_over(t, level, r0, r1);
             const double t_mid = 0.5 * (t[r0] + t[r1 - 1]);
             for (std::size_t j = 0; j < revs; ++j)
-                for (std::size_t ax = 0; ax < 3; ++ax) flat[j][ax] -= zero.drift_N_per_s[ax] * (t[j] - t_mid);
+                for (std::size_t ax = 0; ax < 3; ++ax) flat[j][ax] -= slope[ax] * (t[j] - t_mid);
         }
         const Vec3 m2 = median_of(flat, r0, r1);
         std::tie(s0, s1) = longest_run(smooth5(flat), c0, c1, m2, opt.tolerance * norm(m2));
         if (s1 - s0 > 4) s0 += 2, s1 -= 2;
         if (s1 - s0 < static_cast<std::size_t>(opt.min_revolutions)) no_steady_cut(mm, opt, s1 - s0);
         // The trend over the final window alone: no ramp revolution left in it.
-        if (zero.drift_source == DriftSource::Cut) zero.drift_N_per_s = slope_over(t, mean, s0, s1);
+        if (!idle_drift_known)
+            if (const auto slope = slope_over(t, mean, s0, s1)) {
+                zero.drift_source = DriftSource::Cut;
+                zero.drift_N_per_s = *slope;
+            }
     }
 
     const std::size_t i0 = r.first_sample(s0), i1 = r.end_sample(s1);

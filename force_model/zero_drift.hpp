@@ -7,6 +7,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <vector>
 
@@ -43,6 +44,18 @@ struct ZeroLine {
                 zero_N[2] + drift_N_per_s[2] * (t - t_s)};
     }
 };
+
+// A drift is taken only where it stands out from the noise: some axis's slope at least this many
+// standard errors from zero. Fitting a drift that is not there only adds the noise of its slope to
+// the zero offset away from where it was measured. At 5, chance alone flags an axis about once in
+// a million records; a drift of 5 % of the cutting force over a record of a few hundred revolutions
+// stands at about 20.
+inline constexpr double kDriftSignificance = 5.0;
+inline bool drift_significant(const std::array<double, 3>& slope, const std::array<double, 3>& standard_error) {
+    for (std::size_t ax = 0; ax < 3; ++ax)
+        if (std::abs(slope[ax]) > kDriftSignificance * standard_error[ax]) return true;
+    return false;
+}
 
 // Slope per axis of points (t_s[i], v[i]) that should lie on a line apart from noise and a few
 // outliers: the median of the slopes of the pairs half the run apart (i, i + n/2). It costs O(n)
