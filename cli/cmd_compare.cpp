@@ -58,7 +58,8 @@ void print_zero(const force_model::Comparison& c, bool keep_zero) {
     std::printf("zero offset removed: (%.3f, %.3f, %.3f) N at %.4f s (%s); ", c.zero_N[0], c.zero_N[1], c.zero_N[2],
                 c.zero.t_s, source);
     if (c.zero.drift_source == force_model::DriftSource::None)
-        std::printf("drift: none found (the air samples span less than half the window)\n");
+        std::printf("drift: none found (none stands out from the noise, or the air samples span less than half "
+                    "the window)\n");
     else
         std::printf("drift (%.4f, %.4f, %.4f) N/s (line through the air samples)\n", c.zero.drift_N_per_s[0],
                     c.zero.drift_N_per_s[1], c.zero.drift_N_per_s[2]);

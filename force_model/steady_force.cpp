@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <string>
 #include <utility>
 
 namespace cutload::force_model {
@@ -473,15 +474,26 @@ SteadyForce robust_steady(const Revolutions& r, const SteadyOptions& opt) {
     const double t_c = r.exact_centre_s(s0, s1);
     if (zero.source == ZeroSource::None) {
         const auto z = zero_from_tooth_gaps(mm, i0, i1, r.per_rev, opt.flutes, opt.air_fraction, zero.drift_N_per_s, t_c);
-        if (!z)
-            throw SteadyError(
-                fmt::format("{}: no zero offset: the record has no idle revolutions before or after the cut, and "
-                            "{}; give the zero offset",
-                            mm.source,
-                            opt.air_fraction > 0 ? "the air between tooth passes is not flat enough to read it from"
-                                                 : "no air between tooth passes to estimate it from (a slot, "
-                                                   "overlapping edges, or not a flat end mill)"),
-                SteadyError::Need::Zero);
+        if (!z) {
+            const double per_tooth = opt.flutes > 0 ? r.per_rev / opt.flutes : 0.0;
+            std::string why;
+            if (!(opt.air_fraction > 0 && opt.flutes > 0))
+                why = "no air between tooth passes to estimate it from (a slot, overlapping edges, or not a flat end mill)";
+            else if (opt.air_fraction - 2 * kAirMargin < kMinAirWindow)
+                why = fmt::format("too little air between tooth passes to estimate it from ({:.0f} % of each tooth "
+                                  "period; {:.0f} % needed)",
+                                  100 * opt.air_fraction, 100 * (kMinAirWindow + 2 * kAirMargin));
+            else if (per_tooth < kMinSamplesPerTooth)
+                why = fmt::format("{:.1f} samples per tooth period, too few to find the air between tooth passes "
+                                  "(at least {:g})",
+                                  per_tooth, kMinSamplesPerTooth);
+            else
+                why = "the air between tooth passes is not flat enough to read it from";
+            throw SteadyError(fmt::format("{}: no zero offset: the record has no idle revolutions before or after "
+                                          "the cut, and {}; give the zero offset",
+                                          mm.source, why),
+                              SteadyError::Need::Zero);
+        }
         zero.source = ZeroSource::Estimated;
         zero.zero_N = *z;
         zero.t_s = t_c;
