@@ -65,7 +65,7 @@ Regressors engine_regressors(const ToolSpec& tool, const CutTest& test, const En
 //   the idle tail; cutting revolutions have at least `threshold` of the typical (90th percentile)
 //   ripple;
 // - the drift is the line through the lead-in and the tail when both exist, else the trend of the
-//   steady revolution means;
+//   steady revolution means, taken only where it stands out from the noise (drift_significant);
 // - the steady segment is the longest run of cutting revolutions whose 5-revolution moving mean,
 //   drift removed, stays within `tolerance` of their median, less two revolutions at each end. The
 //   tolerance is tight because an entry ramp ends flat: at 5 % ramp revolutions got in and biased

@@ -46,9 +46,10 @@ struct CompareOptions {
     int flutes = 0;   // needed for Averaging::ToothPeriod
     // Subtract the dynamometer's zero offset, found from the samples where the prediction is exactly
     // zero (the tool in air: before and after the cut, and between tooth passes in partial
-    // immersion). Needs at least 100 such samples, else nothing is removed. Where they spread over at
-    // least half the compared span, the zero is a least-squares line through them (the amplifier's
-    // drift), else their mean.
+    // immersion) and 2 samples clear of any where it is not. Needs at least 100 such samples, else
+    // nothing is removed. Where they spread over at least half the compared span and their slope
+    // stands out from the noise (drift_significant), the zero is a least-squares line through them
+    // (the amplifier's drift), else their mean.
     bool remove_zero = true;
     // The zero offset at the record's first sample (tool / machine axes), instead of the one found;
     // the drift is still taken from the air samples where they allow.

@@ -13,6 +13,8 @@
 #include <fstream>
 #include <string>
 
+#include <unistd.h>
+
 using namespace cutload;
 using namespace cutload::calibtest;
 
@@ -136,7 +138,7 @@ TEST_CASE("the CLI reports bad input on one line with exit code 2", "[calib][cli
 }
 
 TEST_CASE("cutload calibrate takes a steady window and a zero offset per test", "[calib][cli][real]") {
-    const auto dir = clitest::scratch("calib_window");
+    const auto dir = clitest::scratch(fmt::format("calib_window_{}", ::getpid()));   // per process: worktrees run at once
     force_model::RunSpec spec;
     spec.tool = test_tool();
     spec.material = true_material();

@@ -12,6 +12,8 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include <unistd.h>
+
 using namespace cutload;
 using namespace cutload::force_model;
 using namespace cutload::calibtest;
@@ -43,8 +45,9 @@ void report(const std::string& line) {
     if (verbose) std::printf("CALIB %s\n", line.c_str());
 }
 
+// Per process: worktrees may run the suite at once.
 std::filesystem::path scratch_dir(const char* name) {
-    const auto dir = std::filesystem::temp_directory_path() / name;
+    const auto dir = std::filesystem::temp_directory_path() / fmt::format("{}_{}", name, ::getpid());
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
