@@ -5,7 +5,7 @@
 // wall second, median of several runs) for each device, their ratio, peak memory, the median time
 // of each engine phase, the process CPU time per run (all threads; steadier than wall time on a
 // shared machine) and the load average when the runs started.
-#include "force_model/engine.hpp"
+#include "force_model/engine_settings.hpp"
 #include "motion_io/commanded.hpp"
 #include "motion_io/nc_program.hpp"
 

@@ -207,6 +207,7 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                 ehi = vload8(0, clip_hi);
             }
             const float8 db = vload8(0, el_db + c) * w;
+            // The cutting law (force_model/cutting_law.hpp; the twin's element_force).
             const float8 dFt = select((float8)(0.0f), (Ktc * h_cut + Kte) * db, m);
             const float8 dFr = select((float8)(0.0f), (Krc * h_cut + Kre) * db, m);
             const float8 dFa = select((float8)(0.0f), (Kac * h_cut + Kae) * db, m);

@@ -131,6 +131,15 @@ struct CuttingCoefficients {
     double Kte = 0, Kre = 0, Kae = 0;   // N/mm
 };
 
+// The cutting law on one edge element (force_model/cutting_law.hpp): tangential, radial and axial
+// force for a chip of thickness h over an engaged length db. engage.cl computes the same in float.
+struct ElementForce {
+    double tangential_N = 0, radial_N = 0, axial_N = 0;
+};
+inline ElementForce element_force(const CuttingCoefficients& k, double h_mm, double db_mm) {
+    return {(k.Ktc * h_mm + k.Kte) * db_mm, (k.Krc * h_mm + k.Kre) * db_mm, (k.Kac * h_mm + k.Kae) * db_mm};
+}
+
 // ---- One batch of time steps ---------------------------------------------------------------------
 // Spindle rotation: an edge point of flute j at element e points along
 //   alpha = pi/2 - theta - 2 pi j / N + spin * lag_e      (machine XY, counter-clockwise from +X)

@@ -312,9 +312,8 @@ void engage_twin(const StepBatch& steps, const EdgeTable& tool, const EngagePara
                 }
                 if (weight <= 0) continue;
                 const double db = tool.db_mm[e] * weight;
-                const double dFt = (k.Ktc * h_cut + k.Kte) * db;
-                const double dFr = (k.Krc * h_cut + k.Kre) * db;
-                const double dFa = (k.Kac * h_cut + k.Kae) * db;
+                const ElementForce f = element_force(k, h_cut, db);
+                const double dFt = f.tangential_N, dFr = f.radial_N, dFa = f.axial_N;
                 const double normal = dFr * nr + dFa * nz;
                 const double ex = -s * dFt * su - normal * cu;
                 const double ey = s * dFt * cu - normal * su;

@@ -3,7 +3,7 @@
 // result reads are non-blocking, the host staging arrays stay untouched until the driver's next
 // wait(). Buffers are created once and grown by doubling; on CPU devices (PoCL) the stock buffer
 // wraps the host array (no copy).
-#include "engine.hpp"
+#include "engine/backend.hpp"
 #include "kernels/opencl_runtime.hpp"
 
 #include <array>

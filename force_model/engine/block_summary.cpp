@@ -1,4 +1,4 @@
-#include "summary.hpp"
+#include "engine/block_summary.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The scalar path: the kernels' C++ twins on the host stock, one thread. Work runs when it is
 // queued, so wait() has nothing to wait for.
-#include "engine.hpp"
+#include "engine/backend.hpp"
 
 namespace cutload::force_model {
 

@@ -1,0 +1,26 @@
+#include "cutters/cutter.hpp"
+#include "cutters/shapes.hpp"
+
+namespace cutload::force_model {
+
+namespace {
+
+// The shape decides the corner radius of flat and ball tools whatever the spec's field says (the
+// run spec parser only requires the field to agree).
+double corner_radius_mm(const ToolSpec& tool) {
+    switch (tool.shape) {
+        case ToolShape::Flat: return 0;
+        case ToolShape::Ball: return tool.diameter_mm / 2;
+        case ToolShape::Bull: return tool.corner_radius_mm;
+    }
+    return tool.corner_radius_mm;
+}
+
+}  // namespace
+
+Cutter cutter_from_spec(const ToolSpec& tool) {
+    return Cutter{corner_radius_profile(tool.diameter_mm, corner_radius_mm(tool), tool.flute_length_mm), tool.flutes,
+                  tool.helix_deg, tool.stickout_mm, tool.holder.diameter_mm, tool.holder.length_mm};
+}
+
+}  // namespace cutload::force_model

@@ -1,0 +1,14 @@
+// Internal: the tool shapes, each a builder of a cutter profile from its dimensions, one file per
+// shape family. Nothing else in the engine knows a shape: the edge elements, the lower surface and
+// the cutting radius all come from the profile.
+#pragma once
+
+#include "cutters/profile.hpp"
+
+namespace cutload::force_model {
+
+// end_mill.cpp: flat bottom, corner arc of radius corner_radius_mm, cylinder up to flute_length_mm.
+// Corner radius 0 is a flat end mill, diameter / 2 a ball end mill, anything between a bull nose.
+CutterProfile corner_radius_profile(double diameter_mm, double corner_radius_mm, double flute_length_mm);
+
+}  // namespace cutload::force_model

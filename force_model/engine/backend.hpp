@@ -1,0 +1,38 @@
+// Internal: the two heavy loops of the engine behind one interface, implemented by the OpenCL
+// kernels (backend_opencl.cpp) and by their scalar C++ twins (backend_cpu.cpp).
+#pragma once
+
+#include "cutters/tool_geometry.hpp"
+#include "kernels/engine_kernels.hpp"
+#include "stock.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace cutload::force_model {
+
+// engage() evaluates a batch of time steps against the stock, sweep() removes the tool's swept
+// volume along path segments from it. Both only queue the work, in order (an engagement sees every
+// removal queued before it); the results are valid after wait(). The inputs may be reused as soon
+// as the call returns; the outputs must stay in place until wait(). At most one engage() and one
+// sweep() call may be outstanding between waits.
+class Backend {
+public:
+    virtual ~Backend() = default;
+    virtual std::string name() const = 0;
+    virtual void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p,
+                        kernels::StepResult* out) = 0;
+    // Call k writes its calls[k].cells() results after those of the calls before it.
+    virtual void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
+                       const kernels::SweepParams& p, kernels::SweepCellResult* out) = 0;
+    virtual void wait() = 0;
+    // Copies the backend's stock into the host stock (end of run).
+    virtual void download(Stock& stock) = 0;
+};
+
+// Both work on `stock` (the OpenCL backend copies it to the device, or wraps it on CPU devices).
+std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const ToolGeometry& tool);
+std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const ToolGeometry& tool);   // throws OpenClError
+
+}  // namespace cutload::force_model

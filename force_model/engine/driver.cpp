@@ -1,0 +1,162 @@
+#include "engine/driver.hpp"
+#include "engine/holder_check.hpp"
+#include "engine/motion_walk.hpp"
+#include "engine/phase_timer.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cutload::force_model {
+
+namespace {
+
+constexpr std::size_t kMaxReservedRows = std::size_t(1) << 22;
+
+}  // namespace
+
+Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
+               const EngineSettings& settings, EngineSetup& setup, EnginePhases& phases)
+    : motion_(motion), offset_mm_(spec.offset_mm), angle_step_deg_(spec.resolution.angle_step_deg), options_(opt),
+      tool_(setup.tool), phases_(phases), stock_map_(*setup.stock, setup.fresh_stock),
+      removal_path_(setup.stock->grid.cell_mm, setup.tool.radius_mm,
+                    settings.removal_lag_cells * setup.stock->grid.cell_mm,
+                    settings.chord_tolerance_cells * setup.stock->grid.cell_mm),
+      batcher_(settings, setup.stock->grid.cell_mm),
+      engagement_(*setup.backend, setup.tool, setup.law, settings, setup.stock->grid, phases),
+      rows_(setup.tool.shank_diameter_mm) {
+    rows_.reserve(std::min(expected_rows(motion, angle_step_deg_), kMaxReservedRows));
+}
+
+void Engine::run() {
+    if (motion_.size() < 2) return;
+    // Each session is a separate stretch: batches and pending removal end with it, so nothing is
+    // interpolated or swept across the jump to the next one.
+    for (const auto& [begin, end] : session_ranges(motion_)) {
+        for (std::size_t i = begin; i + 1 < end; ++i) {
+            current_interval_ = i;
+            walk_interval(i);
+        }
+        flush_batch();
+        remove_all_pending();
+    }
+    complete();
+}
+
+void Engine::walk_interval(std::size_t i) {
+    if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
+    if (interval_in_air(i)) {
+        flush_batch();
+        remove_all_pending();
+        rows_.append_motion_sample(motion_, i, false);
+        return;
+    }
+    const double rpm0 = motion_.spindle_rpm[i], rpm1 = motion_.spindle_rpm[i + 1];
+    if (std::abs(rpm0) < 1 || std::abs(rpm1) < 1 || rpm0 * rpm1 < 0) {
+        walk_stopped_spindle(i);
+        return;
+    }
+    walk_angle_steps(i);
+}
+
+// Whether the tool and its holder stay clear of the stock over the interval (coarse tile map).
+bool Engine::interval_in_air(std::size_t i) {
+    const Vec3 p0 = tip_position(motion_, i, offset_mm_), p1 = tip_position(motion_, i + 1, offset_mm_);
+    const double h_s = motion_.t_s[i + 1] - motion_.t_s[i];
+    const double v_max = std::max(speed_mm_s(motion_, i), speed_mm_s(motion_, i + 1));
+    // The Hermite curve can leave the chord by about |v| h / 4 between samples.
+    const double slack_mm = 0.05 + 0.25 * v_max * h_s;
+    const double reach_mm = tool_.holder_radius_mm + slack_mm;
+    const float top = stock_map_.max_top(std::min(p0.x, p1.x) - reach_mm, std::min(p0.y, p1.y) - reach_mm,
+                                         std::max(p0.x, p1.x) + reach_mm, std::max(p0.y, p1.y) + reach_mm);
+    return top <= std::min(p0.z, p1.z) - slack_mm;
+}
+
+// No chip thickness without rotation: the cutter is pushed, not cutting. Flagged when it is in
+// material; the stock is still removed so later blocks see the crash's result.
+void Engine::walk_stopped_spindle(std::size_t i) {
+    flush_batch();
+    complete();
+    const Vec3 p0 = tip_position(motion_, i, offset_mm_), p1 = tip_position(motion_, i + 1, offset_mm_);
+    removal_path_.add(p0);
+    removal_path_.add(p1);
+    const bool in_material = stock_map_.material_above(p0.x, p0.y, 0, tool_.radius_mm, p0.z + 1e-3) ||
+                             stock_map_.material_above(p1.x, p1.y, 0, tool_.radius_mm, p1.z + 1e-3);
+    rows_.append_motion_sample(motion_, i, in_material);
+}
+
+void Engine::walk_angle_steps(std::size_t i) {
+    IntervalSteps steps(motion_, i, offset_mm_, angle_step_deg_, tool_.edges.flutes);
+    if (steps.empty()) return;
+    if (batcher_.size() > 0 && steps.spin() != batcher_.spin()) flush_batch();
+    TimeStep s;
+    while (steps.next(s)) {
+        if (batcher_.ends_before(s)) flush_batch();
+        batcher_.add(s, steps.spin());
+    }
+}
+
+void Engine::flush_batch() {
+    const std::size_t n = batcher_.size();
+    if (n == 0) return;
+    complete();
+    steps_ += n;
+    const TipBounds b = batcher_.tip_bounds();
+    // Elements higher than the highest material under the batch cannot engage: skip them.
+    const double R = tool_.radius_mm;
+    const double reach_mm = double(stock_map_.max_top(b.x0_mm - R, b.y0_mm - R, b.x1_mm + R, b.y1_mm + R)) - b.z_min_mm;
+    engagement_.queue_batch(batcher_, b, tool_.elements_reaching(reach_mm));
+    removal_path_.add_batch(engagement_.in_flight().steps);
+    queue_removal(true);
+}
+
+void Engine::queue_removal(bool keep_lag) {
+    if (removal_path_.empty()) return;
+    InFlight& f = engagement_.in_flight();
+    {
+        PhaseTimer timer(phases_.removal_s);
+        removal_path_.take(keep_lag, stock_map_, f.segs, f.calls);
+    }
+    engagement_.queue_sweep();
+}
+
+void Engine::remove_all_pending() {
+    complete();
+    queue_removal(false);
+    complete();
+}
+
+void Engine::complete() {
+    InFlight& f = engagement_.in_flight();
+    if (!f.active) return;
+    engagement_.wait();
+    const std::size_t first_row = rows_.size();
+    if (f.has_batch) {
+        PhaseTimer timer(phases_.rows_s);
+        rows_.append_steps(f.meta, f.results);
+    }
+    double removed_mm3 = 0;
+    if (!f.calls.empty()) {
+        PhaseTimer timer(phases_.removal_s);
+        removed_mm3 = stock_map_.apply_sweep(f.calls, f.sweep_out.data());
+    }
+    const std::size_t batch_rows = f.has_batch ? f.steps.size() : 0;
+    rows_.attribute_removed(first_row, batch_rows, removed_mm3);
+    if (batch_rows > 0) {
+        PhaseTimer timer(phases_.holder_s);
+        mark_holder_contact(stock_map_, tool_, f.steps, f.bounds, rows_.samples.data() + first_row);
+    }
+    engagement_.release();
+    report_progress();
+}
+
+void Engine::report_progress() {
+    if (options_.cancel && options_.cancel->load()) throw Cancelled();
+    if (!options_.progress) return;
+    const double f = double(current_interval_ + 1) / double(motion_.size());
+    if (f - last_progress_ >= 0.005 || f >= 1.0) {
+        last_progress_ = f;
+        options_.progress(f);
+    }
+}
+
+}  // namespace cutload::force_model

@@ -1,0 +1,65 @@
+// Internal: the force engine's driver. It walks the motion model session by session; each motion
+// interval is air (one row per sample, nothing evaluated), a stopped spindle (no chip: one row, the
+// stock still removed) or cutting: time steps gathered into batches, each batch's engagement and
+// the lagged removal of the path before it queued on the backend and completed while the walk
+// produces the next batch (docs/force_model.md, "Pipeline"). The parts it drives each do one job:
+// motion_walk (time steps), batcher (batches), stock_map and removal_path (stock tracking),
+// engagement (backend calls), rows and derived (output rows), holder_check.
+#pragma once
+
+#include "engine/batcher.hpp"
+#include "engine/engagement.hpp"
+#include "engine/removal_path.hpp"
+#include "engine/rows.hpp"
+#include "engine/setup.hpp"
+#include "engine/stock_map.hpp"
+
+namespace cutload::force_model {
+
+class Engine {
+public:
+    Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
+           const EngineSettings& settings, EngineSetup& setup, EnginePhases& phases);
+    Engine(const Engine&) = delete;
+    Engine& operator=(const Engine&) = delete;
+
+    // Walks the whole motion model; every batch and every removal is complete on return.
+    void run();
+
+    RowTable& rows() { return rows_; }
+    std::size_t steps() const { return steps_; }   // angle steps evaluated
+
+private:
+    void walk_interval(std::size_t i);
+    bool interval_in_air(std::size_t i);
+    void walk_stopped_spindle(std::size_t i);
+    void walk_angle_steps(std::size_t i);
+    // Queues the batch's engagement and the removal of the pending path up to the lag behind it,
+    // after completing the batch before it.
+    void flush_batch();
+    void queue_removal(bool keep_lag);
+    // Completes what is in flight, then removes the whole pending path (the tool stops or leaves).
+    void remove_all_pending();
+    // Waits for the batch in flight and applies its results: rows, removed volume, stock tops,
+    // holder checks.
+    void complete();
+    void report_progress();
+
+    const motion_io::MotionModel& motion_;
+    const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates
+    const double angle_step_deg_;
+    const PredictOptions& options_;
+    const ToolGeometry& tool_;
+    EnginePhases& phases_;
+
+    StockMap stock_map_;
+    RemovalPath removal_path_;
+    StepBatcher batcher_;       // the batch being walked
+    Engagement engagement_;     // the batch (and removal) queued on the backend
+    RowTable rows_;
+    std::size_t steps_ = 0;
+    std::size_t current_interval_ = 0;   // for progress
+    double last_progress_ = -1;
+};
+
+}  // namespace cutload::force_model

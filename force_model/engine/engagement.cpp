@@ -1,0 +1,73 @@
+#include "engine/engagement.hpp"
+#include "engine/phase_timer.hpp"
+
+#include <exception>
+
+namespace cutload::force_model {
+
+Engagement::Engagement(Backend& backend, const ToolGeometry& tool, const LinearEdgeForceLaw& law,
+                       const EngineSettings& settings, const kernels::GridInfo& grid, EnginePhases& phases)
+    : backend_(backend), phases_(phases) {
+    set_kernel_law(law, engage_params_);
+    engage_params_.holder_face_z_mm = tool.stickout_mm;
+    engage_params_.wall_tolerance_mm = settings.wall_tolerance_mm;
+    sweep_params_.lower_mm = tool.lower_mm;
+    sweep_params_.radius_mm = tool.radius_mm;
+    sweep_params_.cut_length_mm = tool.flute_length_mm;
+    // An edge point lies within half a cell diagonal of its ray's centre: walls farther than that
+    // from the centre cannot change a test. A whole cell keeps a margin.
+    sweep_params_.wall_band_mm = grid.cell_mm;
+    in_flight_.steps.reserve(settings.max_batch_steps);
+    in_flight_.meta.reserve(settings.max_batch_steps);
+}
+
+Engagement::~Engagement() {
+    if (!in_flight_.active) return;
+    try {
+        backend_.wait();
+    } catch (const std::exception&) {   // already unwinding from the first error
+    }
+}
+
+void Engagement::queue_batch(StepBatcher& batcher, const TipBounds& bounds, int element_end) {
+    InFlight& f = in_flight_;
+    f.bounds = bounds;
+    engage_params_.element_end = element_end;
+    f.results.assign(batcher.size(), kernels::StepResult{});
+    if (element_end > 0) {
+        ++phases_.batches;
+        PhaseTimer timer(phases_.queue_s);
+        backend_.engage(batcher.steps(), engage_params_, f.results.data());
+    }
+    batcher.hand_over(f.steps, f.meta);
+    f.has_batch = true;
+    f.active = true;
+}
+
+void Engagement::queue_sweep() {
+    InFlight& f = in_flight_;
+    if (f.calls.empty()) return;
+    std::size_t cells = 0;
+    for (const auto& c : f.calls) cells += c.cells();
+    f.sweep_out.resize(cells);
+    phases_.sweeps += f.calls.size();
+    f.active = true;
+    PhaseTimer timer(phases_.queue_s);
+    backend_.sweep(f.segs, f.calls, sweep_params_, f.sweep_out.data());
+}
+
+void Engagement::wait() {
+    PhaseTimer timer(phases_.wait_s);
+    backend_.wait();
+}
+
+void Engagement::release() {
+    InFlight& f = in_flight_;
+    f.active = f.has_batch = false;
+    f.steps.clear();
+    f.meta.clear();
+    f.calls.clear();
+    f.segs.clear();
+}
+
+}  // namespace cutload::force_model

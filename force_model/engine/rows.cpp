@@ -1,0 +1,62 @@
+#include "engine/rows.hpp"
+#include "engine/derived.hpp"
+#include "engine/motion_walk.hpp"
+
+namespace cutload::force_model {
+
+RowTable::RowTable(double shank_diameter_mm) : section_modulus_mm3_(shank_section_modulus_mm3(shank_diameter_mm)) {}
+
+void RowTable::reserve(std::size_t rows) {
+    samples.reserve(rows);
+    extra.reserve(rows);
+}
+
+void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results) {
+    for (std::size_t k = 0; k < meta.size(); ++k) {
+        const kernels::StepResult& r = results[k];
+        const StepMeta& step = meta[k];
+        ForceSample s;
+        s.t_s = step.t_s;
+        s.spindle_angle_deg = step.angle_deg;
+        s.block = step.block;
+        s.fx_N = r.fx_N;
+        s.fy_N = r.fy_N;
+        s.fz_N = r.fz_N;
+        s.torque_Nm = r.torque_Nmm / 1000;
+        s.power_kW = spindle_power_kW(s.torque_Nm, step.rpm);
+        s.chip_mm = r.chip_mm;
+        s.bending_MPa = bending_stress_MPa(r.mx_Nmm, r.my_Nmm, section_modulus_mm3_);
+        s.radial_engagement_mm = r.q_max_mm - r.q_min_mm;
+        s.axial_engagement_mm = r.z_max_mm - r.z_min_mm;
+        samples.push_back(s);
+        RowExtra x;
+        x.feed_mm_min = float(step.feed_mm_min);
+        x.engaged = r.engaged;
+        x.spindle_rpm = float(step.rpm);
+        extra.push_back(x);
+    }
+}
+
+void RowTable::append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material) {
+    ForceSample s;
+    s.t_s = m.t_s[i];
+    s.spindle_angle_deg = m.spindle_angle_deg[i];
+    s.block = m.block[i];
+    samples.push_back(s);
+    RowExtra x;
+    x.feed_mm_min = float(speed_mm_s(m, i) * 60);
+    x.stopped_in_material = stopped_in_material;
+    x.spindle_rpm = float(m.spindle_rpm[i]);
+    extra.push_back(x);
+}
+
+void RowTable::attribute_removed(std::size_t first_row, std::size_t batch_rows, double removed_mm3) {
+    if (batch_rows > 0) {
+        const auto share = float(removed_mm3 / double(batch_rows));
+        for (std::size_t k = first_row; k < samples.size(); ++k) samples[k].removed_mm3 = share;
+    } else if (!samples.empty()) {
+        samples.back().removed_mm3 += float(removed_mm3);
+    }
+}
+
+}  // namespace cutload::force_model

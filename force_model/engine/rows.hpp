@@ -1,0 +1,43 @@
+// Internal: the engine's output rows: one per angle step where it evaluated engagement, one per
+// motion sample elsewhere (air, a stopped spindle), with what the block summaries need beyond the
+// public ForceSample.
+#pragma once
+
+#include "engine/batcher.hpp"
+#include "force_model/force_model.hpp"
+#include "kernels/engine_kernels.hpp"
+
+#include <vector>
+
+namespace cutload::force_model {
+
+// What the engine knows about a row beyond the public ForceSample.
+struct RowExtra {
+    float feed_mm_min = 0;
+    float engaged = 0;                 // engaged edge elements
+    bool stopped_in_material = false;  // |rpm| < 1 with the cutter in material
+    float spindle_rpm = 0;
+};
+
+class RowTable {
+public:
+    explicit RowTable(double shank_diameter_mm);
+    void reserve(std::size_t rows);
+    std::size_t size() const { return samples.size(); }
+
+    // One row per step of a completed batch, from the kernel's results.
+    void append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results);
+    // One zero-force row at motion sample i.
+    void append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material);
+    // Spreads a batch's removed volume evenly over its rows [first_row, size()); with no rows there,
+    // the volume goes to the last row written (the tail of the path, removed at a stop).
+    void attribute_removed(std::size_t first_row, std::size_t batch_rows, double removed_mm3);
+
+    std::vector<ForceSample> samples;
+    std::vector<RowExtra> extra;
+
+private:
+    double section_modulus_mm3_;
+};
+
+}  // namespace cutload::force_model
