@@ -11,4 +11,10 @@ namespace cutload::force_model {
 // Corner radius 0 is a flat end mill, diameter / 2 a ball end mill, anything between a bull nose.
 CutterProfile corner_radius_profile(double diameter_mm, double corner_radius_mm, double flute_length_mm);
 
+// cone.cpp: a cone tip with the included point angle (118 deg: a twist drill, 90 deg: a spot drill
+// or chamfer mill), starting from a flat of tip_diameter_mm (0: a sharp point) and widening to
+// diameter_mm, then a cylinder up to flute_length_mm. A tapered flank is the same cone with a
+// small point angle (twice the taper per side) reaching diameter_mm at the end of the flutes.
+CutterProfile cone_profile(double diameter_mm, double tip_diameter_mm, double point_angle_deg, double flute_length_mm);
+
 }  // namespace cutload::force_model
