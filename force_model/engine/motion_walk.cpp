@@ -35,7 +35,7 @@ IntervalSteps::IntervalSteps(const motion_io::MotionModel& m, std::size_t i, con
     : t0_s_(m.t_s[i]), h_s_(m.t_s[i + 1] - m.t_s[i]), a0_deg_(m.spindle_angle_deg[i]),
       a1_deg_(m.spindle_angle_deg[i + 1]), rpm0_(m.spindle_rpm[i]), rpm1_(m.spindle_rpm[i + 1]),
       step_deg_(angle_step_deg), spin_(rpm0_ > 0 ? 1.0 : -1.0), block0_(m.block[i]), block1_(m.block[i + 1]) {
-    first_k_ = k_ = spin_ > 0 ? std::ceil(a0_deg_ / step_deg_) : std::floor(a0_deg_ / step_deg_);
+    first_angle_index_ = angle_index_ = spin_ > 0 ? std::ceil(a0_deg_ / step_deg_) : std::floor(a0_deg_ / step_deg_);
     qa_ = 3 * (rpm1_ - rpm0_) / h_s_;
     qb_ = 6 * rpm0_;
     constant_speed_ = std::abs(qa_) * h_s_ * h_s_ < 1e-9 * std::abs(qb_) * h_s_;
@@ -58,7 +58,7 @@ IntervalSteps::IntervalSteps(const motion_io::MotionModel& m, std::size_t i, con
     tooth_factor_ = 60.0 / flutes;
     per_tooth_const_ = tooth_factor_ / std::abs(rpm0_);
     // Seeded in double from the reduced angle, so the rotation's error stays at rounding.
-    const double a_start = std::remainder(std::numbers::pi / 2 - k_ * step_deg_ * std::numbers::pi / 180, 2 * std::numbers::pi);
+    const double a_start = std::remainder(std::numbers::pi / 2 - angle_index_ * step_deg_ * std::numbers::pi / 180, 2 * std::numbers::pi);
     cos_a_ = std::cos(a_start);
     sin_a_ = std::sin(a_start);
     rot_c_ = std::cos(step_deg_ * std::numbers::pi / 180);

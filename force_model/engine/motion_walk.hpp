@@ -52,7 +52,7 @@ class IntervalSteps {
 public:
     IntervalSteps(const motion_io::MotionModel& m, std::size_t i, const double offset_mm[3], double angle_step_deg,
                   int flutes);
-    bool empty() const { return done(first_k_ * step_deg_); }
+    bool empty() const { return done(first_angle_index_ * step_deg_); }
     double spin() const { return spin_; }   // +1 M03, -1 M04
     // The next step; false after the last one.
     bool next(TimeStep& s);
@@ -61,7 +61,7 @@ private:
     bool done(double angle_deg) const { return spin_ > 0 ? angle_deg >= a1_deg_ : angle_deg <= a1_deg_; }
 
     double t0_s_, h_s_, inv_h_, a0_deg_, a1_deg_, rpm0_, rpm1_, step_deg_, spin_;
-    double k_, first_k_;
+    double angle_index_, first_angle_index_;   // the next step is at angle_index_ * step_deg_
     double qa_, qb_, inv_qb_;   // angle(dt) - a0 = qa dt^2 + qb dt
     bool constant_speed_;
     double c0_[3], c1_[3], c2_[3], c3_[3], d0_[3], d1_[3], d2_[3];   // position and velocity polynomials
@@ -71,7 +71,7 @@ private:
 };
 
 inline bool IntervalSteps::next(TimeStep& s) {
-    const double ak = k_ * step_deg_;
+    const double ak = angle_index_ * step_deg_;
     if (done(ak)) return false;
     const double da = ak - a0_deg_;
     double dt;
@@ -101,7 +101,7 @@ inline bool IntervalSteps::next(TimeStep& s) {
     const double c_next = cos_a_ * rot_c_ - sin_a_ * rot_s_;
     sin_a_ = sin_a_ * rot_c_ + cos_a_ * rot_s_;
     cos_a_ = c_next;
-    k_ += spin_;
+    angle_index_ += spin_;
     return true;
 }
 
