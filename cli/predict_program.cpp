@@ -119,6 +119,12 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
     settings.limits = o.limits;
     settings.limits.sample_step_s = motion.step_s;
     auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
+    if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1) {
+        std::string list;
+        for (int t : tools) list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
+        std::fprintf(stderr, "cutload: warning: the program uses tools %s; forces are predicted with the run spec's one tool for every block\n",
+                     list.c_str());
+    }
     run.run = force_model::prepare_program_run(std::move(program), settings, motion);
     run.active = true;
     return run;

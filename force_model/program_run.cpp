@@ -64,6 +64,7 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
 
     motion_io::BlockMappingOptions mo;
     mo.lead_s = settings.block_lead_ms * 1e-3;
+    mo.rapid_mm_min = settings.rapid_mm_min;
     run.mapped = settings.map_blocks || !log_blocks_match(motion, run.program);
     if (!run.mapped) {
         // Deviations do not depend on the lead; the agreement is reported at the calibrated one.

@@ -215,7 +215,13 @@ double speed_mm_min(const MotionModel& m, std::size_t i) { return 60.0 * std::hy
 // `reach` of a piece lies within reach + cell/2 of its midpoint: two cells around suffice.
 class CutIndex {
 public:
-    CutIndex(const std::vector<Chord>& chords, const NcProgram& program, double reach_mm) : reach_(reach_mm), cell_(reach_mm) {
+    CutIndex(const std::vector<Chord>& chords, const NcProgram& program, double reach_mm) : reach_(reach_mm) {
+        // Cells no smaller than the reach (two around then suffice), 1 mm, or a millionth of
+        // the cutting path (bounded memory for any program).
+        double cut_mm = 0;
+        for (const Chord& c : chords)
+            if (program.blocks[static_cast<std::size_t>(c.block)].motion != NcMotion::Rapid) cut_mm += c.len_mm;
+        cell_ = std::max({reach_mm, 1.0, cut_mm / 1e6});
         for (const Chord& c : chords) {
             if (program.blocks[static_cast<std::size_t>(c.block)].motion == NcMotion::Rapid) continue;
             const int pieces = std::max(1, static_cast<int>(std::ceil(c.len_mm / cell_)));
@@ -262,7 +268,7 @@ private:
         u = std::clamp(u, 0.0, 1.0);
         return std::hypot(p[0] - c.p0[0] - u * c.d[0], p[1] - c.p0[1] - u * c.d[1], p[2] - c.p0[2] - u * c.d[2]);
     }
-    double reach_, cell_;
+    double reach_, cell_ = 1;
     std::vector<Piece> pieces_;
     std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells_;
 };
@@ -374,7 +380,7 @@ void fill_quality(const MotionModel& motion, const NcProgram& program, const std
             ++q.excluded_tool_change;
         } else if (v < opt.rest_speed_mm_min) {
             ++q.excluded_at_rest;
-        } else if (v > fastest_cut_mm_min) {
+        } else if (v > fastest_cut_mm_min && v > opt.rapid_fraction * opt.rapid_mm_min) {
             if (!cuts) cuts.emplace(chords, program, opt.away_mm);
             const double p[3] = {motion.x_mm[i], motion.y_mm[i], motion.z_mm[i]};
             if (!cuts->near(p)) ++q.excluded_away;

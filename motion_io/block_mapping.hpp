@@ -19,11 +19,13 @@ struct BlockMappingOptions {
     double lead_s = 0;            // the block channel leads the geometric match by this much
     double slack_mm = 2;          // search window ahead of the last match, beyond 3x the sample's travel
     // Unmatched samples that do not count against the match (real dry runs spend long stretches
-    // off the program's path): slower than rest_speed_mm_min (waiting, parked), or faster than
-    // the program's fastest cutting feed and farther than away_mm from every cutting move (rapids
-    // the control makes on its own, e.g. to the tool-change position).
+    // off the program's path): slower than rest_speed_mm_min (waiting, parked), or at rapid speed
+    // (faster than the program's fastest cutting feed and than rapid_fraction x rapid_mm_min)
+    // and farther than away_mm from every cutting move (rapids the control makes on its own).
     double rest_speed_mm_min = 30;
     double away_mm = 10;
+    double rapid_mm_min = 30000;   // the machine's G00 rate
+    double rapid_fraction = 0.4;
 };
 
 struct BlockMappingQuality {

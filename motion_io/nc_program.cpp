@@ -763,6 +763,13 @@ NcProgram read_nc_program(const std::string& path, const NcReadOptions& opt) {
     return parse_nc_program(ss.str(), path, opt);
 }
 
+std::vector<int> program_tools(const NcProgram& program) {
+    std::vector<int> out;
+    for (const NcBlock& b : program.blocks)
+        if (b.tool >= 0 && std::find(out.begin(), out.end(), b.tool) == out.end()) out.push_back(b.tool);
+    return out;
+}
+
 bool block_moves(const NcBlock& b) {
     return (b.motion == NcMotion::Rapid || b.motion == NcMotion::Linear || b.motion == NcMotion::ArcCw ||
             b.motion == NcMotion::ArcCcw) &&

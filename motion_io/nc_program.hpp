@@ -144,6 +144,9 @@ double block_length_mm(const NcBlock& b);
 void block_point(const NcBlock& b, double u, double pos_mm[3], double tangent[3]);
 bool block_moves(const NcBlock& b);   // Rapid, Linear or an arc with non-zero length
 
+// The tool numbers a program changes to, in the order it first uses them.
+std::vector<int> program_tools(const NcProgram& program);
+
 // The nearest feed at or below feed_mm_min that an F word of this block can state exactly
 // (whole mm/min, or 0.1 in/min under G20).
 double representable_feed_mm_min(const NcBlock& b, double feed_mm_min);

@@ -164,6 +164,7 @@ json program_body(const ProgramResult& r, const json& commanded_summary) {
     for (const auto& row : r.prediction.blocks) blocks.push_back(comparison_json(row));
     return {{"filename", r.filename},
             {"program_blocks", r.run.program.blocks.size()},
+            {"tools", motion_io::program_tools(r.run.program)},
             {"mapping", mapping_json(r.run)},
             {"commanded", commanded_summary},
             {"blocks", blocks}};
