@@ -1,7 +1,7 @@
 // Issue 19: one NC typo must not run away. Each reproducer below is one edit of the demo program
-// (data/demo_program.nc). On main before this change each was read without complaint (and the
-// commanded motion then grew without limit: X99999999999. is 1.7e11 samples, F0.0001 and the
-// 1e8 s dwell likewise), so each of these tests failed there; now the value is refused while
+// (data/demo_program.nc). On main before this change each was read without complaint, and the
+// commanded motion it implied was 2e12 samples at 1 ms (X99999999999.), 2.5e11 (F0.0001) and
+// 1e11 (the 1e8 s dwell), so each of these tests failed there; now the value is refused while
 // reading, naming file, line and word. A program whose values are each physical but whose
 // work is not (a path of thousands of km) is refused at the block that passes the bound.
 #include "nc_fixtures.hpp"
