@@ -323,6 +323,7 @@ TEST_CASE("dialects: T with M06 selects the tool; blocks and the commanded motio
         CHECK(named(p, name).front()->tool == tool);
         CHECK(named(p, name).front()->tool_change == (name == "N3" || name == "N5"));
     }
+    CHECK(program_tools(p) == std::vector<int>{5, 7});   // T8 was selected, never changed to
     // With a control that changes on T: T8 is a change, M06 has nothing left to do.
     NcReadOptions o = options();
     o.tool_change_on_t = true;

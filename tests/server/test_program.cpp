@@ -252,6 +252,7 @@ TEST_CASE("program api: nc_options for dialects, tools and the match; values out
     REQUIRE(p["mapping"]["counted_matched_fraction"].get<double>() > 0.99);
     REQUIRE(p["mapping"]["excluded_fraction"].get<double>() == 0);
     REQUIRE(p["mapping"]["excluded_samples"]["tool_change"] == 0);
+    REQUIRE(p["tools"] == json::array());   // no T words
     // Read as mm (the default) the same program lies off the log and the job says so.
     auto mm = upload(c, log, slot_spec(), with_program(inch, "inch.nc"));
     REQUIRE(mm->status == 202);
