@@ -192,7 +192,7 @@ TEST_CASE("issue 19: a typo in a program is one line naming file, line and word,
     CHECK_FALSE(fs::exists(dir / "f.csv"));
 }
 
-TEST_CASE("--program-units, --min-match and the dialect options reach the reader", "[cli][program]") {
+TEST_CASE("program options: units, arc centres, tolerance, block skip and the match reach the reader", "[cli][program]") {
     const fs::path dir = scratch("program_units");
     write_slot(dir);
     // The slot as a 3-decimal inch post writes it, with no G20.
