@@ -51,12 +51,38 @@ void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     cmd.add_option("--ignore", o.ignore, "NC words to drop before interpretation, e.g. G28 or H (comma-separated)")
         ->delimiter(',');
     cmd.add_option("--rapid-feed", o.rapid_mm_min, "G00 rate of the machine, mm/min (commanded motion)")
+        ->check(CLI::Range(o.limits.min_rapid_mm_min, o.limits.max_rapid_mm_min))
+        ->capture_default_str();
+    cmd.add_option("--arc-centers", o.arc_centers, "Arc centres I/J/K until the program says G90.1/G91.1: incremental (from the arc's start) or absolute")
+        ->check(CLI::IsMember({"incremental", "absolute"}))
+        ->capture_default_str();
+    cmd.add_option("--program-units", o.program_units, "Length unit of a program until it says G20/G21: mm or in")
+        ->check(CLI::IsMember({"mm", "in"}))
+        ->capture_default_str();
+    cmd.add_option("--arc-tolerance-mm", o.arc_tolerance_mm,
+                   "How far an arc's end may lie off the circle through its start, mm (plus 0.01 % of the radius)")
+        ->check(CLI::Range(0.0, 10.0))
+        ->capture_default_str();
+    cmd.add_flag("--tool-change-on-t", o.tool_change_on_t, "The control changes tools on T alone (no M06)");
+    cmd.add_flag("--block-skip", o.block_skip, "The block skip switch is on: blocks starting with '/' are skipped");
+    cmd.add_option("--min-match", o.min_match,
+                   "Refuse the program when fewer of the log's counted samples lie near its path (samples at rest, rapids away "
+                   "from the cutting moves and tool changes are not counted)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
+    cmd.add_option("--max-program-path-mm", o.limits.max_path_mm, "Refuse a program whose programmed path is longer, mm")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd.add_option("--max-program-duration-s", o.limits.max_duration_s, "Refuse a program that runs longer at its feeds, s")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd.add_option("--max-commanded-samples", o.limits.max_samples, "Refuse a program whose commanded motion takes more samples")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd.add_option("--block-lead-ms", o.block_lead_ms,
                    "Block mapping: how far the CNC's block counter runs ahead of the actual position, ms "
                    "(printed as 'calibrated lead' when a log with blocks is mapped)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(CLI::Range(0.0, 10000.0))
         ->capture_default_str();
     cmd.add_flag("--map-blocks", o.map_blocks, "Attribute samples to blocks by mapping, even if the log names blocks");
     cmd.add_flag("--no-decimal-is-increment", o.decimal_less_increment,
@@ -84,7 +110,21 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
     settings.rapid_mm_min = o.rapid_mm_min;
     settings.block_lead_ms = o.block_lead_ms;
     settings.map_blocks = o.map_blocks;
+    settings.arc_centers = o.arc_centers == "absolute" ? motion_io::ArcCenters::Absolute : motion_io::ArcCenters::Incremental;
+    settings.program_units = o.program_units == "in" ? motion_io::ProgramUnits::Inch : motion_io::ProgramUnits::Mm;
+    settings.arc_tolerance_mm = o.arc_tolerance_mm;
+    settings.tool_change_on_t = o.tool_change_on_t;
+    settings.block_skip = o.block_skip;
+    settings.min_match = o.min_match;
+    settings.limits = o.limits;
+    settings.limits.sample_step_s = motion.step_s;
     auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
+    if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1) {
+        std::string list;
+        for (int t : tools) list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
+        std::fprintf(stderr, "cutload: warning: the program uses tools %s; forces are predicted with the run spec's one tool for every block\n",
+                     list.c_str());
+    }
     run.run = force_model::prepare_program_run(std::move(program), settings, motion);
     run.active = true;
     return run;
@@ -98,6 +138,13 @@ void print_mapping(const ProgramRun& active) {
                 "path covered %.1f%%\n",
                 run.program.blocks.size(), run.mapped ? "by mapping" : "from the log", 100 * q.matched_fraction,
                 q.mean_distance_mm, q.p95_distance_mm, q.max_distance_mm, 100 * q.coverage);
+    if (q.excluded_fraction > 0) {
+        const double n = double(q.samples);
+        std::printf("  not counted: %.1f%% of samples (%.1f%% at rest, %.1f%% rapids away from the cutting moves, %.1f%% tool "
+                    "changes); matched %.1f%% of the counted\n",
+                    100 * q.excluded_fraction, 100 * double(q.excluded_at_rest) / n, 100 * double(q.excluded_away) / n,
+                    100 * double(q.excluded_tool_change) / n, 100 * q.counted_matched_fraction);
+    }
     if (q.agreement) std::printf("  mapping agrees with the log's blocks on %.2f%% of samples\n", 100 * *q.agreement);
     if (run.estimated_lead_s) std::printf("  calibrated lead of the log's block channel: %.0f ms (--block-lead-ms for logs without blocks)\n", *run.estimated_lead_s * 1e3);
     if (!q.blocks_without_samples.empty()) {

@@ -22,6 +22,13 @@ struct ProgramOptions {
     double block_lead_ms = 0;
     bool map_blocks = false;                  // attribute blocks by mapping even if the log has them
     bool decimal_less_increment = false;
+    std::string arc_centers = "incremental";  // until G90.1 / G91.1
+    std::string program_units = "mm";         // until G20 / G21
+    double arc_tolerance_mm = motion_io::NcReadOptions{}.arc_tolerance_mm;
+    bool tool_change_on_t = false;
+    bool block_skip = false;
+    double min_match = 0.5;
+    motion_io::NcLimits limits;               // --max-program-* options set the work bounds
     std::string compare_csv, commanded_out;   // predict only
 };
 

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <set>
 
 namespace cutload::force_model {
@@ -35,6 +36,13 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
     for (const auto& [name, v] : settings.work_offsets_mm) ro.work_offsets_mm[name] = v;
     ro.ignore_words = settings.ignore_words;
     ro.decimal_less_is_increment = settings.decimal_less_is_increment;
+    ro.arc_centers = settings.arc_centers;
+    ro.program_units = settings.program_units;
+    ro.arc_tolerance_mm = settings.arc_tolerance_mm;
+    ro.tool_change_on_t = settings.tool_change_on_t;
+    ro.block_skip = settings.block_skip;
+    ro.rapid_mm_min = settings.rapid_mm_min;
+    ro.limits = settings.limits;
     ro.start_mm = start_mm;
     return ro;
 }
@@ -46,9 +54,17 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
     run.program = std::move(program);
     run.commanded.step_s = motion.step_s;
     run.commanded.rapid_mm_min = settings.rapid_mm_min;
+    run.commanded.max_samples = settings.limits.max_samples;
+    if (!(settings.min_match >= 0 && settings.min_match <= 1))
+        throw std::invalid_argument(fmt::format("min_match {} is outside 0..1", settings.min_match));
+    // The reader counted samples at the default step; the log's own step decides.
+    if (const double n = motion_io::commanded_sample_count(run.program, run.commanded); n > settings.limits.max_samples)
+        throw motion_io::NcProgramError(fmt::format("{}: the commanded motion would take {:.4g} samples at the log's {:g} ms step, above the limit of {:.4g}",
+                                                    run.program.file, n, motion.step_s * 1e3, settings.limits.max_samples));
 
     motion_io::BlockMappingOptions mo;
     mo.lead_s = settings.block_lead_ms * 1e-3;
+    mo.rapid_mm_min = settings.rapid_mm_min;
     run.mapped = settings.map_blocks || !log_blocks_match(motion, run.program);
     if (!run.mapped) {
         // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
@@ -60,11 +76,16 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
     // mostly runs elsewhere is another program, or this one under another work offset. Blocks and
     // comparisons taken from it would be wrong without a sign, so it is refused.
     const auto& q = run.mapping.quality;
-    if (q.matched_fraction < kMinMatchedFraction)
+    if (q.counted_matched_fraction < settings.min_match) {
+        const double n = q.samples ? double(q.samples) : 1.0;
         throw motion_io::NcProgramError(fmt::format(
-            "{}: only {:.1f} % of the log's samples lie within {} mm of the program's path ({:.1f} % of the path reached; "
-            "at least {:.0f} % must): not this log's program, or the wrong work offset",
-            run.program.file, 100 * q.matched_fraction, mo.max_distance_mm, 100 * q.coverage, 100 * kMinMatchedFraction));
+            "{}: only {:.1f} % of the log's counted samples lie within {} mm of the program's path (at least {:.0f} % must; "
+            "{:.1f} % of all samples matched, {:.1f} % not counted: {:.1f} % at rest, {:.1f} % rapids away from the cutting moves, "
+            "{:.1f} % tool changes; {:.1f} % of the path reached): not this log's program, or the wrong work offset",
+            run.program.file, 100 * q.counted_matched_fraction, mo.max_distance_mm, 100 * settings.min_match, 100 * q.matched_fraction,
+            100 * q.excluded_fraction, 100 * double(q.excluded_at_rest) / n, 100 * double(q.excluded_away) / n,
+            100 * double(q.excluded_tool_change) / n, 100 * q.coverage));
+    }
     if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
     return run;
 }

@@ -26,6 +26,13 @@ struct ProgramSettings {
     double block_lead_ms = 0;                // block counter lead for logs without a block channel
     bool map_blocks = false;                 // map even when the log names the program's blocks
     bool decimal_less_is_increment = false;  // FANUC 3401#0 = 0: X10 means 10 least increments
+    motion_io::ArcCenters arc_centers = motion_io::ArcCenters::Incremental;   // until G90.1 / G91.1
+    motion_io::ProgramUnits program_units = motion_io::ProgramUnits::Mm;      // until G20 / G21
+    double arc_tolerance_mm = motion_io::NcReadOptions{}.arc_tolerance_mm;   // plus 0.01 % of the radius
+    bool tool_change_on_t = false;           // T alone changes the tool (no M06)
+    bool block_skip = false;                 // the block skip switch is on: '/' blocks are skipped
+    double min_match = 0.5;                  // of the counted samples near the path, or the program is refused
+    motion_io::NcLimits limits;              // physical ranges, and the work a program may imply
 };
 
 struct ProgramRun {
@@ -45,12 +52,11 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
 // The log's first position (nullopt for an empty log).
 std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& motion);
 
-// Fewer of the log's samples near the program's path than this: not the log's program.
-inline constexpr double kMinMatchedFraction = 0.5;
-
 // Maps the log onto the program and relabels `motion`'s blocks with the program's names when the
 // log has none that match (or settings.map_blocks). Throws motion_io::NcProgramError when under
-// kMinMatchedFraction of the samples lie near the program's path (wrong program or work offset).
+// settings.min_match of the counted samples lie near the program's path (wrong program or work
+// offset; samples at rest, rapids away from the cutting moves and tool changes are not counted),
+// or when the commanded motion at the log's step would pass settings.limits.max_samples.
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
                                motion_io::MotionModel& motion);
 

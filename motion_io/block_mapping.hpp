@@ -18,11 +18,24 @@ struct BlockMappingOptions {
     double max_distance_mm = 5;   // a sample farther from the program than this is unmatched (-1)
     double lead_s = 0;            // the block channel leads the geometric match by this much
     double slack_mm = 2;          // search window ahead of the last match, beyond 3x the sample's travel
+    // Unmatched samples that do not count against the match (real dry runs spend long stretches
+    // off the program's path): slower than rest_speed_mm_min (waiting, parked), or at rapid speed
+    // (faster than the program's fastest cutting feed and than rapid_fraction x rapid_mm_min)
+    // and farther than away_mm from every cutting move (rapids the control makes on its own).
+    double rest_speed_mm_min = 30;
+    double away_mm = 10;
+    double rapid_mm_min = 30000;   // the machine's G00 rate
+    double rapid_fraction = 0.4;
 };
 
 struct BlockMappingQuality {
     std::size_t samples = 0, matched = 0;
-    double matched_fraction = 0;
+    double matched_fraction = 0;                    // matched / samples
+    // Unmatched samples left out of the count, by reason (disjoint): a tool change (between the
+    // moves around a block that changes the tool), at rest, a rapid away from the cutting moves.
+    std::size_t excluded_tool_change = 0, excluded_at_rest = 0, excluded_away = 0;
+    double excluded_fraction = 0;                   // all three / samples
+    double counted_matched_fraction = 0;            // matched / (samples - excluded): the match that counts
     double mean_distance_mm = 0, p95_distance_mm = 0, max_distance_mm = 0;   // matched samples
     double coverage = 0;                            // fraction of the programmed path length reached
     std::vector<std::string> blocks_without_samples;   // moving blocks no sample matched
@@ -39,6 +52,9 @@ struct BlockMapping {
     BlockMappingQuality quality;
 };
 
+// Samples are matched geometrically, then shifted by the lead; a stretch of samples at rest or
+// off the path between two moves of the program that has a block taking time without moving
+// (a dwell, a tool change) in between is attributed to that block, as the CNC's counter names it.
 BlockMapping map_blocks(const MotionModel& motion, const NcProgram& program, const BlockMappingOptions& opt);
 
 // The motion with its block channel replaced by the mapping's.

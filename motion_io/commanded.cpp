@@ -36,8 +36,19 @@ std::vector<double> commanded_durations_s(const NcProgram& program, const Comman
     return d;
 }
 
-MotionModel commanded_motion(const NcProgram& program, const CommandedOptions& opt) {
+double commanded_sample_count(const NcProgram& program, const CommandedOptions& opt) {
     if (!(opt.step_s > 0)) throw std::invalid_argument("commanded motion: step must be > 0");
+    double total_s = 0;
+    for (double d : commanded_durations_s(program, opt)) total_s += d;
+    return std::floor(total_s / opt.step_s) + 2;
+}
+
+MotionModel commanded_motion(const NcProgram& program, const CommandedOptions& opt) {
+    // Estimated before anything is built: a typo in a feed or a position must not run away.
+    const double samples = commanded_sample_count(program, opt);
+    if (samples > opt.max_samples)
+        throw NcProgramError(fmt::format("{}: the commanded motion would take {:.4g} samples at {:g} ms, above the limit of {:.4g}",
+                                         program.file, samples, opt.step_s * 1e3, opt.max_samples));
     const std::vector<double> dur = commanded_durations_s(program, opt);
     std::vector<std::size_t> timed;   // blocks that take time, in order
     std::vector<double> t_begin;
@@ -79,6 +90,7 @@ MotionModel commanded_motion(const NcProgram& program, const CommandedOptions& o
         const double angle = k == 0 ? 0.0 : m.spindle_angle_deg.back() + 6.0 * 0.5 * (m.spindle_rpm[k - 1] + b.spindle_rpm) * opt.step_s;
         m.spindle_angle_deg.push_back(angle);
         m.block.push_back(index.at(b.name));
+        m.tool.push_back(b.tool);
     }
     m.session_start = {0};
     return m;

@@ -14,9 +14,9 @@
 namespace cutload::motion_io::detail {
 namespace {
 
-enum Col { kT, kTPos, kTFeed, kTSpindle, kX, kY, kZ, kA, kB, kC, kFeed, kSpindle, kBlock, kNumCols };
+enum Col { kT, kTPos, kTFeed, kTSpindle, kX, kY, kZ, kA, kB, kC, kFeed, kSpindle, kBlock, kTool, kNumCols };
 constexpr std::array<const char*, kNumCols> kColNames{"t", "t_pos", "t_feed", "t_spindle", "x", "y", "z",
-                                                      "a", "b", "c", "feed", "spindle", "block"};
+                                                      "a", "b", "c", "feed", "spindle", "block", "tool"};
 
 std::string_view trim(std::string_view s) {
     while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
@@ -233,7 +233,14 @@ private:
                 row_records_.push_back(br);
             }
         }
-        // At most four records: an insertion sort keeps equal stamps in column order.
+        if (const auto tool = number(kTool, line_no)) {
+            if (*tool < 0 || *tool > 99999999 || *tool != std::floor(*tool))
+                diag_.fail(line_no, fmt::format("column '{}': '{}' is not a tool number (a whole number from 0)", cols_[kTool].header,
+                                                fields_[static_cast<std::size_t>(cols_[kTool].index)]));
+            Record tr{time_of(time_of_block_, line_no), line_no, Chan::Tool, {*tool, 0, 0}, -1};
+            row_records_.push_back(tr);
+        }
+        // At most five records: an insertion sort keeps equal stamps in column order.
         for (std::size_t i = 1; i < row_records_.size(); ++i)
             for (std::size_t j = i; j > 0 && row_records_[j].t_s < row_records_[j - 1].t_s; --j)
                 std::swap(row_records_[j], row_records_[j - 1]);

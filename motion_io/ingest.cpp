@@ -31,6 +31,7 @@ public:
         m_.spindle_rpm.push_back(s.spindle_rpm);
         m_.spindle_angle_deg.push_back(s.spindle_angle_deg);
         m_.block.push_back(s.block);
+        m_.tool.push_back(s.tool);
     }
 
 private:
@@ -139,6 +140,7 @@ MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport
     detail::BlockTable blocks;
     IngestReport r = run_pipeline(path, opt, sink, blocks);
     m.block_names = blocks.names();
+    if (!r.channels.count("tool")) m.tool.clear();   // no tool channel: empty, not all -1
     if (report) *report = std::move(r);
     return m;
 }

@@ -79,6 +79,9 @@ struct MotionModel {
     std::vector<double> spindle_angle_deg;           // integrated from speed, unwrapped
     std::vector<std::int32_t> block;                 // index into block_names, -1 = unknown
     std::vector<std::string> block_names;
+    // Tool number in the spindle per sample (-1: none or unknown); empty when nothing names tools
+    // (a log without a tool channel, a model derived from one).
+    std::vector<std::int32_t> tool;
     std::vector<std::size_t> session_start;          // always starts with 0 when non-empty
 
     std::size_t size() const { return t_s.size(); }

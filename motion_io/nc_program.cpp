@@ -14,16 +14,40 @@ namespace cutload::motion_io {
 namespace {
 
 constexpr double kMmPerInch = 25.4;
-constexpr double kArcRadiusTolerance_mm = 0.01;
+
+// Bytes as an error message can show them: printable ASCII as is, anything else as \xNN, so a
+// message stays valid UTF-8 (and JSON) whatever the program's encoding.
+std::string printable(std::string_view s) {
+    std::string out;
+    for (const char ch : s) {
+        const auto u = static_cast<unsigned char>(ch);
+        if (u >= 0x20 && u < 0x7f) out += ch;
+        else out += fmt::format("\\x{:02X}", static_cast<unsigned>(u));
+    }
+    return out;
+}
 
 struct LineWords {
     std::vector<NcWord> words;
     std::vector<std::string> texts;   // each word as written
+    bool tape_mark = false;           // the line starts with '%'
+    bool skip = false;                // the block starts with '/' (optional block skip)
     std::string error_word, error_what;
 };
 
-// Splits a line into words; comments "( ... )" and "; ..." are dropped. On the first malformed
-// character the error fields are set and scanning stops.
+// Bytes that separate words: blanks, and a no-break space as Latin-1/cp1252 (A0) or UTF-8 (C2 A0)
+// writes it (editors put them in). Returns how many bytes at i are such a separator.
+std::size_t blank_at(const std::string& line, std::size_t i) {
+    const auto u = static_cast<unsigned char>(line[i]);
+    if (u == ' ' || u == '\t' || u == '\r') return 1;
+    if (u == 0xA0) return 1;
+    if (u == 0xC2 && i + 1 < line.size() && static_cast<unsigned char>(line[i + 1]) == 0xA0) return 2;
+    return 0;
+}
+
+// Splits a line into words; comments "( ... )" and "; ..." are dropped whatever bytes they hold
+// (an operator's note in cp1252 or UTF-8 is no error). On the first malformed character the error
+// fields are set and scanning stops.
 LineWords tokenize(const std::string& line) {
     LineWords out;
     std::size_t i = 0;
@@ -32,10 +56,12 @@ LineWords tokenize(const std::string& line) {
         out.error_word = std::move(word);
         out.error_what = std::move(what);
     };
+    // A UTF-8 byte order mark (the first line of a file saved by some editors).
+    if (line.compare(0, 3, "\xEF\xBB\xBF") == 0) i = 3;
     while (i < n) {
         const char c = line[i];
-        if (c == ' ' || c == '\t' || c == '\r') {
-            ++i;
+        if (const std::size_t b = blank_at(line, i)) {
+            i += b;
         } else if (c == '(') {
             const std::size_t close = line.find(')', i);
             if (close == std::string::npos) return fail(line.substr(i), "comment without ')'"), out;
@@ -43,12 +69,18 @@ LineWords tokenize(const std::string& line) {
         } else if (c == ';') {
             break;
         } else if (c == '%' && out.words.empty()) {
+            out.tape_mark = true;
             ++i;
-        } else if (c == '/' && out.words.empty()) {
-            return fail("/", "optional block skip ('/') is not supported"), out;
-        } else if (std::isalpha(static_cast<unsigned char>(c))) {
+        } else if (c == '/' && !out.skip &&
+                   std::all_of(out.words.begin(), out.words.end(), [](const NcWord& w) { return w.letter == 'N'; })) {
+            // "/" or "/1".."/9" at the head of a block (after its N number at most).
+            out.skip = true;
+            ++i;
+            if (i < n && line[i] >= '1' && line[i] <= '9') ++i;
+        } else if (std::isalpha(static_cast<unsigned char>(c)) || (c == ':' && out.words.empty())) {
             NcWord w;
-            w.letter = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+            // ':' at the head of a block is ISO's program number address, as 'O'.
+            w.letter = c == ':' ? 'O' : static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
             w.column = i;
             std::size_t j = i + 1;
             while (j < n && (line[j] == ' ' || line[j] == '\t')) ++j;   // FANUC allows "X 10."
@@ -76,6 +108,7 @@ LineWords tokenize(const std::string& line) {
             } catch (const std::exception&) {
                 return fail(line.substr(i, j - i), "not a number"), out;
             }
+            if (!std::isfinite(w.value)) return fail(line.substr(i, j - i), "not a finite number"), out;
             w.length = j - i;
             out.words.push_back(w);
             out.texts.push_back(line.substr(i, j - i));
@@ -84,6 +117,8 @@ LineWords tokenize(const std::string& line) {
             std::size_t e = i + 1;
             while (e < n && std::isalnum(static_cast<unsigned char>(line[e]))) ++e;
             return fail(line.substr(i, e - i), "macro variables are not supported"), out;
+        } else if (static_cast<unsigned char>(c) >= 0x80) {
+            return fail(std::string(1, c), "a byte outside a comment that is not part of an NC word"), out;
         } else {
             return fail(std::string(1, c), "unexpected character"), out;
         }
@@ -105,7 +140,7 @@ std::vector<std::pair<char, double>> parse_ignore(const std::vector<std::string>
     std::vector<std::pair<char, double>> out;
     for (const std::string& s : words) {
         if (s.empty() || !std::isalpha(static_cast<unsigned char>(s[0])))
-            throw NcProgramError(fmt::format("ignore word '{}': expected a letter or a code like G28", s));
+            throw NcProgramError(fmt::format("ignore word '{}': expected a letter or a code like G28", printable(s)));
         const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(s[0])));
         if (s.size() == 1) {
             out.emplace_back(letter, std::nan(""));
@@ -117,19 +152,19 @@ std::vector<std::pair<char, double>> parse_ignore(const std::vector<std::string>
             if (used != s.size() - 1) throw std::invalid_argument(s);
             out.emplace_back(letter, v);
         } catch (const std::exception&) {
-            throw NcProgramError(fmt::format("ignore word '{}': expected a letter or a code like G28", s));
+            throw NcProgramError(fmt::format("ignore word '{}': expected a letter or a code like G28", printable(s)));
         }
     }
     return out;
 }
 
-// Why a G or M code is refused; empty: supported.
+// Why a G code is refused; empty: supported.
 std::string unsupported_g(double g) {
     const int code = static_cast<int>(std::lround(g * 10));
     switch (code) {
         case 410: case 420: return "cutter radius compensation is not supported (the path would be offset by the tool radius)";
-        case 730: case 740: case 760: case 810: case 820: case 830: case 840: case 850: case 860: case 870: case 880: case 890:
-            return "canned cycles are not supported (expand the cycle into G00/G01 moves)";
+        case 740: case 760: case 840: case 870: case 880:
+            return "this canned cycle is not supported (supported: G73, G81, G82, G83, G85, G86, G89)";
         case 280: case 290: case 300: return "reference position return is not supported (the reference point is machine data; --ignore G28 drops it)";
         case 650: case 660: case 670: return "macro calls are not supported";
         case 950: return "feed per revolution (G95) is not supported; use G94";
@@ -142,24 +177,49 @@ std::string unsupported_g(double g) {
     }
 }
 
+constexpr int kCycles[] = {73, 81, 82, 83, 85, 86, 89};
+
+int cycle_code(const NcWord& w) {
+    for (int c : kCycles)
+        if (is_code(w, 'G', c)) return c;
+    return 0;
+}
+
 // Parser state carried from block to block (modal values).
 struct Modal {
     NcMotion motion = NcMotion::Rapid;   // FANUC parameter 3402#0 = 0: G00 at power-up
     int plane = 17;
     bool inch = false;
     bool incremental = false;
+    bool absolute_centers = false;
     std::string wcs = "G54";
     double feed_mm_min = 0;
     double speed_rpm = 0;
     int direction = 0;                   // +1 M03, -1 M04, 0 stopped
     std::array<double, 3> pos_mm{};
     std::array<bool, 3> known{};
-    double tool = -1;
+    int tool = -1;                       // in the spindle
+    int next_tool = -1;                  // selected by T, waiting for M06
+    // Canned cycle (group 09) and its modal hole data, as written (mm; R and Z absolute or
+    // incremental as the block that uses them says).
+    int cycle = 0;
+    bool return_to_initial = true;       // G98 (power-up) or G99
+    double initial_z_mm = 0;             // machine Z when the cycle mode was entered
+    std::optional<double> r_mm, z_mm, q_mm;
+    double dwell_s = 0;
 };
 
 class Parser {
 public:
-    Parser(const std::string& file, const NcReadOptions& opt) : file_(file), opt_(opt), ignore_(parse_ignore(opt.ignore_words)) {
+    Parser(const std::string& file, const NcReadOptions& opt) : file_(file), opt_(opt), lim_(opt.limits), ignore_(parse_ignore(opt.ignore_words)) {
+        if (!(opt.arc_tolerance_mm >= 0) || !(opt.arc_tolerance_rel >= 0))
+            throw NcProgramError(fmt::format("{}: the arc tolerance must be >= 0", file));
+        if (!(opt.peck_retract_mm > 0) || !(opt.peck_clearance_mm > 0))
+            throw NcProgramError(fmt::format("{}: the peck retract and clearance must be > 0", file));
+        check_rapid_feed(opt.rapid_mm_min, lim_, file + ": rapid feed");
+        if (!(lim_.sample_step_s > 0)) throw NcProgramError(fmt::format("{}: the sample step must be > 0", file));
+        m_.inch = opt.program_units == ProgramUnits::Inch;
+        m_.absolute_centers = opt.arc_centers == ArcCenters::Absolute;
         if (opt.start_mm) {
             m_.pos_mm = *opt.start_mm;
             m_.known = {true, true, true};
@@ -187,7 +247,7 @@ public:
 
 private:
     [[noreturn]] void fail(std::size_t line, const std::string& word, const std::string& what) const {
-        throw NcProgramError(fmt::format("{}:{}: word '{}': {}", file_, line, word, what));
+        throw NcProgramError(fmt::format("{}:{}: word '{}': {}", file_, line, printable(word), what));
     }
 
     double length_mm(const NcWord& w) const {
@@ -196,13 +256,63 @@ private:
         return m_.inch ? v * kMmPerInch : v;
     }
 
+    // A length word within the physical range.
+    double bounded_length_mm(std::size_t line_no, const std::string& line, const NcWord& w) const {
+        const double v = length_mm(w);
+        if (!(std::abs(v) <= lim_.max_abs_position_mm))
+            fail(line_no, word_text(line, w), fmt::format("{:g} mm is outside the physical range +-{:g} mm", v, lim_.max_abs_position_mm));
+        return v;
+    }
+
+    void check_position(std::size_t line_no, const std::string& word, const std::array<double, 3>& p) const {
+        for (int a = 0; a < 3; ++a)
+            if (!(std::abs(p[a]) <= lim_.max_abs_position_mm))
+                fail(line_no, word, fmt::format("machine position {} {:g} mm is outside the physical range +-{:g} mm", "XYZ"[a], p[a],
+                                                lim_.max_abs_position_mm));
+    }
+
+    double bounded_dwell_s(std::size_t line_no, const std::string& word, double s) const {
+        if (!(s >= 0)) fail(line_no, word, "dwell time must be >= 0");
+        if (!(s <= lim_.max_dwell_s)) fail(line_no, word, fmt::format("dwell {:g} s is above the longest, {:.10g} s", s, lim_.max_dwell_s));
+        return s;
+    }
+
+    // Appends a block and adds its work (path, duration, commanded samples) to the running
+    // totals; the block that passes a bound is the error, named by `culprit_`.
+    void push(NcProgram& p, NcBlock b, std::size_t line_no) {
+        known_at_block_.push_back(m_.known);
+        if (b.motion == NcMotion::Dwell) {
+            duration_s_ += b.dwell_s;
+        } else if (block_moves(b)) {
+            const double len = block_length_mm(b);
+            path_mm_ += len;
+            duration_s_ += len / ((b.motion == NcMotion::Rapid ? opt_.rapid_mm_min : b.feed_mm_min) / 60.0);
+        }
+        if (path_mm_ > lim_.max_path_mm)
+            fail(line_no, culprit_, fmt::format("the programmed path reaches {:.4g} mm here, above the limit of {:.4g} mm", path_mm_, lim_.max_path_mm));
+        if (duration_s_ > lim_.max_duration_s)
+            fail(line_no, culprit_, fmt::format("the program runs {:.4g} s up to here at its feeds, above the limit of {:.4g} s", duration_s_,
+                                                lim_.max_duration_s));
+        if (duration_s_ / lim_.sample_step_s > lim_.max_samples)
+            fail(line_no, culprit_, fmt::format("the commanded motion up to here takes {:.4g} samples at {:g} ms, above the limit of {:.4g}",
+                                                duration_s_ / lim_.sample_step_s, lim_.sample_step_s * 1e3, lim_.max_samples));
+        p.blocks.push_back(std::move(b));
+    }
+
     void parse_line(NcProgram& p, std::size_t line_no, const std::string& line) {
         LineWords lw = tokenize(line);
         if (!lw.error_word.empty()) fail(line_no, lw.error_word, lw.error_what);
+        // The second '%' ends the tape: whatever follows is not read.
+        if (lw.tape_mark && seen_words_) {
+            ended_ = true;
+            return;
+        }
+        if (lw.words.empty()) return;
+        seen_words_ = true;
+        if (lw.skip && opt_.block_skip) return;
         std::vector<NcWord> words;
         for (const NcWord& w : lw.words)
             if (!matches_ignore(w, ignore_)) words.push_back(w);
-        if (lw.words.empty()) return;
 
         NcBlock b;
         b.line = line_no;
@@ -210,9 +320,10 @@ private:
         b.name = fmt::format("L{}", line_no);
         const NcWord* axis[3] = {nullptr, nullptr, nullptr};
         const NcWord* center[3] = {nullptr, nullptr, nullptr};
-        const NcWord *r_word = nullptr, *f_word = nullptr, *s_word = nullptr, *p_word = nullptr;
-        bool dwell = false, machine_coords = false, motion_code = false;
-        int new_plane = 0;
+        const NcWord *r_word = nullptr, *f_word = nullptr, *s_word = nullptr, *p_word = nullptr, *q_word = nullptr,
+                     *t_word = nullptr, *motion_word = nullptr, *cycle_word = nullptr;
+        bool dwell = false, machine_coords = false, m06 = false, cancel_cycle = false;
+        int new_plane = 0, new_cycle = 0;
         auto once = [&](const NcWord*& slot, const NcWord& w) {
             if (slot) fail(line_no, word_text(line, w), "appears twice in the block");
             slot = &w;
@@ -228,18 +339,27 @@ private:
                 case 'F': once(f_word, w); break;
                 case 'S': once(s_word, w); break;
                 case 'P': once(p_word, w); break;
+                case 'Q': once(q_word, w); break;
                 case 'H': break;   // tool length offset number: the tool length is part of the work offset
                 case 'T':
-                    if (m_.tool >= 0 && std::abs(m_.tool - w.value) > 1e-9)
-                        fail(line_no, text, "a second tool is not supported (one run spec describes one tool)");
-                    m_.tool = w.value;
+                    once(t_word, w);
+                    if (w.value < 0 || w.value > 99999999 || std::abs(w.value - std::round(w.value)) > 1e-9)
+                        fail(line_no, text, "a tool number is a whole number from 0");
                     break;
                 case 'G': {
                     const double g = w.value;
                     if (is_code(w, 'G', 0) || is_code(w, 'G', 1) || is_code(w, 'G', 2) || is_code(w, 'G', 3)) {
                         static constexpr NcMotion kinds[4] = {NcMotion::Rapid, NcMotion::Linear, NcMotion::ArcCw, NcMotion::ArcCcw};
                         m_.motion = kinds[static_cast<int>(std::lround(g))];
-                        motion_code = true;
+                        motion_word = &w;
+                    } else if (const int cc = cycle_code(w)) {
+                        if (cycle_word) fail(line_no, text, "two canned cycles in one block");
+                        cycle_word = &w;
+                        new_cycle = cc;
+                    } else if (is_code(w, 'G', 80)) {
+                        cancel_cycle = true;
+                    } else if (is_code(w, 'G', 98) || is_code(w, 'G', 99)) {
+                        m_.return_to_initial = is_code(w, 'G', 98);
                     } else if (is_code(w, 'G', 4)) {
                         dwell = true;
                     } else if (is_code(w, 'G', 17) || is_code(w, 'G', 18) || is_code(w, 'G', 19)) {
@@ -248,6 +368,8 @@ private:
                         m_.inch = is_code(w, 'G', 20);
                     } else if (is_code(w, 'G', 90) || is_code(w, 'G', 91)) {
                         m_.incremental = is_code(w, 'G', 91);
+                    } else if (is_code(w, 'G', 90.1) || is_code(w, 'G', 91.1)) {
+                        m_.absolute_centers = is_code(w, 'G', 90.1);
                     } else if (is_code(w, 'G', 53)) {
                         machine_coords = true;
                     } else if (g >= 54 - 1e-9 && g <= 59 + 1e-9 && std::abs(g - std::round(g)) < 1e-9) {
@@ -255,8 +377,7 @@ private:
                         if (!opt_.work_offsets_mm.count(m_.wcs))
                             fail(line_no, text, "no offset is set for this work coordinate system (set its offset: --work-offset in the CLI, nc_options.work_offsets_mm in the API)");
                     } else if (is_code(w, 'G', 40) || is_code(w, 'G', 43) || is_code(w, 'G', 44) || is_code(w, 'G', 49) ||
-                               is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64) || is_code(w, 'G', 80) ||
-                               is_code(w, 'G', 94)) {
+                               is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64) || is_code(w, 'G', 94)) {
                         // no effect on the programmed tool-tip path at programmed feed
                     } else {
                         fail(line_no, text, unsupported_g(g));
@@ -268,13 +389,15 @@ private:
                     if (std::abs(w.value - mc) > 1e-9) fail(line_no, text, "this M code is not supported");
                     if (mc == 3 || mc == 4) m_.direction = mc == 3 ? 1 : -1;
                     else if (mc == 5) m_.direction = 0;
+                    else if (mc == 6) m06 = true;
                     else if (mc == 2 || mc == 30) ended_ = true;
                     else if (mc == 98 || mc == 99) fail(line_no, text, "subprograms are not supported");
-                    else if (mc != 0 && mc != 1 && mc != 6 && mc != 7 && mc != 8 && mc != 9)
+                    else if (mc != 0 && mc != 1 && mc != 7 && mc != 8 && mc != 9)
                         fail(line_no, text, "this M code is not supported");
                     break;
                 }
                 case 'D': fail(line_no, text, "cutter compensation numbers (D) are not supported");
+                case 'L': fail(line_no, text, "repeat counts (L) are not supported");
                 case 'A': case 'B': case 'C': case 'U': case 'V': case 'W':
                     fail(line_no, text, "only the linear axes X, Y and Z are supported");
                 default: fail(line_no, text, "this address is not supported");
@@ -282,50 +405,114 @@ private:
         }
         if (new_plane) m_.plane = new_plane;
         if (f_word) {
-            if (!(f_word->value > 0)) fail(line_no, word_text(line, *f_word), "feed must be > 0");
-            m_.feed_mm_min = m_.inch ? f_word->value * kMmPerInch : f_word->value;
+            const double f = m_.inch ? f_word->value * kMmPerInch : f_word->value;
+            if (!(f > 0)) fail(line_no, word_text(line, *f_word), "feed must be > 0");
+            if (f < lim_.min_feed_mm_min || f > lim_.max_feed_mm_min)
+                fail(line_no, word_text(line, *f_word),
+                     fmt::format("feed {:g} mm/min is outside the physical range {:g}..{:g} mm/min", f, lim_.min_feed_mm_min, lim_.max_feed_mm_min));
+            m_.feed_mm_min = f;
             b.has_feed_word = true;
         }
         if (s_word) {
             if (s_word->value < 0) fail(line_no, word_text(line, *s_word), "spindle speed must be >= 0");
+            if (s_word->value > lim_.max_spindle_rpm)
+                fail(line_no, word_text(line, *s_word), fmt::format("spindle speed is above the physical range, {:g} rpm", lim_.max_spindle_rpm));
             m_.speed_rpm = s_word->value;
         }
+        select_tool(b, line_no, t_word, m06);
         b.feed_mm_min = m_.feed_mm_min;
         b.spindle_rpm = m_.direction * m_.speed_rpm;
         b.inch = m_.inch;
         b.start_mm = b.end_mm = m_.pos_mm;
-        known_at_block_.push_back(m_.known);
+        culprit_ = word_text(line, words.empty() ? lw.words.front() : words.front());
+        for (const NcWord* w : {axis[0], axis[1], axis[2]})
+            if (w) {
+                culprit_ = word_text(line, *w);
+                break;
+            }
+
+        // Canned cycles (group 09): a group 01 code or G80 ends one; the hole data are modal.
+        if (motion_word && cycle_word) fail(line_no, word_text(line, *cycle_word), "a canned cycle and G00-G03 in one block");
+        if (cancel_cycle || motion_word) m_.cycle = 0;
+        if (cycle_word) {
+            if (cancel_cycle) fail(line_no, word_text(line, *cycle_word), "a canned cycle and G80 in one block");
+            if (!m_.cycle) {
+                if (!m_.known[2]) fail(line_no, word_text(line, *cycle_word), "canned cycle before the Z position is known (the initial level)");
+                m_.initial_z_mm = m_.pos_mm[2];
+                m_.r_mm.reset();
+                m_.z_mm.reset();
+                m_.q_mm.reset();
+                m_.dwell_s = 0;
+            }
+            m_.cycle = new_cycle;
+        }
+        if (m_.cycle) {
+            canned_cycle(p, std::move(b), line_no, line, axis, center, r_word, p_word, q_word, dwell, machine_coords);
+            return;
+        }
+        if (q_word) fail(line_no, word_text(line, *q_word), "Q is supported only in canned cycles (G73, G83)");
 
         if (dwell) {
             if (axis[1] || axis[2] || center[0] || center[1] || center[2] || r_word)
                 fail(line_no, "G04", "a dwell block takes only X (s) or P (ms)");
             if (axis[0] && p_word) fail(line_no, word_text(line, *p_word), "give the dwell as X (s) or P (ms), not both");
-            if (axis[0]) b.dwell_s = axis[0]->value * (opt_.decimal_less_is_increment && !axis[0]->has_decimal_point ? 1e-3 : 1.0);
-            else if (p_word) b.dwell_s = p_word->value * 1e-3;
+            if (axis[0]) b.dwell_s = bounded_dwell_s(line_no, word_text(line, *axis[0]),
+                                                     axis[0]->value * (opt_.decimal_less_is_increment && !axis[0]->has_decimal_point ? 1e-3 : 1.0));
+            else if (p_word) b.dwell_s = bounded_dwell_s(line_no, word_text(line, *p_word), p_word->value * 1e-3);
             else fail(line_no, "G04", "a dwell needs X (s) or P (ms)");
-            if (b.dwell_s < 0) fail(line_no, "G04", "dwell time must be >= 0");
             b.motion = NcMotion::Dwell;
-            p.blocks.push_back(std::move(b));
+            culprit_ = "G04";
+            push(p, std::move(b), line_no);
             return;
         }
-        if (p_word) fail(line_no, word_text(line, *p_word), "P is supported only as a G04 dwell time");
+        if (p_word) fail(line_no, word_text(line, *p_word), "P is supported only as a dwell time (G04, G82, G89)");
 
         const bool has_axes = axis[0] || axis[1] || axis[2];
-        const bool arc = m_.motion == NcMotion::ArcCw || m_.motion == NcMotion::ArcCcw;
+        const bool arc = !machine_coords && (m_.motion == NcMotion::ArcCw || m_.motion == NcMotion::ArcCcw);
         const bool has_center = center[0] || center[1] || center[2];
         if (!arc && (has_center || r_word)) {
             const NcWord& w = r_word ? *r_word : *(center[0] ? center[0] : center[1] ? center[1] : center[2]);
-            fail(line_no, word_text(line, w), "arc words need G02 or G03");
+            fail(line_no, word_text(line, w), machine_coords ? "arc words in a G53 block" : "arc words need G02 or G03");
         }
         if (!has_axes && !(arc && has_center)) {
-            if (motion_code && arc && r_word) fail(line_no, word_text(line, *r_word), "an R arc needs an end point");
-            p.blocks.push_back(std::move(b));
+            if (motion_word && arc && r_word) fail(line_no, word_text(line, *r_word), "an R arc needs an end point");
+            push(p, std::move(b), line_no);
             return;
         }
         if (machine_coords && m_.incremental) fail(line_no, "G53", "G53 takes absolute machine positions (G90)");
-        if (machine_coords && m_.motion != NcMotion::Rapid && m_.motion != NcMotion::Linear)
-            fail(line_no, "G53", "G53 is supported with G00 and G01 only");
 
+        const std::array<double, 3> target = axis_target(p, b, line_no, line, axis, machine_coords);
+        // G53 moves at the rapid rate whatever group 01 says (and leaves it as it is).
+        const NcMotion motion = machine_coords ? NcMotion::Rapid : m_.motion;
+        if (motion != NcMotion::Rapid && !(m_.feed_mm_min > 0)) fail(line_no, word_text(line, words.front()), "no feed rate (F) is in force for this move");
+        b.motion = motion;
+        b.end_mm = target;
+        if (arc) make_arc(b, line, line_no, center, r_word);
+        m_.pos_mm = target;
+        push(p, std::move(b), line_no);
+    }
+
+    // T selects (and with tool_change_on_t changes); M06 changes to the selected tool.
+    void select_tool(NcBlock& b, std::size_t line_no, const NcWord* t_word, bool m06) {
+        auto change_to = [&](int tool) {
+            b.tool_change = tool != m_.tool;
+            m_.tool = tool;
+        };
+        if (t_word) {
+            m_.next_tool = static_cast<int>(std::lround(t_word->value));
+            if (opt_.tool_change_on_t) change_to(m_.next_tool);
+        }
+        if (m06 && !opt_.tool_change_on_t) {
+            if (m_.next_tool < 0) fail(line_no, "M06", "tool change without a tool selected (no T word before it or in its block)");
+            change_to(m_.next_tool);
+        }
+        b.tool = m_.tool;
+    }
+
+    // The block's X/Y/Z words as a machine position (absolute in the work system, incremental,
+    // or G53 machine coordinates). An axis first given here is where it sat before.
+    std::array<double, 3> axis_target(const NcProgram& p, NcBlock& b, std::size_t line_no, const std::string& line,
+                                      const NcWord* const axis[3], bool machine_coords) {
         const auto wcs = opt_.work_offsets_mm.find(m_.wcs);
         if (wcs == opt_.work_offsets_mm.end())
             fail(line_no, m_.wcs, "no offset is set for this work coordinate system, active since the program start (set its offset: --work-offset in the CLI, nc_options.work_offsets_mm in the API)");
@@ -333,7 +520,7 @@ private:
         std::array<double, 3> target = m_.pos_mm;
         for (int a = 0; a < 3; ++a) {
             if (!axis[a]) continue;
-            const double v = length_mm(*axis[a]);
+            const double v = bounded_length_mm(line_no, line, *axis[a]);
             if (machine_coords) {
                 target[a] = v;
             } else if (m_.incremental) {
@@ -351,12 +538,121 @@ private:
                 b.start_mm[a] = target[a];
             }
         }
-        if (m_.motion != NcMotion::Rapid && !(m_.feed_mm_min > 0)) fail(line_no, word_text(line, words.front()), "no feed rate (F) is in force for this move");
-        b.motion = m_.motion;
-        b.end_mm = target;
-        if (arc) make_arc(b, line, line_no, center, r_word);
-        m_.pos_mm = target;
-        p.blocks.push_back(std::move(b));
+        check_position(line_no, culprit_, target);
+        return target;
+    }
+
+    // One block in canned-cycle mode: updates the modal hole data and, when the block has an
+    // X/Y/Z word, drills one hole at its X/Y (motion documented in docs/nc_program.md).
+    void canned_cycle(NcProgram& p, NcBlock b, std::size_t line_no, const std::string& line, const NcWord* const axis[3],
+                      const NcWord* const center[3], const NcWord* r_word, const NcWord* p_word, const NcWord* q_word, bool dwell,
+                      bool machine_coords) {
+        const std::string code = fmt::format("G{}", m_.cycle);
+        if (dwell) fail(line_no, "G04", "a dwell in a canned cycle block");
+        if (machine_coords) fail(line_no, "G53", "G53 in a canned cycle");
+        if (center[2]) fail(line_no, word_text(line, *center[2]), "repeat counts (K) of canned cycles are not supported");
+        if (center[0] || center[1]) fail(line_no, word_text(line, *(center[0] ? center[0] : center[1])), "arc words in a canned cycle");
+        if (m_.plane != 17) fail(line_no, code, "canned cycles are supported in the G17 plane only (drilling along Z)");
+        if (r_word) m_.r_mm = bounded_length_mm(line_no, line, *r_word);
+        if (axis[2]) m_.z_mm = bounded_length_mm(line_no, line, *axis[2]);
+        if (q_word) {
+            const double q = bounded_length_mm(line_no, line, *q_word);
+            if (!(q > 0)) fail(line_no, word_text(line, *q_word), "the peck depth Q must be > 0");
+            m_.q_mm = q;
+        }
+        if (p_word) m_.dwell_s = bounded_dwell_s(line_no, word_text(line, *p_word), p_word->value * 1e-3);
+        if (!(axis[0] || axis[1] || axis[2])) {
+            push(p, std::move(b), line_no);   // hole data or other words only: no hole
+            return;
+        }
+        if (!m_.z_mm) fail(line_no, code, "the canned cycle has no hole bottom (Z)");
+        if (!m_.r_mm) fail(line_no, code, "the canned cycle has no R level (R)");
+        if ((m_.cycle == 73 || m_.cycle == 83) && !m_.q_mm) fail(line_no, code, "a peck cycle needs the peck depth Q");
+        if (!(m_.feed_mm_min > 0)) fail(line_no, code, "no feed rate (F) is in force for the canned cycle");
+        const NcWord* xy[3] = {axis[0], axis[1], nullptr};
+        std::array<double, 3> hole = axis_target(p, b, line_no, line, xy, false);
+        if (!m_.known[0] || !m_.known[1]) fail(line_no, code, "canned cycle before the X and Y positions are known");
+        // G90: R and Z are levels in the work system; G91: R is the distance from the initial
+        // level, Z the distance from the R level (FANUC).
+        const double offset_z = opt_.work_offsets_mm.at(m_.wcs)[2];
+        const double r_level = m_.incremental ? m_.initial_z_mm + *m_.r_mm : *m_.r_mm + offset_z;
+        const double bottom = m_.incremental ? r_level + *m_.z_mm : *m_.z_mm + offset_z;
+        check_position(line_no, code, {hole[0], hole[1], r_level});
+        check_position(line_no, code, {hole[0], hole[1], bottom});
+        if (!(bottom < r_level)) fail(line_no, culprit_, fmt::format("the hole bottom Z lies at or above the R level ({:g} >= {:g} mm)", bottom, r_level));
+        const double back = m_.return_to_initial ? std::max(m_.initial_z_mm, r_level) : r_level;
+
+        b.cycle = m_.cycle;
+        b.has_feed_word = false;
+        bool emitted = false;
+        auto move = [&](NcMotion kind, double z, bool spindle_stopped = false) {
+            NcBlock s = b;
+            s.motion = kind;
+            s.start_mm = m_.pos_mm;
+            s.end_mm = {hole[0], hole[1], z};
+            if (spindle_stopped) s.spindle_rpm = 0;
+            if (std::hypot(s.end_mm[0] - s.start_mm[0], s.end_mm[1] - s.start_mm[1], s.end_mm[2] - s.start_mm[2]) < 1e-9) return;
+            m_.pos_mm = s.end_mm;
+            emitted = true;
+            push(p, std::move(s), line_no);
+        };
+        auto pause = [&](double seconds) {
+            if (!(seconds > 0)) return;
+            NcBlock s = b;
+            s.motion = NcMotion::Dwell;
+            s.start_mm = s.end_mm = m_.pos_mm;
+            s.dwell_s = seconds;
+            emitted = true;
+            push(p, std::move(s), line_no);
+        };
+        // Positioning in X/Y at the current level, then rapid to R.
+        {
+            NcBlock s = b;
+            s.motion = NcMotion::Rapid;
+            s.start_mm = m_.pos_mm;
+            s.end_mm = {hole[0], hole[1], m_.pos_mm[2]};
+            if (std::hypot(s.end_mm[0] - s.start_mm[0], s.end_mm[1] - s.start_mm[1]) >= 1e-9) {
+                m_.pos_mm = s.end_mm;
+                emitted = true;
+                push(p, std::move(s), line_no);
+            }
+        }
+        move(NcMotion::Rapid, r_level);
+        switch (m_.cycle) {
+            case 81: case 82: case 86:
+                move(NcMotion::Linear, bottom);
+                if (m_.cycle == 82) pause(m_.dwell_s);
+                move(NcMotion::Rapid, back, m_.cycle == 86);   // G86: spindle stopped at the bottom
+                break;
+            case 85: case 89:
+                move(NcMotion::Linear, bottom);
+                if (m_.cycle == 89) pause(m_.dwell_s);
+                move(NcMotion::Linear, r_level);   // feed out
+                move(NcMotion::Rapid, back);
+                break;
+            case 83: case 73: {
+                // G83: every peck returns to R and comes back by rapid to the clearance above the
+                // last depth; G73: every peck retracts by peck_retract_mm only.
+                double depth = r_level;
+                while (depth > bottom + 1e-9) {
+                    const double next = std::max(bottom, depth - *m_.q_mm);
+                    if (depth < r_level) {
+                        if (m_.cycle == 83) {
+                            move(NcMotion::Rapid, r_level);
+                            move(NcMotion::Rapid, std::min(r_level, depth + opt_.peck_clearance_mm));
+                        } else {
+                            move(NcMotion::Rapid, std::min(r_level, depth + opt_.peck_retract_mm));
+                        }
+                    }
+                    move(NcMotion::Linear, next);
+                    depth = next;
+                }
+                move(NcMotion::Rapid, back);
+                break;
+            }
+            default: fail(line_no, code, "unknown canned cycle");
+        }
+        if (!emitted) push(p, std::move(b), line_no);
     }
 
     void make_arc(NcBlock& b, const std::string& line, std::size_t line_no, const NcWord* const center[3], const NcWord* r_word) {
@@ -365,9 +661,9 @@ private:
                                                          : std::array<int, 3>{1, 2, 0};
         b.plane_axes = axes;
         const int a = axes[0], c = axes[1], n = axes[2];
+        const std::string code = b.motion == NcMotion::ArcCw ? "G02" : "G03";
         for (int k = 0; k < 3; ++k) {
-            if (!m_.known[k] && (k == a || k == c))
-                fail(line_no, b.motion == NcMotion::ArcCw ? "G02" : "G03", "arc before the position of its plane axes is known");
+            if (!m_.known[k] && (k == a || k == c)) fail(line_no, code, "arc before the position of its plane axes is known");
         }
         if (center[n]) fail(line_no, word_text(line, *center[n]), fmt::format("not an arc centre word in the G{} plane", m_.plane));
         const bool ccw = b.motion == NcMotion::ArcCcw;
@@ -375,10 +671,10 @@ private:
         double ca = 0, cc = 0;
         if (r_word) {
             if (center[a] || center[c]) fail(line_no, word_text(line, *r_word), "give R or I/J/K, not both");
-            const double r = length_mm(*r_word);
+            const double r = bounded_length_mm(line_no, line, *r_word);
             const double da = ea - sa, dc = ec - sc, d = std::hypot(da, dc);
             if (d < 1e-9) fail(line_no, word_text(line, *r_word), "an R arc cannot be a full circle (use I/J/K)");
-            if (d > 2 * std::abs(r) + kArcRadiusTolerance_mm)
+            if (d > 2 * std::abs(r) + arc_tolerance_mm(std::abs(r)))
                 fail(line_no, word_text(line, *r_word), fmt::format("radius {:.4f} mm is shorter than half the chord {:.4f} mm", std::abs(r), d / 2));
             const double h = std::sqrt(std::max(0.0, r * r - d * d / 4));
             // Left of the chord for a counter-clockwise arc up to 180 deg; R < 0 asks for the long way round.
@@ -386,13 +682,22 @@ private:
             ca = (sa + ea) / 2 - side * h * dc / d;
             cc = (sc + ec) / 2 + side * h * da / d;
         } else {
-            ca = sa + (center[a] ? length_mm(*center[a]) : 0.0);
-            cc = sc + (center[c] ? length_mm(*center[c]) : 0.0);
+            // A centre word left out is the start's coordinate, in both modes.
+            const auto& offset = opt_.work_offsets_mm.at(m_.wcs);
+            auto centre = [&](int axis, double start) {
+                if (!center[axis]) return start;
+                const double v = bounded_length_mm(line_no, line, *center[axis]);
+                return m_.absolute_centers ? v + offset[axis] : start + v;
+            };
+            ca = centre(a, sa);
+            cc = centre(c, sc);
             const double r0 = std::hypot(sa - ca, sc - cc), r1 = std::hypot(ea - ca, ec - cc);
-            if (r0 < 1e-9) fail(line_no, b.motion == NcMotion::ArcCw ? "G02" : "G03", "arc centre equals its start point");
-            if (std::abs(r0 - r1) > kArcRadiusTolerance_mm)
-                fail(line_no, b.motion == NcMotion::ArcCw ? "G02" : "G03",
-                     fmt::format("end point is not on the arc: radius {:.4f} mm at the start, {:.4f} mm at the end", r0, r1));
+            if (r0 < 1e-9) fail(line_no, code, "arc centre equals its start point");
+            const double tol = arc_tolerance_mm(r0);
+            if (std::abs(r0 - r1) > tol)
+                fail(line_no, code,
+                     fmt::format("end point is not on the arc: radius {:.4f} mm at the start, {:.4f} mm at the end (tolerance {:.4f} mm{})", r0,
+                                 r1, tol, m_.absolute_centers ? "; centres are absolute (G90.1)" : "; centres are incremental (G91.1)"));
         }
         b.center_mm = b.start_mm;
         b.center_mm[a] = ca;
@@ -410,6 +715,8 @@ private:
         b.sweep_rad = sweep;
     }
 
+    double arc_tolerance_mm(double radius_mm) const { return opt_.arc_tolerance_mm + opt_.arc_tolerance_rel * radius_mm; }
+
     // Axes not yet given at a block: they sat where the program first put them absolutely.
     void back_fill(NcProgram& p) const {
         for (std::size_t i = 0; i < p.blocks.size(); ++i)
@@ -419,15 +726,24 @@ private:
 
     std::string file_;
     const NcReadOptions& opt_;
+    const NcLimits& lim_;
     std::vector<std::pair<char, double>> ignore_;
     Modal m_;
-    bool ended_ = false;
+    bool ended_ = false, seen_words_ = false;
     std::vector<std::array<bool, 3>> known_at_block_;
     std::array<std::size_t, 3> became_known_at_{};
     std::array<double, 3> m_first_mm_{};
+    double path_mm_ = 0, duration_s_ = 0;
+    std::string culprit_;   // the word a work bound names: the block's first axis word, else its first word
 };
 
 }  // namespace
+
+void check_rapid_feed(double rapid_mm_min, const NcLimits& limits, const std::string& what) {
+    if (!(rapid_mm_min >= limits.min_rapid_mm_min && rapid_mm_min <= limits.max_rapid_mm_min))
+        throw NcProgramError(fmt::format("{}: {:g} mm/min is outside the physical range {:g}..{:g} mm/min", what, rapid_mm_min,
+                                         limits.min_rapid_mm_min, limits.max_rapid_mm_min));
+}
 
 std::map<std::string, std::array<double, 3>> default_work_offsets(const double setup_offset_mm[3]) {
     return {{"G54", {-setup_offset_mm[0], -setup_offset_mm[1], -setup_offset_mm[2]}}};
@@ -445,6 +761,13 @@ NcProgram read_nc_program(const std::string& path, const NcReadOptions& opt) {
     ss << in.rdbuf();
     if (ss.str().empty()) throw NcProgramError(fmt::format("{}: the NC program is empty", path));
     return parse_nc_program(ss.str(), path, opt);
+}
+
+std::vector<int> program_tools(const NcProgram& program) {
+    std::vector<int> out;
+    for (const NcBlock& b : program.blocks)
+        if (b.tool >= 0 && std::find(out.begin(), out.end(), b.tool) == out.end()) out.push_back(b.tool);
+    return out;
 }
 
 bool block_moves(const NcBlock& b) {
@@ -520,9 +843,16 @@ std::string rewrite_feeds(const NcProgram& program, const std::vector<double>& f
         throw std::invalid_argument(fmt::format("rewrite_feeds: {} feeds for {} blocks", feed_mm_min.size(), program.blocks.size()));
     std::vector<std::string> lines = program.lines;
     double modal_out = 0;   // the feed the rewritten program has in force, mm/min
-    for (std::size_t i = 0; i < program.blocks.size(); ++i) {
+    // A source line is one block, or the pieces of a canned cycle: its feed is that of its first
+    // feed motion (a cycle's rapids and dwells have none).
+    for (std::size_t i = 0; i < program.blocks.size();) {
+        std::size_t end = i;
+        double want = 0;
+        for (; end < program.blocks.size() && program.blocks[end].line == program.blocks[i].line; ++end)
+            if (want <= 0 && feed_motion(program.blocks[end]))
+                want = feed_mm_min[end] > 0 ? feed_mm_min[end] : program.blocks[end].feed_mm_min;
         const NcBlock& b = program.blocks[i];
-        const double want = feed_motion(b) ? (feed_mm_min[i] > 0 ? feed_mm_min[i] : b.feed_mm_min) : 0.0;
+        i = end;
         std::string& line = lines[b.line - 1];
         const auto f = std::find_if(b.words.begin(), b.words.end(), [](const NcWord& w) { return w.letter == 'F'; });
         if (f != b.words.end()) {

@@ -2,11 +2,14 @@
 // block by block, in machine coordinates, plus the source text so the program can be written
 // back with only its F words changed (see docs/nc_program.md).
 //
-// Supported: G00/G01/G02/G03 (arcs by I/J/K or R, helical), G04 dwell (X s, P ms), G17/G18/G19,
-// G20/G21, G90/G91, G53, G54-G59, G94, F, S, M03/M04/M05, N numbers, (comments), ; comments, O
-// numbers, %, no-op codes (G40, G43/G44/G49, G61/G64/G09, G80, M00/M01/M07/M08/M09), one tool
-// (T, M06), M02/M30 end. Anything else is an NcProgramError naming file, line and word, unless
-// the word is listed in NcReadOptions::ignore_words.
+// Supported: G00/G01/G02/G03 (arcs by I/J/K or R, helical; centres incremental or absolute,
+// G90.1/G91.1), G04 dwell (X s, P ms), G17/G18/G19, G20/G21, G90/G91, G53, G54-G59, G94, canned
+// drilling cycles (G73 G81 G82 G83 G85 G86 G89 with G98/G99, R, Q, P, G80, expanded into motion),
+// F, S, M03/M04/M05, tools (T with M06), N numbers, (comments), ; comments, O numbers, %, block
+// skip '/', no-op codes (G40, G43/G44/G49, G61/G64/G09, M00/M01/M07/M08/M09), M02/M30 end.
+// Anything else is an NcProgramError naming file, line and word, unless the word is listed in
+// NcReadOptions::ignore_words. Values outside physical ranges and programs whose path, duration
+// or commanded-motion size pass NcLimits are refused while reading (issue 19).
 #pragma once
 
 #include "motion_io/motion_io.hpp"
@@ -37,7 +40,9 @@ struct NcWord {
     std::size_t length = 0;   // bytes from the letter to the end of the number
 };
 
-// One block (one source line with words). Positions are machine coordinates in mm, feeds mm/min.
+// One block (one source line with words), or one motion of a canned cycle that a source line
+// expands into (the pieces share the line, the name and the words). Positions are machine
+// coordinates in mm, feeds mm/min.
 struct NcBlock {
     std::string name;             // "N10", or "L<line>" for a block without a sequence number
     std::size_t line = 0;         // 1-based source line
@@ -54,6 +59,9 @@ struct NcBlock {
     double dwell_s = 0;
     bool has_feed_word = false;
     bool inch = false;            // G20 in force: F words of this block are in inch/min
+    int tool = -1;                // tool number in the spindle for this block; -1 before the first change
+    bool tool_change = false;     // this block changes the tool (M06, or T alone with tool_change_on_t)
+    int cycle = 0;                // canned cycle this motion is part of (73, 81, 82, 83, 85, 86, 89); 0 none
 };
 
 struct NcProgram {
@@ -61,6 +69,27 @@ struct NcProgram {
     std::vector<std::string> lines;   // source lines as read, without '\n' (a '\r' stays)
     bool final_newline = true;        // the source ended with '\n'
     std::vector<NcBlock> blocks;      // in program order; comment-only and empty lines are no blocks
+};
+
+enum class ArcCenters { Incremental, Absolute };   // I/J/K from the arc's start, or positions
+enum class ProgramUnits { Mm, Inch };                // before any G20/G21
+
+// Physical ranges of values and bounds on the work a program implies. A value outside its range
+// is an error on its line and word; the work (programmed path, duration at programmed feeds and
+// the rapid rate, and the commanded-motion samples at sample_step_s) is summed while reading and
+// the block that passes a bound is an error too, so a typo cannot make later stages run away.
+struct NcLimits {
+    double max_abs_position_mm = 1e5;      // any coordinate, programmed or machine (100 m)
+    double min_feed_mm_min = 0.1;          // F (0.004 in/min)
+    double max_feed_mm_min = 200000;       // F; 200 m/min is beyond any machine's rapid traverse
+    double min_rapid_mm_min = 100;         // the G00 rate (machine data)
+    double max_rapid_mm_min = 200000;
+    double max_dwell_s = 99999.999;        // G04 and cycle dwells (FANUC's own range)
+    double max_spindle_rpm = 100000;       // S
+    double max_path_mm = 1e7;              // 10 km of programmed path
+    double max_duration_s = 86400;         // 24 h at programmed feed
+    double max_samples = 1e7;              // commanded-motion samples (duration / sample_step_s)
+    double sample_step_s = 0.001;          // the motion model's step the samples are counted at
 };
 
 struct NcReadOptions {
@@ -76,7 +105,31 @@ struct NcReadOptions {
     // FANUC parameter 3401#0 (DPI) = 0: X10 without a decimal point means 10 least increments
     // (0.001 mm / 0.0001 in). Default false: calculator-style input, X10 = 10 mm.
     bool decimal_less_is_increment = false;
+    // Arc centres (I/J/K) until the program says G90.1 or G91.1.
+    ArcCenters arc_centers = ArcCenters::Incremental;
+    // Length unit until the program says G20 or G21 (a post that leaves the unit to the control).
+    ProgramUnits program_units = ProgramUnits::Mm;
+    // An arc's end may lie off the circle through its start by arc_tolerance_mm + arc_tolerance_rel
+    // x radius (a control's radius-error limit). The default accepts 3-decimal inch posts: start,
+    // end and centre are each rounded by up to 0.0005 in per axis (0.018 mm), so an end sits up
+    // to about 0.07 mm off the circle (typically 0.01 mm, 1 % of arcs beyond 0.037 mm).
+    double arc_tolerance_mm = 0.075;
+    double arc_tolerance_rel = 1e-4;
+    // The control changes tools on T alone (no M06).
+    bool tool_change_on_t = false;
+    // The block skip switch is on: blocks starting with '/' are skipped (off: they run).
+    bool block_skip = false;
+    // Canned cycles: the G73 retract per peck (FANUC parameter 5114) and the G83 clearance above
+    // the last peck's depth where the feed resumes (parameter 5115), mm.
+    double peck_retract_mm = 0.5;
+    double peck_clearance_mm = 0.5;
+    // The machine's G00 rate, for the duration estimate.
+    double rapid_mm_min = 30000;
+    NcLimits limits;
 };
+
+// Throws NcProgramError naming `what` when the rapid rate is outside the limits' range.
+void check_rapid_feed(double rapid_mm_min, const NcLimits& limits, const std::string& what);
 
 // The run spec's setup offset maps logged positions to stock coordinates (stock = machine +
 // offset); a program written in stock coordinates therefore has its G54 zero at -offset.
@@ -90,6 +143,9 @@ double block_length_mm(const NcBlock& b);
 // Point and unit tangent at fraction u (0..1) of the block's path length.
 void block_point(const NcBlock& b, double u, double pos_mm[3], double tangent[3]);
 bool block_moves(const NcBlock& b);   // Rapid, Linear or an arc with non-zero length
+
+// The tool numbers a program changes to, in the order it first uses them.
+std::vector<int> program_tools(const NcProgram& program);
 
 // The nearest feed at or below feed_mm_min that an F word of this block can state exactly
 // (whole mm/min, or 0.1 in/min under G20).

@@ -17,7 +17,7 @@
 
 namespace cutload::motion_io::detail {
 
-enum class Chan : std::uint8_t { Pos, AxisX, AxisY, AxisZ, Feed, Spindle, Block };
+enum class Chan : std::uint8_t { Pos, AxisX, AxisY, AxisZ, Feed, Spindle, Block, Tool };
 
 // One reading of one channel, in canonical units (s, mm, mm/min, rpm).
 struct Record {
@@ -98,6 +98,7 @@ struct GridSample {
     double spindle_rpm = 0;
     double spindle_angle_deg = 0;
     std::int32_t block = -1;
+    std::int32_t tool = -1;
 };
 
 class GridSink {

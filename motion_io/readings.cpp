@@ -20,6 +20,7 @@ public:
                 out.channel = LogReading::Channel::Block;
                 out.block = blocks_.names()[static_cast<std::size_t>(r.block)];
                 break;
+            case detail::Chan::Tool: return;   // a CSV tool column: not a reading the replay sends
             default: out.channel = LogReading::Channel::Position; break;   // CSV rows carry x, y, z together
         }
         for (int k = 0; k < 3; ++k) out.value[k] = r.v[k];

@@ -59,11 +59,13 @@ void Repairer::begin_session() {
     spindle_.clear();
     blocks_.clear();
     current_block_ = -1;
+    tools_.clear();
+    current_tool_ = -1;
     session_pos_reads_ = 0;
     last_raw_.reset();
     last_feed_.reset();
     usual_dt_ = 0;
-    for (ChannelStats* c : {&pos_stats_, &feed_stats_, &spindle_stats_, &block_stats_}) c->have_last = false;
+    for (ChannelStats* c : {&pos_stats_, &feed_stats_, &spindle_stats_, &block_stats_, &tool_stats_}) c->have_last = false;
     ++sessions_;
     out_.begin_session();
 }
@@ -85,6 +87,10 @@ void Repairer::record(const Record& r) {
         case Chan::Block:
             block_stats_.add(r.t_s);
             blocks_.emplace_back(r.t_s, r.block);
+            break;
+        case Chan::Tool:
+            tool_stats_.add(r.t_s);
+            tools_.emplace_back(r.t_s, static_cast<std::int32_t>(r.v[0]));
             break;
         default:
             break;
@@ -344,6 +350,7 @@ void Repairer::emit_until(const Knot& a, const Knot& b, bool include_end) {
         prev_rpm_ = s.spindle_rpm;
         s.spindle_angle_deg = angle_deg_;
         s.block = block_at(t);
+        s.tool = tool_at(t);
         const double f = std::sqrt(speed2) * 60.0;
         rep_min_ = have_rep_feed_ ? std::min(rep_min_, f) : f;
         rep_max_ = have_rep_feed_ ? std::max(rep_max_, f) : f;
@@ -370,6 +377,16 @@ std::int32_t Repairer::block_at(double t_s) {
         blocks_.pop_front();
     }
     return current_block_;
+}
+
+std::int32_t Repairer::tool_at(double t_s) {
+    // As blocks: before the first reading, the tool first read was already in the spindle.
+    if (current_tool_ < 0 && !tools_.empty()) current_tool_ = tools_.front().second;
+    while (!tools_.empty() && tools_.front().first <= t_s) {
+        current_tool_ = tools_.front().second;
+        tools_.pop_front();
+    }
+    return current_tool_;
 }
 
 void Repairer::end_session() {
@@ -415,6 +432,7 @@ void Repairer::fill_report(IngestReport& report) const {
     if (feed_stats_.samples) report.channels["feed"] = channel(feed_stats_);
     if (spindle_stats_.samples) report.channels["spindle"] = channel(spindle_stats_);
     if (block_stats_.samples) report.channels["block"] = channel(block_stats_);
+    if (tool_stats_.samples) report.channels["tool"] = channel(tool_stats_);
     report.feed_raw_min_mm_min = raw_min_;
     report.feed_raw_max_mm_min = raw_max_;
     report.feed_repaired_min_mm_min = rep_min_;

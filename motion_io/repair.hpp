@@ -53,6 +53,7 @@ private:
     void emit_until(const Knot& a, const Knot& b, bool include_end);
     double spindle_rpm_at(double t_s);
     std::int32_t block_at(double t_s);
+    std::int32_t tool_at(double t_s);
 
     Diagnostics& diag_;
     GridSink& out_;
@@ -78,6 +79,8 @@ private:
     std::deque<std::pair<double, double>> spindle_;   // (t_s, rpm)
     std::deque<std::pair<double, std::int32_t>> blocks_;
     std::int32_t current_block_ = -1;
+    std::deque<std::pair<double, std::int32_t>> tools_;
+    std::int32_t current_tool_ = -1;
     std::size_t session_pos_reads_ = 0;
     double session_first_t_ = 0, session_last_t_ = 0;
     std::size_t session_first_line_ = 0;
@@ -86,7 +89,7 @@ private:
     double usual_dt_ = 0;   // slowly following position-reading interval, for gap warnings
 
     // ---- whole log ----
-    ChannelStats pos_stats_, feed_stats_, spindle_stats_, block_stats_;
+    ChannelStats pos_stats_, feed_stats_, spindle_stats_, block_stats_, tool_stats_;
     std::size_t stale_dropped_ = 0;
     std::size_t pos_reads_total_ = 0;
     std::size_t sessions_ = 0;

@@ -6,6 +6,8 @@
 #include <array>
 #include <cmath>
 #include <iterator>
+#include <numbers>
+#include <optional>
 #include <stdexcept>
 
 namespace cutload::motion_io {
@@ -53,34 +55,61 @@ private:
     double sum_[3] = {0, 0, 0};
 };
 
+// One piece of the machine's work: a path (line or arc) at a speed, or a pause in place.
+struct Segment {
+    enum class Kind { Line, Arc, Pause } kind = Kind::Line;
+    std::string name;
+    int tool = -1;
+    bool rapid = false;
+    double speed_mm_s = 1;      // a pause runs at 1 "mm"/s over pause_s "mm": the path arithmetic times it
+    double spindle_rpm = 0;     // target (NC programs)
+    double from[3] = {0, 0, 0}, to[3] = {0, 0, 0};
+    double length = 0;          // mm, or s for a pause
+    NcBlock arc;                // Kind::Arc
+    double v_in = 0, v_out = 0, v_max = 0;   // planned path speeds, mm/s (NC programs with max_accel)
+};
+
+struct RunSetup {
+    double start_mm[3] = {0, 0, 0};
+    MachineModel machine;
+    double settle_s = 0;
+    bool nc = false;            // spindle follows the segments (else the first demo's ramp)
+};
+
 // The machine, advanced one CNC period at a time.
 class Machine {
 public:
-    explicit Machine(const DryRunSpec& spec)
-        : spec_(spec), m_(spec.machine), ma1_(m_.accdec_ticks[0], spec.start_mm), ma2_(m_.accdec_ticks[1], spec.start_mm) {
-        std::copy(spec.start_mm, spec.start_mm + 3, cmd_);
-        std::copy(spec.start_mm, spec.start_mm + 3, act_);
-        std::copy(spec.start_mm, spec.start_mm + 3, prev_act_);
-        std::copy(spec.start_mm, spec.start_mm + 3, seg_from_);
-        if (!spec.program.empty()) start_block();
+    Machine(const RunSetup& run, const std::vector<Segment>& segs)
+        : run_(run), m_(run.machine), segs_(segs), ma1_(m_.accdec_ticks[0], run.start_mm), ma2_(m_.accdec_ticks[1], run.start_mm) {
+        std::copy(run.start_mm, run.start_mm + 3, cmd_);
+        std::copy(run.start_mm, run.start_mm + 3, act_);
+        std::copy(run.start_mm, run.start_mm + 3, prev_act_);
+        planned_ = run.nc && m_.max_accel_mm_s2 > 0;
+        if (segs_.empty()) program_done_ = true;
+        else speed_mm_s_ = segs_[0].speed_mm_s;
     }
 
     // Advances by one CNC period; the latched state is what a read sees until the next tick.
     void tick() {
         const double T = m_.cnc_period_s;
         ++ticks_;
-        interpolate(T);
+        if (planned_) interpolate_planned(T);
+        else interpolate(T);
         double f1[3], f2[3];
         ma1_.push(cmd_, f1);
         ma2_.push(f1, f2);
         const double k = 1.0 - std::exp(-T / m_.servo_time_constant_s);
         std::copy(act_, act_ + 3, prev_act_);
         for (int a = 0; a < 3; ++a) act_[a] += (f2[a] - act_[a]) * k;
+        if (run_.nc && !segs_.empty()) {
+            const double target = segs_[std::min(seg_, segs_.size() - 1)].spindle_rpm, step = m_.spindle_accel_rpm_s * T;
+            rpm_ += std::clamp(target - rpm_, -step, step);
+        }
         if (program_done_) settle_ticks_++;
     }
 
     double time_s() const { return static_cast<double>(ticks_) * m_.cnc_period_s; }
-    bool finished() const { return program_done_ && settle_ticks_ * m_.cnc_period_s >= spec_.settle_s; }
+    bool finished() const { return program_done_ && settle_ticks_ * m_.cnc_period_s >= run_.settle_s; }
     const double* actual_mm() const { return act_; }
     double actual_feed_mm_min() const {
         double d2 = 0;
@@ -88,72 +117,275 @@ public:
         return std::sqrt(d2) / m_.cnc_period_s * 60.0;
     }
     double spindle_rpm() const {
+        if (run_.nc) return rpm_;
         return m_.spindle_ramp_s > 0 ? m_.spindle_rpm * std::min(1.0, time_s() / m_.spindle_ramp_s) : m_.spindle_rpm;
     }
     const std::string& block_name() const {
         static const std::string none;
-        return spec_.program.empty() ? none : spec_.program[std::min(block_, spec_.program.size() - 1)].name;
+        return segs_.empty() ? none : segs_[std::min(seg_, segs_.size() - 1)].name;
     }
+    int tool() const { return segs_.empty() ? -1 : segs_[std::min(seg_, segs_.size() - 1)].tool; }
 
 private:
-    void start_block() {
-        const ProgramBlock& b = spec_.program[block_];
-        std::copy(cmd_, cmd_ + 3, seg_from_);
-        seg_len_ = std::sqrt((b.target_mm[0] - cmd_[0]) * (b.target_mm[0] - cmd_[0]) +
-                             (b.target_mm[1] - cmd_[1]) * (b.target_mm[1] - cmd_[1]) +
-                             (b.target_mm[2] - cmd_[2]) * (b.target_mm[2] - cmd_[2]));
-        seg_s_ = 0;
-        const double f = b.rapid ? m_.rapid_mm_min : b.feed_mm_min;
-        if (!(f > 0)) throw std::invalid_argument(fmt::format("block {}: feed must be > 0", b.name));
-        speed_mm_s_ = f / 60.0;
+    void place(const Segment& g, double s) {
+        if (g.kind == Segment::Kind::Pause) return;
+        if (g.kind == Segment::Kind::Arc) {
+            double tangent[3];
+            block_point(g.arc, g.length > 0 ? s / g.length : 1.0, cmd_, tangent);
+            return;
+        }
+        for (int a = 0; a < 3; ++a) cmd_[a] = g.from[a] + (g.to[a] - g.from[a]) * s / g.length;
+    }
+    void arrive(const Segment& g) {
+        if (g.kind != Segment::Kind::Pause) std::copy(g.to, g.to + 3, cmd_);
     }
 
-    // Continuous-path interpolation: the distance left over at a block end carries into the next.
+    // Continuous-path interpolation at the programmed speed: the distance left over at a block
+    // end carries into the next (the first demo's machine).
     void interpolate(double T) {
+        if (program_done_) return;
         double travel = speed_mm_s_ * T;
         while (!program_done_) {
-            const ProgramBlock& b = spec_.program[block_];
-            const double left = seg_len_ - seg_s_;
+            const Segment& g = segs_[seg_];
+            const double left = g.length - seg_s_;
             if (travel < left) {
                 seg_s_ += travel;
-                for (int a = 0; a < 3; ++a) cmd_[a] = seg_from_[a] + (b.target_mm[a] - seg_from_[a]) * seg_s_ / seg_len_;
+                place(g, seg_s_);
                 return;
             }
             const double used_time = left / speed_mm_s_;
-            std::copy(b.target_mm, b.target_mm + 3, cmd_);
-            if (block_ + 1 >= spec_.program.size()) {
+            arrive(g);
+            if (seg_ + 1 >= segs_.size()) {
                 program_done_ = true;
                 return;
             }
             const double time_left = travel / speed_mm_s_ - used_time;
-            ++block_;
-            start_block();
+            ++seg_;
+            seg_s_ = 0;
+            speed_mm_s_ = segs_[seg_].speed_mm_s;
             travel = time_left * speed_mm_s_;
         }
     }
 
-    const DryRunSpec& spec_;
+    // Acceleration-limited interpolation: the path speed follows the planned profile (at most
+    // max_accel up, and down in time for the next junction's speed).
+    void interpolate_planned(double T) {
+        const double acc = m_.max_accel_mm_s2;
+        double t_left = T;
+        while (!program_done_ && t_left > 1e-12) {
+            const Segment& g = segs_[seg_];
+            if (g.kind == Segment::Kind::Pause) {
+                const double rest = g.length - seg_s_;
+                if (t_left < rest) {
+                    seg_s_ += t_left;
+                    return;
+                }
+                t_left -= rest;
+                v_ = 0;
+                next();
+                continue;
+            }
+            const double L = g.length;
+            const double brake = std::sqrt(g.v_out * g.v_out + 2 * acc * std::max(0.0, L - seg_s_));
+            const double v_new = std::min({v_ + acc * t_left, g.v_max, brake});
+            const double avg = 0.5 * (v_ + v_new);
+            // Never stall short of a stop: the distance from rest covered in the time left.
+            const double ds = std::max(avg * t_left, std::min(L - seg_s_, 0.5 * acc * t_left * t_left));
+            if (seg_s_ + ds >= L - 1e-12) {
+                const double used = std::min(t_left, avg > 1e-9 ? (L - seg_s_) / avg : t_left);
+                arrive(g);
+                t_left -= used;
+                v_ = std::min(v_new, g.v_out);
+                next();
+                continue;
+            }
+            seg_s_ += ds;
+            v_ = v_new;
+            place(g, seg_s_);
+            return;
+        }
+    }
+
+    void next() {
+        if (seg_ + 1 >= segs_.size()) {
+            program_done_ = true;
+            return;
+        }
+        ++seg_;
+        seg_s_ = 0;
+    }
+
+    const RunSetup& run_;
     const MachineModel& m_;
+    const std::vector<Segment>& segs_;
     MovingAverage ma1_, ma2_;
-    double cmd_[3], act_[3], prev_act_[3], seg_from_[3];
-    double seg_len_ = 0, seg_s_ = 0, speed_mm_s_ = 1;
-    std::size_t block_ = 0;
+    double cmd_[3], act_[3], prev_act_[3];
+    double seg_s_ = 0, speed_mm_s_ = 1, v_ = 0, rpm_ = 0;
+    std::size_t seg_ = 0;
     std::size_t ticks_ = 0;
     std::size_t settle_ticks_ = 0;
-    bool program_done_ = false;
+    bool program_done_ = false, planned_ = false;
 };
 
 double quantise(double v, double step) { return step > 0 ? std::round(v / step) * step : v; }
 
-}  // namespace
+double distance3(const double a[3], const double b[3]) {
+    return std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+}
 
-std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
-    Machine machine(spec);
-    Rng rng(spec.seed);
-    const ClientModel& c = spec.client;
-    const MachineModel& m = spec.machine;
+std::vector<Segment> segments_of(const DryRunSpec& spec) {
+    std::vector<Segment> out;
+    double from[3];
+    std::copy(spec.start_mm, spec.start_mm + 3, from);
+    for (const ProgramBlock& b : spec.program) {
+        Segment g;
+        g.name = b.name;
+        g.rapid = b.rapid;
+        const double f = b.rapid ? spec.machine.rapid_mm_min : b.feed_mm_min;
+        if (!(f > 0)) throw std::invalid_argument(fmt::format("block {}: feed must be > 0", b.name));
+        g.speed_mm_s = f / 60.0;
+        std::copy(from, from + 3, g.from);
+        std::copy(b.target_mm, b.target_mm + 3, g.to);
+        g.length = distance3(g.from, g.to);
+        std::copy(b.target_mm, b.target_mm + 3, from);
+        out.push_back(g);
+    }
+    return out;
+}
+
+// The unit tangent at the start (u = 0) or end (u = 1) of a path segment.
+void tangent_at(const Segment& g, double u, double t[3]) {
+    if (g.kind == Segment::Kind::Arc) {
+        double p[3];
+        block_point(g.arc, u, p, t);
+        return;
+    }
+    for (int a = 0; a < 3; ++a) t[a] = g.length > 0 ? (g.to[a] - g.from[a]) / g.length : 0.0;
+}
+
+// Junction speeds: zero at pauses, the ends and around rapids (in-position check); at a corner
+// the speed at which no axis's velocity jumps by more than the allowed step; then limited so
+// that max_accel can reach each from its neighbours.
+void plan(std::vector<Segment>& segs, const MachineModel& m) {
+    const double acc = m.max_accel_mm_s2, step = m.corner_speed_step_mm_min / 60.0;
+    auto path = [](const Segment& g) { return g.kind != Segment::Kind::Pause; };
+    for (Segment& g : segs) {
+        g.v_max = path(g) ? g.speed_mm_s : 0.0;
+        if (g.kind == Segment::Kind::Arc) {
+            const int a = g.arc.plane_axes[0], c = g.arc.plane_axes[1];
+            const double r = std::hypot(g.arc.start_mm[a] - g.arc.center_mm[a], g.arc.start_mm[c] - g.arc.center_mm[c]);
+            g.v_max = std::min(g.v_max, std::sqrt(acc * r));
+        }
+        g.v_in = g.v_out = 0;
+    }
+    for (std::size_t k = 0; k + 1 < segs.size(); ++k) {
+        Segment &a = segs[k], &b = segs[k + 1];
+        if (!path(a) || !path(b) || a.rapid || b.rapid) continue;
+        double ta[3], tb[3];
+        tangent_at(a, 1.0, ta);
+        tangent_at(b, 0.0, tb);
+        double jump = 0;
+        for (int ax = 0; ax < 3; ++ax) jump = std::max(jump, std::abs(tb[ax] - ta[ax]));
+        const double v = std::min({a.v_max, b.v_max, jump > 1e-12 ? step / jump : a.v_max});
+        a.v_out = b.v_in = v;
+    }
+    for (std::size_t k = segs.size(); k-- > 0;) {
+        Segment& g = segs[k];
+        if (!path(g)) continue;
+        g.v_in = std::min(g.v_in, std::sqrt(g.v_out * g.v_out + 2 * acc * g.length));
+        if (k > 0) segs[k - 1].v_out = std::min(segs[k - 1].v_out, g.v_in);
+    }
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+        Segment& g = segs[k];
+        if (!path(g)) continue;
+        g.v_out = std::min(g.v_out, std::sqrt(g.v_in * g.v_in + 2 * acc * g.length));
+        if (k + 1 < segs.size()) segs[k + 1].v_in = std::min(segs[k + 1].v_in, g.v_out);
+    }
+}
+
+std::vector<Segment> segments_of(const NcDryRunSpec& spec) {
+    std::vector<Segment> out;
+    double at[3];
+    std::copy(spec.start_mm, spec.start_mm + 3, at);
+    int tool = -1;
+    auto add = [&](Segment g) {
+        g.tool = tool;
+        if (g.kind != Segment::Kind::Pause) {
+            std::copy(at, at + 3, g.from);
+            if (g.kind == Segment::Kind::Line) g.length = distance3(g.from, g.to);
+            if (g.length < 1e-9) return;
+            std::copy(g.to, g.to + 3, at);
+        } else if (!(g.length > 0)) {
+            return;
+        }
+        out.push_back(std::move(g));
+    };
+    auto rapid_to = [&](const NcBlock& b, const double to[3], double rpm) {
+        Segment g;
+        g.name = b.name;
+        g.rapid = true;
+        g.speed_mm_s = spec.machine.rapid_mm_min / 60.0;
+        g.spindle_rpm = rpm;
+        std::copy(to, to + 3, g.to);
+        add(g);
+    };
+    for (const NcBlock& b : spec.program.blocks) {
+        if (b.tool_change) {
+            // The control's tool-change cycle: spindle stop, up, across, change.
+            const double* tc = spec.tool_change.position_mm;
+            const double up[3] = {at[0], at[1], tc[2]};
+            rapid_to(b, up, 0);
+            rapid_to(b, tc, 0);
+            Segment pause;
+            pause.kind = Segment::Kind::Pause;
+            pause.name = b.name;
+            pause.length = spec.tool_change.time_s;
+            add(pause);
+            tool = b.tool;
+        }
+        Segment g;
+        g.name = b.name;
+        g.spindle_rpm = b.spindle_rpm;
+        switch (b.motion) {
+            case NcMotion::Rapid:
+            case NcMotion::Linear:
+                g.rapid = b.motion == NcMotion::Rapid;
+                g.speed_mm_s = (g.rapid ? spec.machine.rapid_mm_min : b.feed_mm_min) / 60.0;
+                std::copy(b.end_mm.begin(), b.end_mm.end(), g.to);
+                add(g);
+                break;
+            case NcMotion::ArcCw:
+            case NcMotion::ArcCcw:
+                if (distance3(at, b.start_mm.data()) > 1e-6)
+                    throw std::invalid_argument(fmt::format("{}: an arc must start where the machine is (after a tool change, move to its start first)", b.name));
+                g.kind = Segment::Kind::Arc;
+                g.arc = b;
+                g.speed_mm_s = b.feed_mm_min / 60.0;
+                g.length = block_length_mm(b);
+                std::copy(b.end_mm.begin(), b.end_mm.end(), g.to);
+                add(g);
+                break;
+            case NcMotion::Dwell:
+                g.kind = Segment::Kind::Pause;
+                g.length = b.dwell_s;
+                add(g);
+                break;
+            case NcMotion::None:
+                break;
+        }
+    }
+    if (spec.machine.max_accel_mm_s2 > 0) plan(out, spec.machine);
+    return out;
+}
+
+std::size_t run_log(const RunSetup& run, const std::vector<Segment>& segs, const ClientModel& c, std::uint64_t seed,
+                    std::size_t max_rows, std::ostream& csv) {
+    Machine machine(run, segs);
+    Rng rng(seed);
+    const MachineModel& m = run.machine;
     fmt::memory_buffer buf;
-    fmt::format_to(std::back_inserter(buf), "t_spindle [s],spindle [rpm],t_feed [s],feed [mm/min],t_pos [s],x [mm],y [mm],z [mm],block\n");
+    fmt::format_to(std::back_inserter(buf), "t_spindle [s],spindle [rpm],t_feed [s],feed [mm/min],t_pos [s],x [mm],y [mm],z [mm],{}block\n",
+                   run.nc ? "tool," : "");
     double t = c.start_s;
     std::size_t rows = 0;
     // A read returns the state latched at the last tick before the middle of the read; its time
@@ -165,19 +397,25 @@ std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
         t += d;
         return t;
     };
-    while (!machine.finished() && (spec.max_rows == 0 || rows < spec.max_rows)) {
+    while (!machine.finished() && (max_rows == 0 || rows < max_rows)) {
         const double t_spindle = read(0);
         const double ripple = std::round((2 * rng.uniform() - 1) * m.spindle_ripple_rpm);
-        const double rpm = std::round(machine.spindle_rpm()) + (machine.spindle_rpm() > 0 ? ripple : 0);
+        const bool turning = run.nc ? std::round(machine.spindle_rpm()) != 0 : machine.spindle_rpm() > 0;
+        const double rpm = std::round(machine.spindle_rpm()) + (turning ? ripple : 0);
         const double t_feed = read(1);
         const double feed = std::round(machine.actual_feed_mm_min());
         const double t_pos = read(2);
         const double* p = machine.actual_mm();
         const double r = m.position_resolution_mm;
-        fmt::format_to(std::back_inserter(buf), "{:.6f},{:.0f},{:.6f},{:.0f},{:.6f},{:.3f},{:.3f},{:.3f},{}\n", t_spindle,
-                       rpm, t_feed, feed, t_pos, quantise(p[0], r), quantise(p[1], r), quantise(p[2], r),
-                       machine.block_name());
+        fmt::format_to(std::back_inserter(buf), "{:.6f},{:.0f},{:.6f},{:.0f},{:.6f},{:.3f},{:.3f},{:.3f},", t_spindle, rpm, t_feed,
+                       feed, t_pos, quantise(p[0], r), quantise(p[1], r), quantise(p[2], r));
+        if (run.nc) {
+            if (machine.tool() >= 0) fmt::format_to(std::back_inserter(buf), "{}", machine.tool());
+            buf.push_back(',');
+        }
+        fmt::format_to(std::back_inserter(buf), "{}\n", machine.block_name());
         ++rows;
+        if (c.stall_probability > 0 && rng.uniform() < c.stall_probability) t += c.stall_s * (0.5 + rng.uniform());
         if (buf.size() > (1 << 20)) {
             csv.write(buf.data(), static_cast<std::streamsize>(buf.size()));
             buf.clear();
@@ -185,6 +423,25 @@ std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
     }
     csv.write(buf.data(), static_cast<std::streamsize>(buf.size()));
     return rows;
+}
+
+}  // namespace
+
+std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
+    RunSetup run;
+    std::copy(spec.start_mm, spec.start_mm + 3, run.start_mm);
+    run.machine = spec.machine;
+    run.settle_s = spec.settle_s;
+    return run_log(run, segments_of(spec), spec.client, spec.seed, spec.max_rows, csv);
+}
+
+std::size_t synthesize_nc_dry_run(const NcDryRunSpec& spec, std::ostream& csv) {
+    RunSetup run;
+    std::copy(spec.start_mm, spec.start_mm + 3, run.start_mm);
+    run.machine = spec.machine;
+    run.settle_s = spec.settle_s;
+    run.nc = true;
+    return run_log(run, segments_of(spec), spec.client, spec.seed, spec.max_rows, csv);
 }
 
 DryRunSpec demo_dry_run_spec() {
@@ -252,6 +509,200 @@ DryRunSpec demo_dry_run_spec() {
         spec.program.push_back(b);
     }
     spec.seed = 20240601;
+    return spec;
+}
+
+namespace {
+
+// A 3-decimal inch post: numbers rounded to 0.001 in, always with a decimal point, no trailing
+// zeros ("3.", "-0.053"); words that did not change are left out, except an arc's X/Y/I/J.
+class InchPost {
+public:
+    static std::string number(double v) {
+        const double r = std::round(v * 1000) / 1000;
+        std::string s = fmt::format("{:.3f}", r == 0 ? 0.0 : r);
+        while (s.back() == '0') s.pop_back();
+        return s;
+    }
+    void comment(const std::string& text) { out_ += text + "\n"; }
+    void block(const std::string& words) {
+        out_ += fmt::format("N{} {}\n", n_, words);
+        n_ += 10;
+    }
+    // Forget the modal state (after a tool change the post writes everything again).
+    void reset() {
+        g_.clear();
+        xyz_ = {"", "", ""};
+        f_.clear();
+    }
+    // A line or rapid; `extra` goes after the motion words (S, M, H).
+    void move(const std::string& g, std::optional<double> x, std::optional<double> y, std::optional<double> z,
+              std::optional<double> f_ipm = std::nullopt, const std::string& head = "", const std::string& extra = "") {
+        std::string w = g != g_ ? g : "";
+        g_ = g;
+        if (!head.empty()) {
+            if (!w.empty()) w += ' ';
+            w += head;
+        }
+        axes(w, {x, y, z}, false);
+        feed(w, f_ipm);
+        if (!extra.empty()) w += " " + extra;
+        if (!w.empty()) block(w);
+    }
+    // An arc with absolute centre (cx, cy); z for a helix.
+    void arc(const std::string& g, double x, double y, std::optional<double> z, double cx, double cy, std::optional<double> f_ipm = std::nullopt) {
+        std::string w;
+        if (g != g_) w += g;
+        g_ = g;
+        axes(w, {x, y, z}, true);
+        w += " I" + number(cx) + " J" + number(cy);
+        feed(w, f_ipm);
+        block(w);
+    }
+    const std::string& text() const { return out_; }
+
+private:
+    void axes(std::string& w, std::array<std::optional<double>, 3> v, bool force_xy) {
+        for (int a = 0; a < 3; ++a) {
+            if (!v[a]) continue;
+            const std::string t = number(*v[a]);
+            if (t == xyz_[a] && !(force_xy && a < 2)) continue;
+            if (!w.empty()) w += ' ';
+            w += "XYZ"[a];
+            w += t;
+            xyz_[a] = t;
+        }
+    }
+    void feed(std::string& w, std::optional<double> f_ipm) {
+        if (!f_ipm) return;
+        const std::string t = fmt::format("F{:.1f}", *f_ipm);
+        if (t == f_) return;
+        w += " " + (t.size() > 2 && t.substr(t.size() - 2) == ".0" ? t.substr(0, t.size() - 1) : t);
+        f_ = t;
+    }
+    std::string out_;
+    int n_ = 10;
+    std::string g_, f_;
+    std::array<std::string, 3> xyz_{"", "", ""};
+};
+
+}  // namespace
+
+std::string demo2_program_text() {
+    InchPost post;
+    post.comment("%");
+    post.comment("O2000 (CUTLOAD DEMO 2: FACE, POCKET, HOLES)");
+    post.comment("(INCH, 3 DECIMALS. THE CONTROL IS SET TO INCH AND TO ABSOLUTE ARC CENTRES)");
+    post.comment("(G54 = STOCK TOP AT THE MIN X/Y CORNER. STOCK 6. X 4. X 1.5 + 0.02 FACING ALLOWANCE)");
+    post.comment("G17 G40 G49 G80 G90 G94");
+
+    // T1: face mill D2. (5 inserts), three passes along X, 1.4 in apart, 0.02 in deep.
+    post.block("T1 M06 (FACE MILL D2. 5 INSERTS)");
+    post.move("G00", -1.2, 0.6, std::nullopt, std::nullopt, "G90 G54", "S6000 M03");
+    post.move("G00", std::nullopt, std::nullopt, 1.0, std::nullopt, "G43", "H1");
+    post.move("G00", std::nullopt, std::nullopt, 0.1);
+    post.move("G01", std::nullopt, std::nullopt, 0.0, 40.0);
+    post.move("G01", 7.2, std::nullopt, std::nullopt, 150.0);
+    post.move("G01", std::nullopt, 2.0, std::nullopt);
+    post.move("G01", -1.2, std::nullopt, std::nullopt);
+    post.move("G01", std::nullopt, 3.4, std::nullopt);
+    post.move("G01", 7.2, std::nullopt, std::nullopt);
+    post.move("G00", std::nullopt, std::nullopt, 1.0);
+    post.block("M05");
+    post.block("G53 Z0.");
+
+    // T2: end mill D.5 (3 flutes). A 2.5 x 1.5 in pocket with R.375 corners, 0.25 in deep in two
+    // levels, turned 20 deg about (3, 2): a helical entry of radius .1 (two turns), then two
+    // counter-clockwise rounded-rectangle rings (tool centre half-sizes .7 x .2 and 1. x .5,
+    // corner radius .125). Turned, every coordinate is rounded by the post.
+    post.reset();
+    post.block("T2 M06 (END MILL D.5 3 FLUTES)");
+    const double cx = 3.0, cy = 2.0, turn = 20.0 * std::numbers::pi / 180;
+    auto at = [&](double u, double v) {
+        return std::array<double, 2>{cx + u * std::cos(turn) - v * std::sin(turn), cy + u * std::sin(turn) + v * std::cos(turn)};
+    };
+    const auto helix0 = at(0.1, 0.0);
+    post.move("G00", helix0[0], helix0[1], std::nullopt, std::nullopt, "G90 G54", "S8000 M03");
+    post.move("G00", std::nullopt, std::nullopt, 1.0, std::nullopt, "G43", "H2");
+    post.move("G00", std::nullopt, std::nullopt, 0.1);
+    auto ring = [&](double hx, double hy, double rc) {
+        struct Step {
+            bool arc;
+            double u, v, cu, cv;
+        };
+        const Step steps[] = {{false, hx, hy - rc, 0, 0},          {true, hx - rc, hy, hx - rc, hy - rc},
+                              {false, -hx + rc, hy, 0, 0},         {true, -hx, hy - rc, -hx + rc, hy - rc},
+                              {false, -hx, -hy + rc, 0, 0},        {true, -hx + rc, -hy, -hx + rc, -hy + rc},
+                              {false, hx - rc, -hy, 0, 0},         {true, hx, -hy + rc, hx - rc, -hy + rc},
+                              {false, hx, 0, 0, 0}};
+        for (const Step& st : steps) {
+            const auto p = at(st.u, st.v);
+            if (st.arc) {
+                const auto c = at(st.cu, st.cv);
+                post.arc("G03", p[0], p[1], std::nullopt, c[0], c[1]);
+            } else {
+                post.move("G01", p[0], p[1], std::nullopt);
+            }
+        }
+    };
+    for (const double floor : {-0.125, -0.25}) {
+        const double top = floor + 0.125 + 0.02;
+        post.move("G00", helix0[0], helix0[1], std::nullopt);
+        post.move("G01", std::nullopt, std::nullopt, top, 20.0);
+        post.arc("G03", helix0[0], helix0[1], (top + floor) / 2, cx, cy, 40.0);
+        post.arc("G03", helix0[0], helix0[1], floor, cx, cy);
+        post.arc("G03", helix0[0], helix0[1], std::nullopt, cx, cy);
+        const auto r1 = at(0.7, 0.0);
+        post.move("G01", r1[0], r1[1], std::nullopt, 80.0);
+        ring(0.7, 0.2, 0.125);
+        const auto r2 = at(1.0, 0.0);
+        post.move("G01", r2[0], r2[1], std::nullopt);
+        ring(1.0, 0.5, 0.125);
+        post.move("G00", std::nullopt, std::nullopt, 0.1);
+    }
+    post.move("G00", std::nullopt, std::nullopt, 1.0);
+    post.block("M05");
+    post.block("G53 Z0.");
+
+    // T3: drill D.25 (118 deg point), four holes 0.4 in deep pecked by .1 (G83), R .1 above the
+    // top; G99 between the holes, G98 back to the initial level after the last.
+    post.reset();
+    post.block("T3 M06 (DRILL D.25 118 DEG)");
+    post.move("G00", 0.6, 0.6, std::nullopt, std::nullopt, "G90 G54", "S3000 M03");
+    post.move("G00", std::nullopt, std::nullopt, 1.0, std::nullopt, "G43", "H3");
+    post.block("G99 G83 X0.6 Y0.6 Z-0.4 R0.1 Q0.1 F12.");
+    post.block("X5.4");
+    post.block("Y3.4");
+    post.block("G98 X0.6");
+    post.block("G80");
+    post.block("M05");
+    post.block("G53 Z0.");
+    post.block("M30");
+    post.comment("%");
+    return post.text();
+}
+
+NcReadOptions demo2_read_options() {
+    NcReadOptions o;
+    o.work_offsets_mm["G54"] = {250, -300, -420};   // minus setup.offset_mm of data/demo2_run.json
+    o.program_units = ProgramUnits::Inch;
+    o.arc_centers = ArcCenters::Absolute;
+    o.start_mm = std::array<double, 3>{450, 0, 0};   // the tool-change position, where the log starts
+    return o;
+}
+
+NcDryRunSpec demo2_dry_run_spec() {
+    NcDryRunSpec spec;
+    spec.program = parse_nc_program(demo2_program_text(), "demo2_program.nc", demo2_read_options());
+    const auto start = *demo2_read_options().start_mm;
+    std::copy(start.begin(), start.end(), spec.start_mm);
+    std::copy(start.begin(), start.end(), spec.tool_change.position_mm);
+    spec.tool_change.time_s = 4.0;
+    spec.machine.max_accel_mm_s2 = 2500;   // about 0.25 g: a mid-size vertical machining centre
+    spec.machine.corner_speed_step_mm_min = 600;
+    spec.client.stall_probability = 0.004;
+    spec.client.stall_s = 0.03;
+    spec.seed = 20250212;
     return spec;
 }
 

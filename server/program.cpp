@@ -17,13 +17,22 @@ namespace {
     throw ApiError(400, "bad_request", fmt::format("nc_options.{}: {}", key, why));
 }
 
-double number_at_least(const json& o, const char* key, double lowest, bool strictly) {
+double number_in(const json& o, const char* key, double lo, double hi, const char* unit) {
     const json& v = o[key];
     if (!v.is_number()) bad_option(key, "must be a number");
     const double x = v.get<double>();
-    if (strictly ? !(x > lowest) : !(x >= lowest))
-        bad_option(key, fmt::format("{} must be {} {}", x, strictly ? "above" : "at least", lowest));
+    if (!(x >= lo && x <= hi)) bad_option(key, fmt::format("{} is outside {}..{}{}", x, lo, hi, unit));
     return x;
+}
+
+std::string one_of(const json& o, const char* key, std::initializer_list<const char*> allowed) {
+    const json& v = o[key];
+    std::string names;
+    for (const char* a : allowed) {
+        if (v.is_string() && v.get<std::string>() == a) return a;
+        names += fmt::format("{}\"{}\"", names.empty() ? "" : " or ", a);
+    }
+    bad_option(key, "must be " + names);
 }
 
 bool boolean(const json& o, const char* key) {
@@ -45,6 +54,9 @@ json mapping_json(const force_model::ProgramRun& run) {
             {"samples", q.samples},
             {"matched", q.matched},
             {"matched_fraction", q.matched_fraction},
+            {"counted_matched_fraction", q.counted_matched_fraction},
+            {"excluded_fraction", q.excluded_fraction},
+            {"excluded_samples", {{"at_rest", q.excluded_at_rest}, {"away", q.excluded_away}, {"tool_change", q.excluded_tool_change}}},
             {"mean_distance_mm", q.mean_distance_mm},
             {"p95_distance_mm", q.p95_distance_mm},
             {"max_distance_mm", q.max_distance_mm},
@@ -104,9 +116,24 @@ force_model::ProgramSettings program_settings(const json& o) {
                 s.ignore_words.push_back(w.get<std::string>());
             }
         } else if (key == "rapid_feed_mm_min") {
-            s.rapid_mm_min = number_at_least(o, "rapid_feed_mm_min", 0, true);
+            s.rapid_mm_min = number_in(o, "rapid_feed_mm_min", s.limits.min_rapid_mm_min, s.limits.max_rapid_mm_min, " mm/min");
+        } else if (key == "arc_centers") {
+            s.arc_centers = one_of(o, "arc_centers", {"incremental", "absolute"}) == std::string("absolute")
+                                ? motion_io::ArcCenters::Absolute
+                                : motion_io::ArcCenters::Incremental;
+        } else if (key == "program_units") {
+            s.program_units = one_of(o, "program_units", {"mm", "in"}) == std::string("in") ? motion_io::ProgramUnits::Inch
+                                                                                          : motion_io::ProgramUnits::Mm;
+        } else if (key == "arc_tolerance_mm") {
+            s.arc_tolerance_mm = number_in(o, "arc_tolerance_mm", 0, 10, " mm");
+        } else if (key == "tool_change_on_t") {
+            s.tool_change_on_t = boolean(o, "tool_change_on_t");
+        } else if (key == "block_skip") {
+            s.block_skip = boolean(o, "block_skip");
+        } else if (key == "min_match") {
+            s.min_match = number_in(o, "min_match", 0, 1, "");
         } else if (key == "block_lead_ms") {
-            s.block_lead_ms = number_at_least(o, "block_lead_ms", 0, false);
+            s.block_lead_ms = number_in(o, "block_lead_ms", 0, 10000, " ms");
         } else if (key == "map_blocks") {
             s.map_blocks = boolean(o, "map_blocks");
         } else if (key == "decimal_less_is_increment") {
@@ -114,7 +141,8 @@ force_model::ProgramSettings program_settings(const json& o) {
         } else {
             throw ApiError(400, "bad_request",
                            fmt::format("nc_options: unknown key '{}' (known: work_offsets_mm, ignore_words, rapid_feed_mm_min, "
-                                       "block_lead_ms, map_blocks, decimal_less_is_increment)",
+                                       "block_lead_ms, map_blocks, decimal_less_is_increment, arc_centers, program_units, "
+                                       "arc_tolerance_mm, tool_change_on_t, block_skip, min_match)",
                                        key));
         }
     }
@@ -136,6 +164,7 @@ json program_body(const ProgramResult& r, const json& commanded_summary) {
     for (const auto& row : r.prediction.blocks) blocks.push_back(comparison_json(row));
     return {{"filename", r.filename},
             {"program_blocks", r.run.program.blocks.size()},
+            {"tools", motion_io::program_tools(r.run.program)},
             {"mapping", mapping_json(r.run)},
             {"commanded", commanded_summary},
             {"blocks", blocks}};

@@ -1,27 +1,54 @@
-// Regenerates the bundled demo dry-run log: cutload_gen_demo_log [OUT.csv] (default: stdout).
-// The program's geometry and the machine/client models are in motion_io/synth.cpp.
+// Regenerates the bundled demo data (see data/README.md):
+//   cutload_gen_demo_log [OUT.csv]                   the first demo's log (data/demo_dryrun.csv)
+//   cutload_gen_demo_log --demo2 [OUT.csv]           the second demo's log (data/demo2_dryrun.csv)
+//   cutload_gen_demo_log --demo2 --program [OUT.nc]  its program (data/demo2_program.nc)
+// Without OUT, to stdout. The programs' geometry and the machine/client models are in
+// motion_io/synth.cpp.
 #include "motion_io/synth.hpp"
 
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <string>
 
 int main(int argc, char** argv) {
-    const auto spec = cutload::motion_io::demo_dry_run_spec();
-    if (argc > 2) {
-        std::fprintf(stderr, "usage: cutload_gen_demo_log [OUT.csv]\n");
+    bool demo2 = false, program = false;
+    std::string out_path;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--demo2") demo2 = true;
+        else if (a == "--program") program = true;
+        else if (out_path.empty() && !a.empty() && a[0] != '-') out_path = a;
+        else {
+            std::fprintf(stderr, "usage: cutload_gen_demo_log [--demo2 [--program]] [OUT]\n");
+            return 2;
+        }
+    }
+    if (program && !demo2) {
+        std::fprintf(stderr, "cutload_gen_demo_log: --program needs --demo2 (the first demo's program is written by its test)\n");
         return 2;
     }
-    if (argc == 2) {
-        std::ofstream out(argv[1], std::ios::binary);
-        if (!out) {
-            std::fprintf(stderr, "cutload_gen_demo_log: cannot write %s\n", argv[1]);
+    std::ofstream file;
+    if (!out_path.empty()) {
+        file.open(out_path, std::ios::binary);
+        if (!file) {
+            std::fprintf(stderr, "cutload_gen_demo_log: cannot write %s\n", out_path.c_str());
             return 1;
         }
-        const auto rows = cutload::motion_io::synthesize_dry_run(spec, out);
-        std::fprintf(stderr, "wrote %zu rows to %s\n", rows, argv[1]);
-        return out.good() ? 0 : 1;
     }
-    cutload::motion_io::synthesize_dry_run(spec, std::cout);
-    return 0;
+    std::ostream& out = out_path.empty() ? std::cout : file;
+    try {
+        if (program) {
+            out << cutload::motion_io::demo2_program_text();
+        } else {
+            const std::size_t rows = demo2 ? cutload::motion_io::synthesize_nc_dry_run(cutload::motion_io::demo2_dry_run_spec(), out)
+                                           : cutload::motion_io::synthesize_dry_run(cutload::motion_io::demo_dry_run_spec(), out);
+            if (!out_path.empty()) std::fprintf(stderr, "wrote %zu rows to %s\n", rows, out_path.c_str());
+        }
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "cutload_gen_demo_log: %s\n", e.what());
+        return 1;
+    }
+    out.flush();
+    return out.good() ? 0 : 1;
 }

@@ -2,6 +2,7 @@
 // the comparison columns, consistent with each other, and one-line errors for bad programs.
 #include "cli/run_cli.hpp"
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -168,4 +169,51 @@ TEST_CASE("a bad program is a one-line error naming file, line and word", "[cli]
     CHECK(r.exit_code == 2);
     CHECK(r.output.find("--compare and --commanded-out need --program") != std::string::npos);
     CHECK_FALSE(fs::exists(dir / "c.csv"));
+}
+
+TEST_CASE("issue 19: a typo in a program is one line naming file, line and word, at once", "[cli][program][bounds]") {
+    // The demo program with N40 moving Y to 1000000 mm. On main before this change this ran for
+    // 15.5 s, took 2.1 GB and exited 0; now it is refused while the program is read.
+    const fs::path dir = scratch("program_typo");
+    std::string text = read(source("data/demo_program.nc"));
+    const auto at = text.find("N40 X64.5 F6000");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, std::string("N40 X64.5 F6000").size(), "N40 X64.5 Y1000000. F6000");
+    write(dir / "typo.nc", text);
+    const auto t0 = std::chrono::steady_clock::now();
+    const Result r = run("predict " + source("data/demo_dryrun.csv") + " --spec " + source("data/demo_run.json") + " --device cpu -q --out " +
+                         (dir / "f.csv").string() + " --program " + (dir / "typo.nc").string());
+    const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    INFO(r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(r.output == "cutload: error: " + (dir / "typo.nc").string() +
+                          ":7: word 'Y1000000.': 1e+06 mm is outside the physical range +-100000 mm\n");
+    CHECK(wall_s < 10);   // reading stops at the typo (generous: a shared 2-core machine)
+    CHECK_FALSE(fs::exists(dir / "f.csv"));
+}
+
+TEST_CASE("program options: units, arc centres, tolerance, block skip and the match reach the reader", "[cli][program]") {
+    const fs::path dir = scratch("program_units");
+    write_slot(dir);
+    // The slot as a 3-decimal inch post writes it, with no G20.
+    write(dir / "inch.nc", "%\nO0008 (SLOT, INCH)\nN10 G90 G17 G01 X0.157 Y0.197 Z-0.079 F47.2 S10000 M03\nN20 X0.551\nM30\n%\n");
+    const std::string base = "predict " + (dir / "slot.csv").string() + " --spec " + (dir / "slot.json").string() + " --device cpu -q --out " +
+                             (dir / "f.csv").string() + " --program " + (dir / "inch.nc").string();
+    Result r = run(base + " --program-units in --arc-centers absolute --arc-tolerance-mm 0.05 --min-match 0.9 --block-skip");
+    INFO(r.output);
+    CHECK(r.exit_code == 0);
+    CHECK(r.output.find("matched 100.0% of samples") != std::string::npos);
+    // Read as mm, the program lies off the log: refused, naming the fractions.
+    r = run(base);
+    INFO(r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(r.output.find("inch.nc: only") != std::string::npos);
+    CHECK(r.output.find("% not counted") != std::string::npos);
+    // Option values are checked by the option parser.
+    for (const std::string bad : {" --program-units cm", " --arc-centers relative", " --min-match 2", " --rapid-feed 1e-9"}) {
+        r = run(base + bad);
+        INFO(bad << ": " << r.output);
+        CHECK(r.exit_code != 0);
+        CHECK(r.output.rfind("cutload: error: ", 0) == 0);
+    }
 }

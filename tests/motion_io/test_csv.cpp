@@ -115,3 +115,33 @@ TEST_CASE("CSV: a backward time jump beyond 1 s starts a new session, small ones
     // The swapped pair was put back in order: constant 10 mm/s throughout the first session.
     for (std::size_t i = 1; i + 1 < m.session_start[1]; ++i) REQUIRE(m.vx_mm_s[i] == Approx(10.0).epsilon(1e-6));
 }
+
+TEST_CASE("CSV: a tool column gives each sample the tool in the spindle", "[csv]") {
+    // 1 s at 10 mm/s; the tool cell is empty until 0.2 s (not read), T7 until 0.5 s, then T12.
+    std::string s = "t,x,y,z,tool\n";
+    for (int i = 0; i <= 100; ++i) {
+        const double t = i * 0.01;
+        s += std::to_string(t) + "," + std::to_string(10 * t) + ",0,0," + (t < 0.195 ? "" : t < 0.495 ? "7" : "12") + "\n";
+    }
+    TempFile f("tool.csv", s);
+    ReadOptions opt;
+    opt.step_ms = 10;
+    IngestReport report;
+    const MotionModel m = ingest(f.path(), opt, &report);
+    REQUIRE(m.tool.size() == m.size());
+    CHECK(report.channels.count("tool") == 1);
+    for (const auto& w : report.warnings) CHECK(w.code != "unknown_column");   // a known channel now
+    for (std::size_t i = 0; i < m.size(); ++i) {
+        INFO("t = " << m.t_s[i]);
+        // Before the first reading the first tool read was already in the spindle (as for blocks).
+        CHECK(m.tool[i] == (m.t_s[i] < 0.495 ? 7 : 12));
+    }
+    // Without a tool column the model has none (not a column of -1).
+    TempFile plain("notool.csv", line_log("t,x,y,z", 1, 1));
+    CHECK(ingest(plain.path(), opt).tool.empty());
+    // A tool number is a whole number from 0.
+    TempFile bad("badtool.csv", "t,x,y,z,tool\n0,0,0,0,1\n0.01,0.1,0,0,T2\n");
+    CHECK_THROWS_WITH(ingest(bad.path(), opt), Catch::Contains(":3") && Catch::Contains("column 'tool': 'T2' is not a number"));
+    TempFile frac("fractool.csv", "t,x,y,z,tool\n0,0,0,0,1\n0.01,0.1,0,0,2.5\n");
+    CHECK_THROWS_WITH(ingest(frac.path(), opt), Catch::Contains("column 'tool': '2.5' is not a tool number"));
+}

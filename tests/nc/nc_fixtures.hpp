@@ -4,6 +4,8 @@
 #pragma once
 
 #include "force_model/force_model.hpp"
+#include "force_model/program_run.hpp"
+#include "motion_io/block_mapping.hpp"
 #include "motion_io/nc_program.hpp"
 #include "motion_io/synth.hpp"
 
@@ -125,6 +127,39 @@ inline motion_io::NcReadOptions read_options_for(const motion_io::DryRunSpec& sp
     o.work_offsets_mm["G54"] = work_zero_mm;
     o.start_mm = std::array<double, 3>{spec.start_mm[0], spec.start_mm[1], spec.start_mm[2]};
     return o;
+}
+
+// A small zig-zag with corners at two feeds and rapids on the demo's machine: calibrates the
+// machine's block lead for mapping logs without blocks.
+inline motion_io::DryRunSpec calibration_spec() {
+    motion_io::DryRunSpec spec;
+    spec.start_mm[0] = 0, spec.start_mm[1] = 0, spec.start_mm[2] = 50;
+    auto add = [&](const char* name, bool rapid, double x, double y, double z, double f) {
+        motion_io::ProgramBlock b;
+        b.name = name;
+        b.rapid = rapid;
+        b.target_mm[0] = x, b.target_mm[1] = y, b.target_mm[2] = z;
+        b.feed_mm_min = f;
+        spec.program.push_back(b);
+    };
+    add("N1", true, 10, 0, 50, 0);
+    add("N2", true, 10, 0, 5, 0);
+    add("N3", false, 40, 0, 5, 6000);
+    add("N4", false, 40, 20, 5, 6000);
+    add("N5", false, 10, 20, 5, 3000);
+    add("N6", false, 10, 40, 5, 3000);
+    add("N7", true, 10, 40, 50, 0);
+    spec.machine.spindle_ramp_s = 0;
+    spec.seed = 99;
+    return spec;
+}
+
+// The block lead of the demo machine, calibrated on calibration_spec()'s log with blocks.
+inline double calibrated_lead_s() {
+    const motion_io::DryRunSpec cal = calibration_spec();
+    const motion_io::MotionModel cal_log = dry_run_motion(cal, "cal");
+    const motion_io::NcProgram cal_prog = motion_io::parse_nc_program(program_text(cal, {0, 0, 0}), "cal.nc", read_options_for(cal, {0, 0, 0}));
+    return motion_io::estimate_block_lead_s(cal_log, cal_prog, motion_io::BlockMappingOptions{});
 }
 
 }  // namespace cutload::nctest

@@ -8,44 +8,14 @@
 using namespace cutload;
 using namespace cutload::nctest;
 
-namespace {
-
-// A small zig-zag with corners at two feeds and rapids: calibrates the machine's block lead.
-motion_io::DryRunSpec calibration_spec() {
-    motion_io::DryRunSpec spec;
-    spec.start_mm[0] = 0, spec.start_mm[1] = 0, spec.start_mm[2] = 50;
-    auto add = [&](const char* name, bool rapid, double x, double y, double z, double f) {
-        motion_io::ProgramBlock b;
-        b.name = name;
-        b.rapid = rapid;
-        b.target_mm[0] = x, b.target_mm[1] = y, b.target_mm[2] = z;
-        b.feed_mm_min = f;
-        spec.program.push_back(b);
-    };
-    add("N1", true, 10, 0, 50, 0);
-    add("N2", true, 10, 0, 5, 0);
-    add("N3", false, 40, 0, 5, 6000);
-    add("N4", false, 40, 20, 5, 6000);
-    add("N5", false, 10, 20, 5, 3000);
-    add("N6", false, 10, 40, 5, 3000);
-    add("N7", true, 10, 40, 50, 0);
-    spec.machine.spindle_ramp_s = 0;
-    spec.seed = 99;
-    return spec;
-}
-
-}  // namespace
 
 TEST_CASE("mapping: the demo log without its block column gets back its blocks", "[mapping]") {
     const std::array<double, 3> work_zero{200, -300, -350};   // data/demo_run.json: offset [-200, 300, 350]
     const motion_io::DryRunSpec demo = motion_io::demo_dry_run_spec();
 
     // Calibrate the block lead once per machine, on a different program's log with blocks.
-    const motion_io::DryRunSpec cal = calibration_spec();
-    const motion_io::MotionModel cal_log = dry_run_motion(cal, "cal");
-    const motion_io::NcProgram cal_prog = motion_io::parse_nc_program(program_text(cal, {0, 0, 0}), "cal.nc", read_options_for(cal, {0, 0, 0}));
+    const double lead_s = calibrated_lead_s();
     motion_io::BlockMappingOptions mo;
-    const double lead_s = motion_io::estimate_block_lead_s(cal_log, cal_prog, mo);
 
     const motion_io::MotionModel with_blocks = dry_run_motion(demo, "demo_blocks");
     const motion_io::MotionModel without = dry_run_motion(demo, "demo_noblocks", 1.0, false);
@@ -90,4 +60,64 @@ TEST_CASE("mapping: samples far from the program stay unmatched", "[mapping]") {
     const motion_io::BlockMapping m = motion_io::map_blocks(log, prog, {});
     CHECK(m.quality.matched_fraction < 0.05);
     CHECK(m.quality.coverage < 0.05);
+}
+
+namespace {
+
+// A hand-made motion model: `n` samples at 1 ms moving from `from` at `speed_mm_min` along `dir`
+// (unit vector; zero speed: at rest at `from`).
+void append_stretch(motion_io::MotionModel& m, std::size_t n, std::array<double, 3> from, std::array<double, 3> dir, double speed_mm_min) {
+    const double v = speed_mm_min / 60.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        const double t = double(k) * m.step_s;
+        m.t_s.push_back(double(m.t_s.size()) * m.step_s);
+        m.x_mm.push_back(from[0] + dir[0] * v * t);
+        m.y_mm.push_back(from[1] + dir[1] * v * t);
+        m.z_mm.push_back(from[2] + dir[2] * v * t);
+        m.vx_mm_s.push_back(dir[0] * v);
+        m.vy_mm_s.push_back(dir[1] * v);
+        m.vz_mm_s.push_back(dir[2] * v);
+        m.spindle_rpm.push_back(10000);
+        m.spindle_angle_deg.push_back(0);
+        m.block.push_back(-1);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("mapping: samples at rest and rapids away from the cuts do not count against the match", "[mapping]") {
+    // 1 s cutting along the program's line (matched), 1 s at rest far away, 0.5 s of rapid far
+    // from the cut, then 0.5 s at cutting feed far away (the only samples that count against).
+    motion_io::MotionModel m;
+    m.step_s = 0.001;
+    m.session_start = {0};
+    append_stretch(m, 1000, {0, 0, 0}, {1, 0, 0}, 1200);
+    append_stretch(m, 1000, {500, 500, 500}, {0, 0, 0}, 0);
+    append_stretch(m, 500, {0, 100, 0}, {1, 0, 0}, 20000);
+    append_stretch(m, 500, {0, 200, 0}, {1, 0, 0}, 1200);
+    force_model::ProgramSettings settings;
+    settings.work_offsets_mm["G54"] = {0, 0, 0};
+    force_model::RunSpec run;
+    const std::string text = "N1 G90 G01 X0 Y0 Z0 F1200\nN2 X20.\n";
+    auto read = [&] {
+        return motion_io::parse_nc_program(text, "line.nc", force_model::program_read_options(settings, run, force_model::log_start_mm(m)));
+    };
+    motion_io::MotionModel copy = m;
+    const force_model::ProgramRun r = force_model::prepare_program_run(read(), settings, copy);
+    const auto& q = r.mapping.quality;
+    CHECK(q.matched == 1000);
+    CHECK(q.matched_fraction == Approx(1.0 / 3));
+    CHECK(q.excluded_at_rest == 1000);
+    CHECK(q.excluded_away == 500);
+    CHECK(q.excluded_tool_change == 0);
+    CHECK(q.excluded_fraction == Approx(0.5));
+    CHECK(q.counted_matched_fraction == Approx(2.0 / 3));
+
+    // The threshold is an option; a refused program names the fractions.
+    settings.min_match = 0.7;
+    copy = m;
+    CHECK_THROWS_WITH(force_model::prepare_program_run(read(), settings, copy),
+                      Catch::StartsWith("line.nc: only 66.7 % of the log's counted samples lie within 5 mm of the program's path "
+                                        "(at least 70 % must; 33.3 % of all samples matched, 50.0 % not counted: 33.3 % at rest, "
+                                        "16.7 % rapids away from the cutting moves, 0.0 % tool changes;"));
 }

@@ -98,7 +98,7 @@ TEST_CASE("parser: arcs by I/J/K and R in all planes, full circle, helix, inch",
 
 TEST_CASE("parser: errors name the file, the line and the word", "[parser][errors]") {
     CHECK(error_of("N1 G00 X0 Y0 Z0\nN2 G41 D1 X10.\n") == "t.nc:2: word 'G41': cutter radius compensation is not supported (the path would be offset by the tool radius)");
-    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\n\nN3 G81 X1. Y1. Z-3. R1. F100\n"), Catch::StartsWith("t.nc:3: word 'G81': canned cycles"));
+    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\n\nN3 G76 X1. Y1. Z-3. R1. Q0.1 F100\n"), Catch::StartsWith("t.nc:3: word 'G76': this canned cycle is not supported"));
     CHECK_THAT(error_of("N1 G00 X#1\n"), Catch::StartsWith("t.nc:1: word 'X#1': macro variables"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 M98 P1000\n"), Catch::StartsWith("t.nc:2: word 'M98': subprograms"));
     CHECK_THAT(error_of("N1 G01 X10. Y0 Z0\n"), Catch::StartsWith("t.nc:1: word 'N1': no feed rate"));
@@ -108,7 +108,7 @@ TEST_CASE("parser: errors name the file, the line and the word", "[parser][error
     CHECK_THAT(error_of("N1 G00 X0 X1.\n"), Catch::StartsWith("t.nc:1: word 'X1.': appears twice"));
     CHECK_THAT(error_of("N1 G55 G00 X0\n"), Catch::StartsWith("t.nc:1: word 'G55': no offset is set"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0 (open comment\n"), Catch::StartsWith("t.nc:1: word '(open comment': comment without ')'"));
-    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 T1 M06\nN3 T2 M06\n"), Catch::StartsWith("t.nc:3: word 'T2': a second tool"));
+    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 M06\n"), Catch::StartsWith("t.nc:2: word 'M06': tool change without a tool selected"));
     CHECK_THAT(error_of("N1 G00 X[1+2]\n"), Catch::StartsWith("t.nc:1: word 'X': expected a number"));
     NcReadOptions unknown_start = options();
     unknown_start.start_mm.reset();

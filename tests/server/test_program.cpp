@@ -214,6 +214,53 @@ TEST_CASE("program api: bad programs and options are 400 naming line and word, l
     require_error(c.Post((base + "/optimizations").c_str(), "{}", "application/json"), 409, "no_program");
 }
 
+TEST_CASE("program api: nc_options for dialects, tools and the match; values out of range are 400 naming the key") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string log = slot_log_csv(1.0);
+    auto options_error = [&](const std::string& options, const std::string& key) {
+        INFO(options);
+        require_error(upload(c, log, slot_spec(), with_program(kSlotProgram, "slot.nc", options)), 400, "bad_request", "nc_options." + key);
+    };
+    // Issue 19: on main this rapid rate was accepted (202) and the run's commanded motion grew
+    // without limit (a 20 mm rapid at 1e-9 mm/min).
+    options_error(R"({"rapid_feed_mm_min": 1e-9})", "rapid_feed_mm_min");
+    options_error(R"({"rapid_feed_mm_min": 1e9})", "rapid_feed_mm_min");
+    options_error(R"({"arc_centers": "relative"})", "arc_centers");
+    options_error(R"({"program_units": "cm"})", "program_units");
+    options_error(R"({"arc_tolerance_mm": -0.01})", "arc_tolerance_mm");
+    options_error(R"({"min_match": 1.5})", "min_match");
+    options_error(R"({"block_lead_ms": 1e12})", "block_lead_ms");
+    options_error(R"({"tool_change_on_t": "yes"})", "tool_change_on_t");
+    options_error(R"({"block_skip": 1})", "block_skip");
+    // A typo in the program itself is refused at upload, naming its line and word.
+    require_error(upload(c, log, slot_spec(), with_program("%\nN10 G90 G17 G01 X4. Y5. Z-2. F1200 S10000 M03\nN20 X14. F0.0001\n%\n", "typo.nc")),
+                  400, "bad_program", "typo.nc:3: word 'F0.0001': feed 0.0001 mm/min is outside the physical range");
+    REQUIRE(files_under(ts.data_dir()) == 0);
+
+    // The slot as an inch post writes it, without G20: read with program_units "in" it runs, and
+    // the mapping reports what it left out of the count.
+    const std::string inch = "%\nN10 G90 G17 G01 X0.157 Y0.197 Z-0.079 F47.2 S10000 M03\nN20 X0.551\n%\n";
+    auto up = upload(c, log, slot_spec(), with_program(inch, "inch.nc", R"({"program_units": "in", "min_match": 0.9, "block_skip": true})"));
+    INFO(up->body);
+    REQUIRE(up->status == 202);
+    const json run = wait_finished(c, body(up)["id"]);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    const json p = get_json(c, "/api/v1/runs/" + std::to_string(body(up)["id"].get<int>()) + "/program");
+    REQUIRE(p["mapping"]["matched_fraction"].get<double>() > 0.99);
+    REQUIRE(p["mapping"]["counted_matched_fraction"].get<double>() > 0.99);
+    REQUIRE(p["mapping"]["excluded_fraction"].get<double>() == 0);
+    REQUIRE(p["mapping"]["excluded_samples"]["tool_change"] == 0);
+    REQUIRE(p["tools"] == json::array());   // no T words
+    // Read as mm (the default) the same program lies off the log and the job says so.
+    auto mm = upload(c, log, slot_spec(), with_program(inch, "inch.nc"));
+    REQUIRE(mm->status == 202);
+    const json failed = wait_finished(c, body(mm)["id"]);
+    REQUIRE(failed["state"] == "failed");
+    REQUIRE(failed["error"].get<std::string>().find("inch.nc: only") != std::string::npos);
+}
+
 TEST_CASE("program api: a feed optimization job meets the target and changes only F words") {
     TestServer ts;
     auto c = ts.client(ts.write_key);
