@@ -1,5 +1,7 @@
 #include "motion_io/synth.hpp"
 
+#include "textio/csv.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -176,7 +178,7 @@ std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
         const double r = m.position_resolution_mm;
         fmt::format_to(std::back_inserter(buf), "{:.6f},{:.0f},{:.6f},{:.0f},{:.6f},{:.3f},{:.3f},{:.3f},{}\n", t_spindle,
                        rpm, t_feed, feed, t_pos, quantise(p[0], r), quantise(p[1], r), quantise(p[2], r),
-                       machine.block_name());
+                       textio::csv_field(machine.block_name()));
         ++rows;
         if (buf.size() > (1 << 20)) {
             csv.write(buf.data(), static_cast<std::streamsize>(buf.size()));
