@@ -68,7 +68,7 @@ TEST_CASE("text: a Latin-1 header and a cp1252 block name decode to what they me
     CHECK_THAT(json, Catch::Contains("Temperatur [°C]"));
 }
 
-TEST_CASE("text: the same names in UTF-8 read the same; the resampled CSV writes UTF-8", "[text][csv]") {
+TEST_CASE("text: the same names in UTF-8 read the same, and the resampled CSV writes UTF-8", "[text][csv]") {
     TempFile latin("names_latin1.csv", log_with("note", "Fr\xE4sen N10", "N20"));
     TempFile utf8("names_utf8.csv", log_with("note", "Fräsen N10", "N20"));
     ReadOptions opt;
@@ -110,7 +110,7 @@ TEST_CASE("text: a no-break space after a number is trimmed, inside one refused 
                Catch::Contains("nbsp_utf8.csv:32:10:") && Catch::Contains("no-break space inside it"));
 }
 
-TEST_CASE("text: SHDR block names and keys decode; a bad byte names line and column", "[text][shdr]") {
+TEST_CASE("text: SHDR block names and keys decode, a bad byte names line and column", "[text][shdr]") {
     const std::string shdr =
         "2024-01-01T00:00:00.000Z|path_pos|0 0 0|block|Fr\xE4sen N10|S1speed|1000\n"
         "2024-01-01T00:00:00.100Z|path_pos|1 0 0\n"

@@ -105,7 +105,7 @@ TEST_CASE("text: a byte that is not text or a digit group in a number is a 400 n
                   "part name");
 }
 
-TEST_CASE("text: a dynamometer record with a Latin-1 header column is read; the column is named decoded", "[text]") {
+TEST_CASE("text: a dynamometer record with a Latin-1 header column is read, the column named decoded", "[text]") {
     TestServer ts;
     auto c = ts.client(ts.write_key);
     auto up = upload(c, slot_log_csv(1.0), slot_spec());
@@ -131,7 +131,7 @@ TEST_CASE("text: a dynamometer record with a Latin-1 header column is read; the 
     CHECK(report["measured"]["ignored_channels"][0] == "Temperatur [°C]");
 }
 
-TEST_CASE("text: a controller export uploaded with a bundled map preset; its coarse data is in the run", "[text]") {
+TEST_CASE("text: a controller export uploaded with a bundled map preset has its coarse data in the run", "[text]") {
     TestServer ts;
     auto c = ts.client(ts.write_key);
     const auto log = cutload::motion_io::test::umich_like_export(5);

@@ -43,7 +43,7 @@ std::string random_field(std::mt19937_64& rng) {
 
 }  // namespace
 
-TEST_CASE("csv: what the writer quotes the reader reads back unchanged, for ',', ';' and tab", "[csv]") {
+TEST_CASE("csv: what the writer quotes the reader reads back unchanged, for comma, semicolon and tab", "[csv]") {
     for (const char delim : {',', ';', '\t'}) {
         std::mt19937_64 rng(20240611 + static_cast<unsigned>(delim));
         std::vector<std::vector<std::string>> rows(300);
@@ -109,7 +109,7 @@ TEST_CASE("csv: comments, blank lines, byte order mark and the last line without
     CHECK(rows[1] == std::vector<std::string>{"1", "2"});
 }
 
-TEST_CASE("csv: delimiter detection counts outside quotes and prefers tab, then ';'", "[csv]") {
+TEST_CASE("csv: delimiter detection counts outside quotes and prefers tab, then semicolon", "[csv]") {
     CHECK(detect_delimiter("t,x,y") == ',');
     CHECK(detect_delimiter("t;x;y") == ';');
     CHECK(detect_delimiter("t\tx;y") == '\t');

@@ -77,7 +77,7 @@ TEST_CASE("text: NUL and cp1252's undefined bytes are refused at their character
     }
 }
 
-TEST_CASE("text: any byte sequence decodes to valid UTF-8 or is refused; UTF-8 passes unchanged", "[text]") {
+TEST_CASE("text: any byte sequence decodes to valid UTF-8 or is refused, and UTF-8 passes unchanged", "[text]") {
     std::mt19937_64 rng(19);
     std::size_t refused = 0;
     for (int trial = 0; trial < 20000; ++trial) {
