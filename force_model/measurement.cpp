@@ -369,19 +369,28 @@ Measurement read_measurement(const std::string& path, const MeasurementWindow& w
     return read_measurement(in, path, window);
 }
 
-AxisMatrix parse_axis_matrix(const std::string& text) {
+namespace {
+
+// A comma-separated list given on a command line or in a form field ("0,-1,0,-1,0,0,0,0,1"), as
+// one CSV record (textio): one line, fields trimmed.
+std::vector<std::string> comma_list(const std::string& text, const char* what) {
     std::vector<std::string> fields;
-    {
-        std::istringstream in(text);
-        textio::CsvReader csv(in, "axis matrix");
-        try {
-            if (csv.next())
-                for (std::size_t i = 0; i < csv.size(); ++i) fields.emplace_back(csv[i]);
-            if (csv.next()) throw MeasurementError(fmt::format("axis matrix `{}`: one line of nine numbers expected", textio::printable(text)));
-        } catch (const textio::TextError& e) {
-            throw MeasurementError(e.what());
-        }
+    std::istringstream in(text);
+    textio::CsvReader csv(in, what);
+    try {
+        if (csv.next())
+            for (std::size_t i = 0; i < csv.size(); ++i) fields.emplace_back(csv[i]);
+        if (csv.next()) throw MeasurementError(fmt::format("{} `{}`: one line expected", what, textio::printable(text)));
+    } catch (const textio::TextError& e) {
+        throw MeasurementError(e.what());
     }
+    return fields;
+}
+
+}  // namespace
+
+AxisMatrix parse_axis_matrix(const std::string& text) {
+    const std::vector<std::string> fields = comma_list(text, "axis matrix");
     if (fields.size() != 9)
         throw MeasurementError(fmt::format("axis matrix `{}`: {} numbers where nine (row-major 3x3) are needed", textio::printable(text),
                                            fields.size()));
@@ -399,16 +408,16 @@ AxisMatrix parse_axis_matrix(const std::string& text) {
 }
 
 std::array<double, 3> parse_force_vector(const std::string& text) {
-    const auto fields = split(text, ',');
+    const std::vector<std::string> fields = comma_list(text, "force");
     if (fields.size() != 3)
-        throw MeasurementError(fmt::format("force `{}`: {} numbers where three (Fx,Fy,Fz) are needed", text,
+        throw MeasurementError(fmt::format("force `{}`: {} numbers where three (Fx,Fy,Fz) are needed", textio::printable(text),
                                            fields.size()));
     std::array<double, 3> f{};
     static const char* names[3] = {"Fx", "Fy", "Fz"};
     for (std::size_t i = 0; i < 3; ++i) {
-        const auto v = number(fields[i]);
+        const auto v = number(fields[i], false);
         if (!v || !std::isfinite(*v))
-            throw MeasurementError(fmt::format("force `{}`: {} `{}` is not a number", text, names[i], fields[i]));
+            throw MeasurementError(fmt::format("force `{}`: {} `{}` is not a number", textio::printable(text), names[i], fields[i]));
         f[i] = *v;
     }
     return f;
