@@ -31,6 +31,9 @@ void print_text(const motion_io::IngestReport& r) {
     }
     fmt::print("  feed raw      {:.0f} .. {:.0f} mm/min (plain differencing)\n", r.feed_raw_min_mm_min, r.feed_raw_max_mm_min);
     fmt::print("  feed repaired {:.0f} .. {:.0f} mm/min\n", r.feed_repaired_min_mm_min, r.feed_repaired_max_mm_min);
+    fmt::print("  position step {}\n", r.position_step_mm ? fmt::format("{:g} mm (as written)", *r.position_step_mm) : "unknown (too few moves)");
+    fmt::print("  spindle max   {:.0f} rpm\n", r.spindle_max_rpm);
+    if (r.commanded_positions) fmt::print("  commanded     the log also holds commanded positions (predict --commanded-from-log)\n");
     fmt::print("  warnings      {}\n", r.warnings.empty() ? "none" : "");
     for (const auto& w : r.warnings) fmt::print("    {}: {}\n", w.code, w.message);
 }

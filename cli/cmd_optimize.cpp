@@ -5,6 +5,7 @@
 #include "commands.hpp"
 #include "predict_program.hpp"
 #include "force_model/feed_optimizer.hpp"
+#include "textio/csv.hpp"
 
 #include <fmt/format.h>
 
@@ -30,7 +31,7 @@ void write_report(const force_model::FeedOptimization& r, const std::string& pat
     if (!out) throw UsageError("cannot write " + path, 1);
     out << "block,programmed_feed_mm_min,recommended_feed_mm_min,binding,ratio_before,ratio_after,at_feed_limit\n";
     for (const auto& b : r.blocks)
-        out << fmt::format("{},{:.1f},{:.1f},{},{:.4f},{:.4f},{}\n", b.block, b.programmed_feed_mm_min,
+        out << fmt::format("{},{:.1f},{:.1f},{},{:.4f},{:.4f},{}\n", textio::csv_field(b.block), b.programmed_feed_mm_min,
                            b.recommended_feed_mm_min, b.binding, b.ratio_before, b.ratio_after, b.at_feed_limit ? 1 : 0);
     if (!out) throw UsageError("writing " + path + " failed", 1);
 }

@@ -25,8 +25,19 @@ void run_predict(const PredictArgs& a) {
                                        {a.program.compare_csv, "--compare"}, {a.program.commanded_out, "--commanded-out"}})
         if (!path.empty()) check_output_path(path, option);
     const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
-    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
+    motion_io::IngestReport report;
+    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read, &report);
     if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
+    if (a.program.commanded_from_log && !report.commanded_positions)
+        throw UsageError(a.log + ": --commanded-from-log: the log has no commanded positions (x_cmd, y_cmd, z_cmd, or "
+                         "the columns a --map names for them)");
+    // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
+    const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, spec.tool.flutes);
+    for (const std::vector<motion_io::IngestWarning>* list :
+         std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&report.warnings, &sampling.warnings})
+        for (const auto& w : *list)
+            if (w.code == "position_quantized" || w.code == "sampling_coarse")
+                std::fprintf(stderr, "cutload: warning: %s: %s\n", w.code.c_str(), w.message.c_str());
     const ProgramRun program = prepare_program_run(a.program, motion, spec);   // program block names
     force_model::StockPtr base;
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
@@ -46,8 +57,9 @@ void run_predict(const PredictArgs& a) {
     if (show_progress) std::fprintf(stderr, "\r                    \r");
 
     force_model::write_forces_csv(p, a.out);
-    // With a program, BLOCKS.csv also carries the comparison: finish_program_run writes it.
-    if (!a.blocks.empty() && !program.active) force_model::write_blocks_csv(p, a.blocks);
+    // With a commanded path, BLOCKS.csv also carries the comparison: finish_program_run or
+    // finish_logged_commanded writes it.
+    if (!a.blocks.empty() && !program.active && !a.program.commanded_from_log) force_model::write_blocks_csv(p, a.blocks);
     if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
 
     const auto& s = p.stats;
@@ -64,7 +76,13 @@ void run_predict(const PredictArgs& a) {
     }
     std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
                 a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
+    if (sampling.coarse())
+        std::printf("data: COARSE (%s%s%s): the log cannot fully carry this prediction; see the warnings\n",
+                    sampling.position_quantized ? "position_quantized" : "",
+                    sampling.position_quantized && sampling.sampling_coarse ? ", " : "",
+                    sampling.sampling_coarse ? "sampling_coarse" : "");
     finish_program_run(a.program, program, motion, p, spec, opt, a.blocks);
+    finish_logged_commanded(a.program, a.log, a.read, motion, p, spec, opt, a.blocks);
 }
 
 void add_predict(CLI::App& app) {

@@ -1,6 +1,8 @@
 #include "commands.hpp"
 #include "force_model/force_model.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -48,7 +50,9 @@ void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt) {
         ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case))
         ->option_text("csv|shdr|auto");
     // The reader checks the map file itself so that a bad path gets the one-line error format.
-    sub.add_option("--map", opt.map_file, "SHDR key mapping, JSON (see docs/formats.md)");
+    sub.add_option("--map", opt.map_file,
+                   "Channel map: a JSON file, or a bundled preset (" + fmt::format("{}", fmt::join(motion_io::map_presets(), ", ")) +
+                       "), naming the CSV columns or SHDR keys of each channel (docs/formats.md)");
     sub.add_option_function<std::string>(
            "--units", [&opt](const std::string& u) { opt.length_unit = u; },
            "Length unit of positions and feed when the log does not declare one")

@@ -1,6 +1,7 @@
 #include "predict_program.hpp"
 
 #include "commands.hpp"
+#include "force_model/logged_commanded.hpp"
 
 #include <fmt/format.h>
 
@@ -24,6 +25,22 @@ std::pair<std::string, std::array<double, 3>> parse_work_offset(const std::strin
     }
     if (!ok) throw UsageError(fmt::format("--work-offset '{}': expected G54..G59=X,Y,Z (mm), e.g. G55=200,-300,-350", s));
     return {"G" + name.substr(1), v};
+}
+
+// The cutting blocks' commanded-vs-actual rows, then where the outputs went.
+void print_comparison(const std::vector<force_model::BlockComparison>& rows, const force_model::Prediction& commanded,
+                      const ProgramOptions& o) {
+    std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",
+                "F_cmd_N", "F_act_N", "diff");
+    for (const auto& r : rows) {
+        if (r.commanded_peak_force_N <= 0 && r.actual_peak_force_N <= 0) continue;
+        std::printf("%-8s %8.0f %8.3fmm %8.3fmm %7.1f%% %7.1f%% %10.1f %10.1f %+8.1f%%\n", r.block.c_str(),
+                    r.programmed_feed_mm_min, r.max_deviation_mm, r.mean_deviation_mm, r.feed_deficit_pct, r.feed_surge_pct,
+                    r.commanded_peak_force_N, r.actual_peak_force_N, r.force_difference_pct);
+    }
+    std::printf("commanded prediction: %.3f s simulated%s%s%s%s\n", commanded.stats.simulated_s,
+                o.commanded_out.empty() ? "" : "; forces -> ", o.commanded_out.c_str(),
+                o.compare_csv.empty() ? "" : "; comparison -> ", o.compare_csv.c_str());
 }
 
 }  // namespace
@@ -88,15 +105,23 @@ void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     cmd.add_flag("--no-decimal-is-increment", o.decimal_less_increment,
                  "X10 without a decimal point means 10 least increments (FANUC parameter 3401#0 = 0)");
     if (for_predict) {
-        cmd.add_option("--compare", o.compare_csv, "Per-block commanded-vs-actual comparison CSV (with --program)");
-        cmd.add_option("--commanded-out", o.commanded_out, "FORCES.csv of the commanded motion (with --program)");
+        cmd.add_option("--compare", o.compare_csv,
+                       "Per-block commanded-vs-actual comparison CSV (with --program or --commanded-from-log)");
+        cmd.add_option("--commanded-out", o.commanded_out,
+                       "FORCES.csv of the commanded motion (with --program or --commanded-from-log)");
+        cmd.add_flag("--commanded-from-log", o.commanded_from_log,
+                     "Take the commanded path from the log's own commanded positions (x_cmd, y_cmd, z_cmd or the map's) "
+                     "instead of an NC program: predict it and compare it with the actual motion block by block");
     }
 }
 
 ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec) {
     ProgramRun run;
+    if (o.commanded_from_log && !o.program.empty())
+        throw UsageError("--commanded-from-log and --program both give the commanded path: choose one");
     if (o.program.empty()) {
-        if (!o.compare_csv.empty() || !o.commanded_out.empty()) throw UsageError("--compare and --commanded-out need --program");
+        if ((!o.compare_csv.empty() || !o.commanded_out.empty()) && !o.commanded_from_log)
+            throw UsageError("--compare and --commanded-out need --program or --commanded-from-log");
         return run;
     }
     if (motion.size() < 2) throw UsageError("the log holds fewer than two motion samples");
@@ -168,17 +193,27 @@ void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const mo
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
     if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
     print_mapping(run);
-    std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",
-                "F_cmd_N", "F_act_N", "diff");
-    for (const auto& r : rows) {
-        if (r.commanded_peak_force_N <= 0 && r.actual_peak_force_N <= 0) continue;
-        std::printf("%-8s %8.0f %8.3fmm %8.3fmm %7.1f%% %7.1f%% %10.1f %10.1f %+8.1f%%\n", r.block.c_str(),
-                    r.programmed_feed_mm_min, r.max_deviation_mm, r.mean_deviation_mm, r.feed_deficit_pct, r.feed_surge_pct,
-                    r.commanded_peak_force_N, r.actual_peak_force_N, r.force_difference_pct);
-    }
-    std::printf("commanded prediction: %.3f s simulated%s%s%s%s\n", commanded.stats.simulated_s,
-                o.commanded_out.empty() ? "" : "; forces -> ", o.commanded_out.c_str(),
-                o.compare_csv.empty() ? "" : "; comparison -> ", o.compare_csv.c_str());
+    print_comparison(rows, commanded, o);
+}
+
+void finish_logged_commanded(const ProgramOptions& o, const std::string& log, const motion_io::ReadOptions& read,
+                             const motion_io::MotionModel& motion, const force_model::Prediction& actual,
+                             const force_model::RunSpec& spec, const force_model::PredictOptions& opt,
+                             const std::string& blocks_csv) {
+    if (!o.commanded_from_log) return;
+    motion_io::ReadOptions commanded_read = read;
+    commanded_read.positions = motion_io::Positions::Commanded;
+    const motion_io::MotionModel commanded_motion = motion_io::ingest(log, commanded_read);
+    if (commanded_motion.size() < 2) throw UsageError(log + ": the log's commanded positions give fewer than two motion samples");
+    force_model::PredictOptions quiet = opt;
+    quiet.progress = nullptr;
+    const force_model::Prediction commanded = force_model::predict(commanded_motion, spec, quiet);
+    const auto rows = force_model::compare_logged_commanded(motion, commanded_motion, commanded, actual);
+    if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
+    if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
+    if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
+    std::printf("commanded path: the log's commanded positions (%zu samples)\n", commanded_motion.size());
+    print_comparison(rows, commanded, o);
 }
 
 }  // namespace cutload::cli

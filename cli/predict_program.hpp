@@ -30,9 +30,10 @@ struct ProgramOptions {
     double min_match = 0.5;
     motion_io::NcLimits limits;               // --max-program-* options set the work bounds
     std::string compare_csv, commanded_out;   // predict only
+    bool commanded_from_log = false;          // predict only: the log's own commanded positions
 };
 
-// --program and its companions; `for_predict` adds --compare and --commanded-out.
+// --program and its companions; `for_predict` adds --compare, --commanded-out and --commanded-from-log.
 void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict);
 
 // force_model's ProgramRun, absent when no --program was given.
@@ -55,6 +56,14 @@ void print_mapping(const ProgramRun& run);
 void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
                         const force_model::Prediction& actual, const force_model::RunSpec& spec,
                         const force_model::PredictOptions& opt, const std::string& blocks_csv);
+
+// With --commanded-from-log: reads the log again with its commanded positions (`read` is how the
+// actual motion was read), predicts that motion, writes --commanded-out, --compare and BLOCKS.csv
+// with the comparison columns and prints the comparison. No-op without the flag.
+void finish_logged_commanded(const ProgramOptions& o, const std::string& log, const motion_io::ReadOptions& read,
+                             const motion_io::MotionModel& motion, const force_model::Prediction& actual,
+                             const force_model::RunSpec& spec, const force_model::PredictOptions& opt,
+                             const std::string& blocks_csv);
 
 // The device choice of `--device opencl|cpu|auto` (auto: OpenCL when a device exists).
 force_model::Device choose_device(const std::string& name);

@@ -1,6 +1,10 @@
 // Prediction against measurement (see compare.hpp and docs/compare_calibrate.md).
 #include "force_model/compare.hpp"
 
+#include "textio/csv.hpp"
+#include "textio/number.hpp"
+#include "textio/text.hpp"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <unsupported/Eigen/FFT>
@@ -256,33 +260,7 @@ void fill_resultants(Series& s) {
     }
 }
 
-std::string csv_field(const std::string& s) {
-    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-    std::string q = "\"";
-    for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return q + '"';
-}
-
-// Splits one CSV line, honouring double quotes (block names may hold commas).
-std::vector<std::string> split_csv(const std::string& line) {
-    std::vector<std::string> out(1);
-    bool quoted = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-        const char c = line[i];
-        if (quoted) {
-            if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') out.back() += '"', ++i;
-            else if (c == '"') quoted = false;
-            else out.back() += c;
-        } else if (c == '"') {
-            quoted = true;
-        } else if (c == ',') {
-            out.emplace_back();
-        } else if (c != '\r') {
-            out.back() += c;
-        }
-    }
-    return out;
-}
+using textio::csv_field;
 
 nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
@@ -304,62 +282,63 @@ PredictedTrace predicted_trace(const Prediction& p) {
 }
 
 PredictedTrace read_forces_csv(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw MeasurementError(path + ": cannot open the predicted forces file");
-    std::string line;
-    if (!std::getline(in, line)) throw MeasurementError(path + ":1: empty file (expected the FORCES.csv header)");
-    const std::vector<std::string> header = split_csv(line);
-    auto column = [&](const char* name) {
-        const auto it = std::find(header.begin(), header.end(), name);
-        if (it == header.end())
-            throw MeasurementError(fmt::format("{}:1: no `{}` column (is this a FORCES.csv from cutload predict?)",
-                                               path, name));
-        return static_cast<std::size_t>(it - header.begin());
-    };
-    const std::size_t ct = column("t_s"), ca = column("spindle_angle_deg"), cb = column("block");
-    const std::size_t cf[3] = {column("fx_N"), column("fy_N"), column("fz_N")};
-    const std::size_t need = std::max({ct, ca, cb, cf[0], cf[1], cf[2]});
-    PredictedTrace t;
-    std::map<std::string, std::int32_t> blocks;
-    std::size_t line_no = 1;
-    while (std::getline(in, line)) {
-        ++line_no;
-        if (line.empty() || line == "\r") continue;
-        const std::vector<std::string> f = split_csv(line);
-        if (f.size() <= need)
-            throw MeasurementError(fmt::format("{}:{}: {} columns where the header has {}", path, line_no, f.size(),
-                                               header.size()));
-        auto num = [&](std::size_t c) {
-            std::size_t used = 0;
-            double v = kNaN;
-            try {
-                v = std::stod(f[c], &used);
-            } catch (const std::exception&) {
-                used = 0;
-            }
-            if (used == 0 || used != f[c].size() || !std::isfinite(v))
-                throw MeasurementError(fmt::format("{}:{}: column {} ({}): `{}` is not a number", path, line_no, c + 1,
-                                                   header[c], f[c]));
-            return v;
+    std::ifstream in(path, std::ios::binary);
+    const std::string shown = textio::printable(path);
+    if (!in) throw MeasurementError(shown + ": cannot open the predicted forces file");
+    textio::CsvReader csv(in, shown);
+    try {
+        if (!csv.next()) throw MeasurementError(shown + ":1: empty file (expected the FORCES.csv header)");
+        std::vector<std::string> header;
+        for (std::size_t i = 0; i < csv.size(); ++i) header.emplace_back(csv[i]);
+        auto column = [&](const char* name) {
+            const auto it = std::find(header.begin(), header.end(), name);
+            if (it == header.end())
+                throw MeasurementError(fmt::format("{}:{}: no `{}` column (is this a FORCES.csv from cutload predict?)",
+                                                   shown, csv.line(), name));
+            return static_cast<std::size_t>(it - header.begin());
         };
-        ForceSample s;
-        s.t_s = num(ct);
-        s.spindle_angle_deg = num(ca);
-        s.fx_N = static_cast<float>(num(cf[0]));
-        s.fy_N = static_cast<float>(num(cf[1]));
-        s.fz_N = static_cast<float>(num(cf[2]));
-        if (!f[cb].empty()) {
-            const auto [it, added] = blocks.emplace(f[cb], static_cast<std::int32_t>(t.block_names.size()));
-            if (added) t.block_names.push_back(f[cb]);
-            s.block = it->second;
+        const std::size_t ct = column("t_s"), ca = column("spindle_angle_deg"), cb = column("block");
+        const std::size_t cf[3] = {column("fx_N"), column("fy_N"), column("fz_N")};
+        const std::size_t need = std::max({ct, ca, cb, cf[0], cf[1], cf[2]});
+        PredictedTrace t;
+        std::map<std::string, std::int32_t, std::less<>> blocks;
+        while (csv.next()) {
+            if (csv.size() <= need)
+                throw MeasurementError(fmt::format("{}:{}: {} columns where the header has {}", shown, csv.line(), csv.size(),
+                                                   header.size()));
+            auto num = [&](std::size_t c) {
+                const textio::ParsedNumber p = textio::parse_number(csv[c]);
+                if (!p)
+                    csv.fail(c, fmt::format("column {} ({}): {}", c + 1, header[c],
+                                            textio::number_problem(csv[c], p.error == textio::NumberError::empty
+                                                                               ? textio::NumberError::not_a_number
+                                                                               : p.error)));
+                return p.value;
+            };
+            ForceSample s;
+            s.t_s = num(ct);
+            s.spindle_angle_deg = num(ca);
+            s.fx_N = static_cast<float>(num(cf[0]));
+            s.fy_N = static_cast<float>(num(cf[1]));
+            s.fz_N = static_cast<float>(num(cf[2]));
+            if (const std::string_view name = csv[cb]; !name.empty()) {
+                auto it = blocks.find(name);
+                if (it == blocks.end()) {
+                    it = blocks.emplace(std::string(name), static_cast<std::int32_t>(t.block_names.size())).first;
+                    t.block_names.emplace_back(name);
+                }
+                s.block = it->second;
+            }
+            if (!t.samples.empty() && s.t_s < t.samples.back().t_s)
+                throw MeasurementError(fmt::format("{}:{}: time {} s goes back from {} s", shown, csv.line(), s.t_s,
+                                                   t.samples.back().t_s));
+            t.samples.push_back(s);
         }
-        if (!t.samples.empty() && s.t_s < t.samples.back().t_s)
-            throw MeasurementError(fmt::format("{}:{}: time {} s goes back from {} s", path, line_no, s.t_s,
-                                               t.samples.back().t_s));
-        t.samples.push_back(s);
+        if (t.samples.size() < 2) throw MeasurementError(shown + ": fewer than two rows of predicted forces");
+        return t;
+    } catch (const textio::TextError& e) {
+        throw MeasurementError(e.what());
     }
-    if (t.samples.size() < 2) throw MeasurementError(path + ": fewer than two rows of predicted forces");
-    return t;
 }
 
 namespace {

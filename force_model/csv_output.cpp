@@ -2,6 +2,8 @@
 // half-written file.
 #include "force_model/force_model.hpp"
 
+#include "textio/csv.hpp"
+
 #include <charconv>
 #include <cstdio>
 #include <vector>
@@ -14,12 +16,7 @@ namespace cutload::force_model {
 
 namespace {
 
-std::string csv_field(const std::string& s) {
-    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-    std::string q = "\"";
-    for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return q + '"';
-}
+using textio::csv_field;
 
 template <typename Fill>
 void write_atomically(const std::string& path, Fill fill) {

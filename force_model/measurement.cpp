@@ -1,6 +1,12 @@
-// Streaming reader for dynamometer exports. Rows are parsed in place (string_view fields,
-// std::from_chars) so 10^7 rows read in seconds and only three floats per row are kept.
+// Streaming reader for dynamometer exports. Records come from textio's CSV reader (RFC 4180 quoting,
+// text decoded: a Latin-1 `Temperatur [°C]` column reads as what it says), fields as string_views
+// and numbers through std::from_chars, so 10^7 rows read in seconds and only three floats per row
+// are kept.
 #include "force_model/measurement.hpp"
+
+#include "textio/csv.hpp"
+#include "textio/number.hpp"
+#include "textio/text.hpp"
 
 #include <fmt/format.h>
 
@@ -10,18 +16,14 @@
 #include <cmath>
 #include <fstream>
 #include <optional>
+#include <sstream>
 #include <string_view>
 
 namespace cutload::force_model {
 
 namespace {
 
-std::string_view trim(std::string_view s) {
-    while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '"')) s.remove_prefix(1);
-    while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '"' || s.back() == '\r'))
-        s.remove_suffix(1);
-    return s;
-}
+std::string_view trim(std::string_view s) { return textio::trim_blanks(s); }
 
 std::string lower(std::string_view s) {
     std::string out(s);
@@ -29,42 +31,12 @@ std::string lower(std::string_view s) {
     return out;
 }
 
-char separator_of(std::string_view line) {
-    if (line.find('\t') != std::string_view::npos) return '\t';
-    if (line.find(';') != std::string_view::npos) return ';';
-    return ',';
-}
-
-std::vector<std::string_view> split(std::string_view line, char sep) {
-    std::vector<std::string_view> out;
-    std::size_t start = 0;
-    while (true) {
-        const std::size_t end = line.find(sep, start);
-        out.push_back(trim(line.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start)));
-        if (end == std::string_view::npos) return out;
-        start = end + 1;
-    }
-}
-
-std::optional<double> number(std::string_view s) {
-    s = trim(s);
-    if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-    if (s.empty()) return std::nullopt;
-    // A decimal comma (European exports, which separate fields by ';' or tab): "0,125" is 0.125.
-    // A field holds a comma only when the separator is not one; one comma and no point, else
-    // "1.234,5" (a thousands point) would read as 1.234.
-    char buf[64];
-    if (const std::size_t comma = s.find(','); comma != std::string_view::npos) {
-        if (s.size() >= sizeof buf || s.find('.') != std::string_view::npos || s.find(',', comma + 1) != std::string_view::npos)
-            return std::nullopt;
-        s.copy(buf, s.size());
-        buf[comma] = '.';
-        s = std::string_view(buf, s.size());
-    }
-    double v = 0;
-    const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (r.ec != std::errc() || r.ptr != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
-    return v;
+// A decimal comma (European exports, which separate fields by ';' or tab): "0,125" is 0.125. A
+// field holds a comma only when the separator is not one; "1.234,5" (a thousands point) is refused.
+std::optional<double> number(std::string_view s, bool decimal_comma = true) {
+    const textio::ParsedNumber p = textio::parse_number(s, decimal_comma);
+    if (!p) return std::nullopt;
+    return p.value;
 }
 
 // A column name without its unit: "Fx [N]" -> ("fx", "N"), "t_ms" -> ("t", "ms"), "Time" -> ("time", "").
@@ -113,45 +85,72 @@ std::optional<double> force_scale(std::string_view unit) {
 
 class Reader {
 public:
-    Reader(std::istream& in, std::string source, const MeasurementWindow& w) : in_(in), window_(w) {
-        m_.source = std::move(source);
+    Reader(std::istream& in, std::string source, const MeasurementWindow& w)
+        : csv_(in, textio::printable(source), csv_options()), window_(w) {
+        m_.source = textio::printable(source);
     }
 
     Measurement read() {
-        read_header();
-        read_data();
+        try {
+            read_header();
+            read_data();
+        } catch (const textio::TextError& e) {
+            throw MeasurementError(e.what());
+        }
         return std::move(m_);
     }
 
 private:
+    static textio::CsvOptions csv_options() {
+        textio::CsvOptions o;
+        o.delimiter = 0;   // per line in the metadata; the names row's from there on
+        return o;
+    }
+
     [[noreturn]] void fail(const std::string& what) const {
         throw MeasurementError(fmt::format("{}:{}: {}", m_.source, line_no_, what));
     }
+    // At the field's line and character column when the current record has it.
     [[noreturn]] void fail_column(std::size_t col, const std::string& what) const {
-        throw MeasurementError(
-            fmt::format("{}:{}: column {} ({}): {}", m_.source, line_no_, col + 1, column_label(col), what));
+        const std::string where = col < csv_.size() && csv_.line() == line_no_
+                                      ? fmt::format("{}:{}:{}", m_.source, csv_.line_of(col), csv_.column_of(col))
+                                      : fmt::format("{}:{}", m_.source, line_no_);
+        throw MeasurementError(fmt::format("{}: column {} ({}): {}", where, col + 1, column_label(col), what));
+    }
+    std::string not_a_number(std::size_t col) const {
+        const textio::ParsedNumber p = textio::parse_number(csv_[col], decimal_comma_);
+        return textio::number_problem(csv_[col], p.error == textio::NumberError::none ? textio::NumberError::not_a_number : p.error);
     }
     std::string column_label(std::size_t col) const {
         return col < names_.size() ? names_[col] : std::string("beyond the names row");
     }
 
-    bool next_line() {
-        if (!std::getline(in_, line_)) return false;
-        ++line_no_;
-        if (line_no_ == 1 && line_.rfind("\xEF\xBB\xBF", 0) == 0) line_.erase(0, 3);
-        if (!line_.empty() && line_.back() == '\r') line_.pop_back();
+    // The next non-blank record as fields (views valid until the next call).
+    bool next_record(std::vector<std::string_view>& fields) {
+        fields.clear();
+        if (!csv_.next()) return false;
+        line_no_ = csv_.line();
+        for (std::size_t i = 0; i < csv_.size(); ++i) fields.push_back(csv_[i]);
         return true;
+    }
+    // The record as written, for messages.
+    std::string record_text(const std::vector<std::string_view>& fields) const {
+        std::string s;
+        for (std::size_t i = 0; i < fields.size(); ++i) {
+            if (i) s += csv_.delimiter();
+            textio::append_field(s, fields[i], csv_.delimiter());
+        }
+        return s;
     }
 
     // Metadata up to the names row; the units row when there is one.
     void read_header() {
         bool dynoware = false;
         std::size_t metadata_lines = 0;
+        std::vector<std::string_view> fields;
         while (true) {
-            if (!next_line())
+            if (!next_record(fields))
                 fail("no column names row found (expected a row such as `Time,Fx,Fy,Fz` or `t,fx,fy,fz`)");
-            if (trim(line_).empty()) continue;
-            const auto fields = split(line_, separator_of(line_));
             const ColumnName first = parse_column_name(fields[0]);
             if (line_no_ == 1 && lower(fields[0]).rfind("dynoware", 0) == 0) dynoware = true;
             if (is_time_name(first.name) || has_force_columns(fields)) {
@@ -161,18 +160,14 @@ private:
             if (number(fields[0]))
                 fail(fmt::format("data row before the column names row (found `{}`; expected a row such as "
                                  "`Time,Fx,Fy,Fz`)",
-                                 line_.substr(0, 60)));
+                                 record_text(fields).substr(0, 60)));
             read_metadata(fields);
             ++metadata_lines;
         }
         m_.format = dynoware || metadata_lines > 0 ? "dynoware" : "csv";
         const std::size_t names_line = line_no_;
         // Units row: the next non-empty line when its time or force fields are not numbers.
-        bool got = false;
-        while ((got = next_line()) && trim(line_).empty()) {
-        }
-        if (!got) fail("no data rows after the column names");
-        const auto fields = split(line_, sep_);
+        if (!next_record(fields)) fail("no data rows after the column names");
         const std::vector<std::size_t> used = used_columns();
         const bool units_row = std::any_of(used.begin(), used.end(), [&](std::size_t c) {
             return c < fields.size() && !number(fields[c]);
@@ -202,15 +197,17 @@ private:
     void read_metadata(const std::vector<std::string_view>& fields) {
         const std::string key = lower(fields[0]);
         if (key.rfind("sampling rate", 0) != 0 && key.rfind("sample rate", 0) != 0) return;
-        const std::optional<double> v = fields.size() > 1 ? number(fields[1]) : std::nullopt;
-        if (!v || *v <= 0) fail(fmt::format("sampling rate `{}` is not a positive number", line_));
+        const std::optional<double> v = fields.size() > 1 ? number(fields[1], csv_.delimiter() != ',') : std::nullopt;
+        if (!v || *v <= 0) fail(fmt::format("sampling rate `{}` is not a positive number", record_text(fields)));
         const double scale = key.find("khz") != std::string::npos ? 1e3 : 1.0;
         header_rate_Hz_ = *v * scale;
         if (*header_rate_Hz_ > 1e7) fail(fmt::format("sampling rate {} Hz is implausible", *header_rate_Hz_));
     }
 
     void set_columns(const std::vector<std::string_view>& fields) {
-        sep_ = separator_of(line_);
+        // The names row fixes the separator of everything below it.
+        csv_.set_delimiter(csv_.delimiter());
+        decimal_comma_ = csv_.delimiter() != ',';
         for (std::size_t i = 0; i < fields.size(); ++i) {
             const ColumnName c = parse_column_name(fields[i]);
             names_.push_back(std::string(fields[i]));
@@ -275,29 +272,26 @@ private:
 
     void read_data() {
         bool have = pending_row_;
-        if (!have) have = next_line();
+        if (!have) have = csv_.next();
         std::size_t rows = 0;
         double t_first = 0, t_prev = 0;
         std::optional<std::size_t> first_kept;
-        std::vector<std::string_view> fields;
-        fields.reserve(max_col_ + 2);
-        for (; have; have = next_line()) {
-            if (trim(line_).empty()) continue;
-            split_into(fields);
-            if (fields.size() <= max_col_)
-                fail(fmt::format("{} columns where the names row has {}", fields.size(), names_.size()));
+        for (; have; have = csv_.next()) {
+            line_no_ = csv_.line();
+            if (csv_.size() <= max_col_)
+                fail(fmt::format("{} columns where the names row has {}", csv_.size(), names_.size()));
             double t = 0;
             if (col_time_) {
-                const auto v = number(fields[*col_time_]);
-                if (!v) fail_column(*col_time_, fmt::format("`{}` is not a number", fields[*col_time_]));
+                const auto v = number(csv_[*col_time_], decimal_comma_);
+                if (!v) fail_column(*col_time_, not_a_number(*col_time_));
                 t = *v * time_scale_;
             } else {
                 t = static_cast<double>(rows) / *header_rate_Hz_;
             }
             float f[3];
             for (int a = 0; a < 3; ++a) {
-                const auto v = number(fields[*col_f_[a]]);
-                if (!v) fail_column(*col_f_[a], fmt::format("`{}` is not a number", fields[*col_f_[a]]));
+                const auto v = number(csv_[*col_f_[a]], decimal_comma_);
+                if (!v) fail_column(*col_f_[a], not_a_number(*col_f_[a]));
                 f[a] = static_cast<float>(*v * force_scale_[a]);
             }
             if (rows == 0) {
@@ -329,18 +323,6 @@ private:
         m_.t0_s = t_first + static_cast<double>(*first_kept) / m_.rate_Hz;
     }
 
-    void split_into(std::vector<std::string_view>& fields) const {
-        fields.clear();
-        std::string_view line(line_);
-        std::size_t start = 0;
-        while (fields.size() <= max_col_) {
-            const std::size_t end = line.find(sep_, start);
-            fields.push_back(line.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
-            if (end == std::string_view::npos) break;
-            start = end + 1;
-        }
-    }
-
     // Each step must be within half an interval of the interval so far (header rate when given):
     // gaps, repeats and reversals all fail here, at their line.
     void check_step(double step_s, double t_prev, double mean_step_s) {
@@ -356,12 +338,11 @@ private:
                              step_s, t_prev, expected));
     }
 
-    std::istream& in_;
+    textio::CsvReader csv_;
     MeasurementWindow window_;
     Measurement m_;
-    std::string line_;
     std::size_t line_no_ = 0;
-    char sep_ = ',';
+    bool decimal_comma_ = false;
     std::vector<std::string> names_, units_;
     std::optional<std::size_t> col_time_;
     std::optional<std::size_t> col_f_[3];
@@ -388,35 +369,55 @@ Measurement read_measurement(const std::string& path, const MeasurementWindow& w
     return read_measurement(in, path, window);
 }
 
+namespace {
+
+// A comma-separated list given on a command line or in a form field ("0,-1,0,-1,0,0,0,0,1"), as
+// one CSV record (textio): one line, fields trimmed.
+std::vector<std::string> comma_list(const std::string& text, const char* what) {
+    std::vector<std::string> fields;
+    std::istringstream in(text);
+    textio::CsvReader csv(in, what);
+    try {
+        if (csv.next())
+            for (std::size_t i = 0; i < csv.size(); ++i) fields.emplace_back(csv[i]);
+        if (csv.next()) throw MeasurementError(fmt::format("{} `{}`: one line expected", what, textio::printable(text)));
+    } catch (const textio::TextError& e) {
+        throw MeasurementError(e.what());
+    }
+    return fields;
+}
+
+}  // namespace
+
 AxisMatrix parse_axis_matrix(const std::string& text) {
-    const auto fields = split(text, ',');
+    const std::vector<std::string> fields = comma_list(text, "axis matrix");
     if (fields.size() != 9)
-        throw MeasurementError(fmt::format("axis matrix `{}`: {} numbers where nine (row-major 3x3) are needed", text,
+        throw MeasurementError(fmt::format("axis matrix `{}`: {} numbers where nine (row-major 3x3) are needed", textio::printable(text),
                                            fields.size()));
     AxisMatrix a{};
     for (std::size_t i = 0; i < 9; ++i) {
-        const auto v = number(fields[i]);
+        const auto v = number(fields[i], false);
         if (!v) throw MeasurementError(fmt::format("axis matrix element {} (row {}, column {}): `{}` is not a number",
                                                    i + 1, i / 3 + 1, i % 3 + 1, fields[i]));
         a[i] = *v;
     }
     const double det = a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) +
                        a[2] * (a[3] * a[7] - a[4] * a[6]);
-    if (std::abs(det) < 1e-6) throw MeasurementError(fmt::format("axis matrix `{}` is singular", text));
+    if (std::abs(det) < 1e-6) throw MeasurementError(fmt::format("axis matrix `{}` is singular", textio::printable(text)));
     return a;
 }
 
 std::array<double, 3> parse_force_vector(const std::string& text) {
-    const auto fields = split(text, ',');
+    const std::vector<std::string> fields = comma_list(text, "force");
     if (fields.size() != 3)
-        throw MeasurementError(fmt::format("force `{}`: {} numbers where three (Fx,Fy,Fz) are needed", text,
+        throw MeasurementError(fmt::format("force `{}`: {} numbers where three (Fx,Fy,Fz) are needed", textio::printable(text),
                                            fields.size()));
     std::array<double, 3> f{};
     static const char* names[3] = {"Fx", "Fy", "Fz"};
     for (std::size_t i = 0; i < 3; ++i) {
-        const auto v = number(fields[i]);
+        const auto v = number(fields[i], false);
         if (!v || !std::isfinite(*v))
-            throw MeasurementError(fmt::format("force `{}`: {} `{}` is not a number", text, names[i], fields[i]));
+            throw MeasurementError(fmt::format("force `{}`: {} `{}` is not a number", textio::printable(text), names[i], fields[i]));
         f[i] = *v;
     }
     return f;

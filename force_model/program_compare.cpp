@@ -1,5 +1,7 @@
 #include "force_model/program_compare.hpp"
 
+#include "textio/csv.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -100,7 +102,7 @@ void write_comparison_csv(const std::vector<BlockComparison>& rows, const std::s
         out << '\n';
         for (const BlockComparison& r : rows)
             out << fmt::format("{},{},{:.1f},{},{:.4f},{:.4f},{:.1f},{:.1f},{:.1f},{:.2f},{:.2f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f},{:.2f}\n",
-                               r.block, r.rapid ? 1 : 0, r.programmed_feed_mm_min, r.samples, r.max_deviation_mm,
+                               textio::csv_field(r.block), r.rapid ? 1 : 0, r.programmed_feed_mm_min, r.samples, r.max_deviation_mm,
                                r.mean_deviation_mm, r.actual_min_feed_mm_min, r.actual_mean_feed_mm_min,
                                r.actual_max_feed_mm_min, r.feed_deficit_pct, r.feed_surge_pct, r.commanded_duration_s,
                                r.actual_duration_s, r.commanded_peak_force_N, r.actual_peak_force_N, r.force_difference_N,

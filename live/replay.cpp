@@ -103,7 +103,11 @@ std::size_t write_csv_as_shdr(const std::string& csv_path, const motion_io::Read
         line.clear();
         ++lines;
     };
-    motion_io::read_csv_readings(csv_path, opt, [&](const LogReading& r) {
+    // The map names the keys the readings are written under, not the log's columns: the CSV is read
+    // with its own header names (and the units given).
+    motion_io::ReadOptions read = opt;
+    read.map_file.clear();
+    motion_io::read_csv_readings(csv_path, read, [&](const LogReading& r) {
         const std::int64_t ns = std::llround(r.t_s * 1e9);
         if (line.empty() || ns != line_ns) {
             flush();

@@ -1,11 +1,15 @@
 #include "pipeline.hpp"
 
+#include "textio/text.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 
 namespace cutload::motion_io::detail {
+
+Diagnostics::Diagnostics(const std::string& file) : file_(textio::printable(file)) {}
 
 void Diagnostics::warn(const std::string& code, std::size_t line, const std::string& what) {
     auto [it, inserted] = entries_.try_emplace(code);
@@ -20,6 +24,12 @@ void Diagnostics::warn(const std::string& code, std::size_t line, const std::str
 void Diagnostics::fail(std::size_t line, const std::string& what) const {
     if (line == 0) throw IngestError(fmt::format("{}: {}", file_, what));
     throw IngestError(fmt::format("{}:{}: {}", file_, line, what));
+}
+
+void Diagnostics::fail_at(std::size_t line, std::size_t column, const std::string& what) const {
+    if (line == 0) fail(0, what);
+    if (column == 0) fail(line, what);
+    throw IngestError(fmt::format("{}:{}:{}: {}", file_, line, column, what));
 }
 
 std::vector<IngestWarning> Diagnostics::warnings() const {

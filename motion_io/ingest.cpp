@@ -4,6 +4,8 @@
 #include "repair.hpp"
 #include "sequencer.hpp"
 
+#include "textio/csv.hpp"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -54,11 +56,9 @@ public:
         fmt::format_to(std::back_inserter(buf_), "{:.6f},{:.4f},{:.4f},{:.4f},{:.2f},{:.2f},{:.3f},", s.t_s, s.p_mm[0],
                        s.p_mm[1], s.p_mm[2], feed, s.spindle_rpm, s.spindle_angle_deg);
         if (s.block >= 0) {
-            const std::string& name = blocks_.names()[static_cast<std::size_t>(s.block)];
-            if (name.find(',') != std::string::npos || name.find('"') != std::string::npos)
-                fmt::format_to(std::back_inserter(buf_), "\"{}\"", name);
-            else
-                buf_.append(name);
+            field_.clear();
+            textio::append_field(field_, blocks_.names()[static_cast<std::size_t>(s.block)]);
+            buf_.append(field_);
         }
         buf_.push_back('\n');
         ++rows_;
@@ -74,6 +74,7 @@ private:
     std::FILE* f_;
     const detail::BlockTable& blocks_;
     fmt::memory_buffer buf_;
+    std::string field_;
     std::size_t rows_ = 0;
 };
 
@@ -106,9 +107,6 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detai
         throw IngestError(fmt::format("step must be from 0.01 to 1000 ms, got {}", opt.step_ms));
     detail::Diagnostics diag(path);
     const Format format = opt.format == Format::Auto ? detail::detect_format(path, diag) : opt.format;
-    if (format == Format::Csv && !opt.map_file.empty())
-        throw IngestError(opt.map_file + ": a key mapping applies to SHDR logs only; a CSV log names its channels "
-                          "in its header row");
     const bool event_driven = format == Format::Shdr;
     detail::Repairer repair(diag, sink, opt.step_ms * 1e-3, event_driven);
     detail::Sequencer sequencer(diag, repair, event_driven);
@@ -121,6 +119,7 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detai
 
     IngestReport report;
     repair.fill_report(report);
+    detail::report_reader_facts(diag, report);
     if (!report.channels.count("spindle"))
         diag.warn("no_spindle", 0, "no spindle speed channel: speed 0 rpm assumed");
     check_feed_unit(repair.feed_to_path_ratio(), diag);

@@ -21,9 +21,17 @@ namespace cutload::motion_io {
 
 enum class Format { Auto, Csv, Shdr };
 
+// Which positions of a log become the motion: the actual ones (what the machine did), or the
+// commanded ones (the interpolator's output, x_cmd/y_cmd/z_cmd or the map's) where a log has both.
+enum class Positions { Actual, Commanded };
+
 struct ReadOptions {
     Format format = Format::Auto;
-    std::string map_file;                  // SHDR key->channel mapping (JSON); empty: built-in defaults
+    // Channel map (JSON, docs/formats.md): CSV column names or SHDR keys per channel, units, and
+    // sample_period_ms for CSV exports without a time column. A file path or the name of a
+    // bundled preset (map_presets()); empty: built-in defaults.
+    std::string map_file;
+    Positions positions = Positions::Actual;
     std::optional<std::string> length_unit; // "mm" | "in": overrides the log's position/feed length unit
     std::optional<std::string> feed_unit;   // e.g. "mm/min", "mm/s", "in/min": explicit override for
                                             // logs whose feed values disagree with their declaration
@@ -64,8 +72,37 @@ struct IngestReport {
     double feed_repaired_min_mm_min = 0, feed_repaired_max_mm_min = 0;
     // Machine position of the first repaired sample (where an NC program of the log starts).
     std::optional<std::array<double, 3>> first_position_mm;
+    // What the log can carry (docs/formats.md, "Coarse data"): the step its positions are written
+    // to (absent: too few moves to tell), the highest spindle speed read (absolute), and whether it
+    // holds commanded positions besides the actual ones (Positions::Commanded reads them).
+    std::optional<double> position_step_mm;
+    double spindle_max_rpm = 0;
+    bool commanded_positions = false;
     std::vector<IngestWarning> warnings;
 };
+
+// Can a log carry a force prediction for a tool with `teeth` edges? Positions written coarser than
+// 0.01 mm (position_quantized, already among the report's warnings) make velocities, and so chip
+// thickness and force, uncertain; a position period longer than a tooth period at the highest
+// logged spindle speed (sampling_coarse) means the path within a tooth engagement is interpolated,
+// not logged. The rule (docs/formats.md): a prediction is still made, with these warnings and
+// `coarse` in its result; it is never made silently.
+struct SamplingCheck {
+    double sample_period_s = 0;              // median interval of the position readings
+    std::optional<double> position_step_mm;
+    double spindle_max_rpm = 0;
+    double tooth_period_s = 0;               // at spindle_max_rpm; 0 without a spindle speed
+    bool position_quantized = false, sampling_coarse = false;
+    bool coarse() const { return position_quantized || sampling_coarse; }
+    std::vector<IngestWarning> warnings;     // sampling_coarse (position_quantized is in the report)
+};
+SamplingCheck check_sampling(const IngestReport& report, int teeth);
+// {coarse, sample_period_s, position_step_mm, spindle_max_rpm, tooth_period_s, position_quantized,
+//  sampling_coarse, warnings[{code, count, message}]}
+nlohmann::json to_json(const SamplingCheck& check);
+
+// Names of the channel-map presets bundled with cutload (data/maps/*.json), for --map NAME.
+std::vector<std::string> map_presets();
 
 // The repaired motion: uniform time step inside each session. Sessions are concatenated; the
 // first index of each is listed in session_start. Positions are machine positions as logged
@@ -111,7 +148,8 @@ std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, con
 
 // The report as one JSON object: file, format, duration_s, sessions, blocks,
 // channels.<name>.{samples, interval_s.{min,median,max}, update_period_s, stale_dropped},
-// feed_mm_min.{raw,repaired}.{min,max}, warnings[{code, count, message}].
+// feed_mm_min.{raw,repaired}.{min,max}, position_step_mm (null: unknown), spindle_max_rpm,
+// commanded_positions, warnings[{code, count, message}].
 nlohmann::json report_to_json(const IngestReport& report);
 
 }  // namespace cutload::motion_io

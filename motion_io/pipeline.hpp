@@ -10,6 +10,8 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -28,16 +30,61 @@ struct Record {
     std::int32_t block = -1;
 };
 
+// The step positions are written to, from the text of each value (docs/formats.md, "Coarse data"):
+// a value's last written digit has a place 10^e (1.98E+02: 10^0; 258.428: 10^-3, trailing zeros
+// count, as the writer printed them). Per axis, consecutive moving readings written to the same
+// place are counted by place; the place most of them use is the axis's step, times the common
+// divisor of their differences when those take at least three distinct values (positions that
+// all move in 0.005 mm steps although written to 0.001 mm; one repeated difference is just steady
+// motion). Bounded memory: a few counters per place.
+class PositionResolution {
+public:
+    void add(int axis, std::string_view text, double factor_mm);
+    struct Step {
+        double step_mm = 0;
+        std::string example;   // one value as written at that step
+    };
+    std::optional<Step> step() const;   // the coarsest axis that moved; nullopt: too few moves to tell
+
+private:
+    struct Bucket {
+        std::size_t pairs = 0;
+        std::uint64_t gcd = 0;
+        std::uint64_t deltas[3] = {0, 0, 0};   // first distinct differences seen
+        std::string example;
+    };
+    struct Axis {
+        bool have_prev = false;
+        int prev_place = 0;
+        std::int64_t prev_digits = 0;
+        double factor_mm = 1;
+        std::map<int, Bucket> buckets;
+    };
+    std::array<Axis, 3> axes_;
+};
+
+// What the readers learn besides the records: handed on to the report.
+struct ReaderFacts {
+    PositionResolution resolution;
+    double spindle_max_abs_rpm = 0;
+    bool commanded_positions = false;   // commanded positions besides the actual ones
+};
+
 // Warnings are counted per code; the first occurrence keeps its place and wording.
 class Diagnostics {
 public:
-    explicit Diagnostics(std::string file) : file_(std::move(file)) {}
+    // `file` is the path as given; messages carry it as valid UTF-8 (textio::printable).
+    explicit Diagnostics(const std::string& file);
     const std::string& file() const { return file_; }
     void warn(const std::string& code, std::size_t line, const std::string& what);
     [[noreturn]] void fail(std::size_t line, const std::string& what) const;
+    [[noreturn]] void fail_at(std::size_t line, std::size_t column, const std::string& what) const;
     std::vector<IngestWarning> warnings() const;
+    ReaderFacts& facts() { return facts_; }
+    const ReaderFacts& facts() const { return facts_; }
 
 private:
+    ReaderFacts facts_;
     struct Entry {
         std::size_t count = 0;
         std::size_t first_line = 0;
@@ -123,6 +170,11 @@ void read_csv(const std::string& path, const ReadOptions& opt, Diagnostics& diag
 void read_shdr(const std::string& path, const ReadOptions& opt, Diagnostics& diag, BlockTable& blocks,
                RecordSink& out);
 Format detect_format(const std::string& path, Diagnostics& diag);
+
+// After the stages have filled `report`: the readers' facts into it, and the position_quantized
+// warning when positions are written coarser than kQuantizedStepMm.
+inline constexpr double kQuantizedStepMm = 0.01;
+void report_reader_facts(Diagnostics& diag, IngestReport& report);
 
 // ---- units (factor to the canonical unit; throws std::invalid_argument on unknown) ----
 double length_factor_mm(std::string_view unit);

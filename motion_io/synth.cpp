@@ -1,5 +1,7 @@
 #include "motion_io/synth.hpp"
 
+#include "textio/csv.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -413,7 +415,7 @@ std::size_t run_log(const RunSetup& run, const std::vector<Segment>& segs, const
             if (machine.tool() >= 0) fmt::format_to(std::back_inserter(buf), "{}", machine.tool());
             buf.push_back(',');
         }
-        fmt::format_to(std::back_inserter(buf), "{}\n", machine.block_name());
+        fmt::format_to(std::back_inserter(buf), "{}\n", textio::csv_field(machine.block_name()));
         ++rows;
         if (c.stall_probability > 0 && rng.uniform() < c.stall_probability) t += c.stall_s * (0.5 + rng.uniform());
         if (buf.size() > (1 << 20)) {

@@ -33,7 +33,7 @@ struct UploadedTest {
 std::optional<std::string> part(const httplib::Request& req, const char* name) {
     if (!req.has_file(name)) return std::nullopt;
     if (req.files.count(name) > 1) bad_request(fmt::format("part {} is given more than once", name));
-    return req.get_file_value(name).content;
+    return client_text(req.get_file_value(name).content, fmt::format("part {}", name));
 }
 
 json json_part(const char* name, const std::string& text) {
@@ -130,23 +130,25 @@ std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const fo
     for (auto it = range.first; it != range.second; ++it) {
         const auto& f = it->second;
         if (f.filename.empty()) bad_request("a 'test' part has no file name: conditions are matched by file name");
+        // Matched against the JSON's (UTF-8) keys, so decoded like any client text.
+        const std::string filename = client_text(f.filename, "file name of a 'test' part");
         for (const auto& other : tests)
-            if (other.file == f.filename) bad_request(fmt::format("test file name '{}' is used twice", f.filename));
-        if (!conditions.contains(f.filename))
-            bad_request(fmt::format("part tests: no conditions for test file '{}'", f.filename));
-        const json& cond = conditions[f.filename];
-        UploadedTest t{f.filename, f.content, cut_test_of(cond, f.filename, tool), std::nullopt, std::nullopt, std::nullopt};
-        if (cond.contains("from_s")) t.from_s = number_field(cond, f.filename, "from_s");
-        if (cond.contains("to_s")) t.to_s = number_field(cond, f.filename, "to_s");
+            if (other.file == filename) bad_request(fmt::format("test file name '{}' is used twice", filename));
+        if (!conditions.contains(filename))
+            bad_request(fmt::format("part tests: no conditions for test file '{}'", filename));
+        const json& cond = conditions[filename];
+        UploadedTest t{filename, f.content, cut_test_of(cond, filename, tool), std::nullopt, std::nullopt, std::nullopt};
+        if (cond.contains("from_s")) t.from_s = number_field(cond, filename, "from_s");
+        if (cond.contains("to_s")) t.to_s = number_field(cond, filename, "to_s");
         if (t.from_s && t.to_s && !(*t.to_s > *t.from_s))
-            bad_request(fmt::format("part tests: '{}': to_s must be after from_s", f.filename));
+            bad_request(fmt::format("part tests: '{}': to_s must be after from_s", filename));
         if (cond.contains("zero_N")) {
             const json& z = cond["zero_N"];
             if (!z.is_array() || z.size() != 3 ||
                 !std::all_of(z.begin(), z.end(), [](const json& v) { return v.is_number() && std::isfinite(v.get<double>()); }))
                 bad_request(fmt::format("part tests: '{}': zero_N must be three numbers (Fx, Fy, Fz in the record's "
                                         "channels)",
-                                        f.filename));
+                                        filename));
             t.zero_dyn_N = std::array<double, 3>{z[0].get<double>(), z[1].get<double>(), z[2].get<double>()};
         }
         tests.push_back(std::move(t));

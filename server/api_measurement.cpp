@@ -102,9 +102,10 @@ Settings settings_from(const json& j) {
     return s;
 }
 
+// A text part, decoded (client_text): what is echoed or stored is UTF-8.
 std::optional<std::string> part(const httplib::Request& req, const char* name) {
     if (!req.has_file(name)) return std::nullopt;
-    return req.get_file_value(name).content;
+    return client_text(req.get_file_value(name).content, fmt::format("part {}", name));
 }
 
 std::optional<double> number_part(const httplib::Request& req, const char* name) {
@@ -269,7 +270,7 @@ void attach(Core& core, Ctx& x) {
 
     // Stored and validated in a private file first: a rejected record leaves nothing behind and never
     // replaces the one attached.
-    const std::string shown = file.filename.empty() ? "file" : file.filename;
+    const std::string shown = file.filename.empty() ? "file" : client_text(file.filename, "file name of part 'file'");
     // Unique per request: two attachments to one run may arrive at once; the last rename wins.
     static std::atomic<std::uint64_t> serial{0};
     const std::string unique = fmt::format("{}-{}", ::getpid(), serial.fetch_add(1));

@@ -11,8 +11,13 @@
 #include "program.hpp"
 #include "series.hpp"
 
+#include "textio/csv.hpp"
+#include "textio/text.hpp"
+
 #include <fcntl.h>
 #include <fmt/format.h>
+
+#include <algorithm>
 #include <openssl/rand.h>
 #include <unistd.h>
 
@@ -106,9 +111,10 @@ private:
     fs::path p_;
 };
 
+// A text part, decoded (client_text): what is echoed or stored is UTF-8.
 std::optional<std::string> part(const httplib::Request& req, const char* name) {
     if (!req.has_file(name)) return std::nullopt;
-    return req.get_file_value(name).content;
+    return client_text(req.get_file_value(name).content, fmt::format("part {}", name));
 }
 
 std::optional<std::int64_t> id_from(const json& spec, const httplib::Request& req, const char* key) {
@@ -198,6 +204,14 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
                       const std::optional<std::array<double, 3>>& start_mm) {
     const auto f = req.get_file_value("nc_program");
     if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
+    const std::string name = f.filename.empty() ? "program.nc" : fs::path(client_text(f.filename, "file name of part 'nc_program'")).filename().string();
+    // Stored decoded, so comments and messages read as written (a Latin-1 "(Fräsen)" included).
+    std::string text;
+    try {
+        text = textio::decode(f.content, name);
+    } catch (const textio::TextError& e) {
+        throw ApiError(400, "bad_program", e.what());
+    }
     json options = json::object();
     if (auto o = part(req, "nc_options")) {
         try {
@@ -207,17 +221,16 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
         }
     }
     const force_model::ProgramSettings settings = program_settings(options);
-    const std::string name = f.filename.empty() ? "program.nc" : fs::path(f.filename).filename().string();
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
     try {
         // From where the log starts, as the job will read it (the inspect report's first sample).
-        const auto program = motion_io::parse_nc_program(f.content, name, force_model::program_read_options(settings, spec, start_mm));
+        const auto program = motion_io::parse_nc_program(text, name, force_model::program_read_options(settings, spec, start_mm));
         if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
             throw ApiError(400, "bad_program", fmt::format("{}: the program has no motion block", name));
     } catch (const motion_io::NcProgramError& e) {
         throw ApiError(400, "bad_program", e.what());
     }
-    write_durable(dir / "program.nc", f.content);
+    write_durable(dir / "program.nc", text);
     return {{"filename", name}, {"bytes", f.content.size()}, {"sha256", sha256_hex(f.content)}, {"stored_as", "program.nc"},
             {"options", options}};
 }
@@ -229,8 +242,9 @@ void create_run(Core& core, Ctx& x) {
     if (!req.has_file("log")) bad_request("part 'log' is missing: attach the dry-run log (CSV or SHDR)");
     auto spec_text = part(req, "spec");
     if (!spec_text) bad_request("part 'spec' is missing: attach the run spec (JSON)");
-    const auto log_part = req.get_file_value("log");
+    auto log_part = req.get_file_value("log");
     if (log_part.content.empty()) throw ApiError(400, "bad_log", "part 'log' is empty");
+    log_part.filename = client_text(log_part.filename, "file name of part 'log'");
 
     auto c = core.pool.get();
     {
@@ -289,9 +303,16 @@ void create_run(Core& core, Ctx& x) {
     motion_io::ReadOptions ro;
     ro.format = format == "csv" ? motion_io::Format::Csv : format == "shdr" ? motion_io::Format::Shdr : motion_io::Format::Auto;
     if (auto m = part(req, "mapping")) {
-        write_durable(tmp / "mapping.json", *m);
-        log["mapping"] = "mapping.json";
-        ro.map_file = (tmp / "mapping.json").string();
+        // The name of a bundled preset, or a map of one's own (JSON).
+        const auto presets = motion_io::map_presets();
+        if (std::find(presets.begin(), presets.end(), *m) != presets.end()) {
+            log["mapping_preset"] = *m;
+            ro.map_file = *m;
+        } else {
+            write_durable(tmp / "mapping.json", *m);
+            log["mapping"] = "mapping.json";
+            ro.map_file = (tmp / "mapping.json").string();
+        }
     }
     if (log.contains("units")) ro.length_unit = log["units"].get<std::string>();
     if (log.contains("feed_units")) ro.feed_unit = log["feed_units"].get<std::string>();
@@ -314,11 +335,17 @@ void create_run(Core& core, Ctx& x) {
     for (const auto& [name, ch] : report.channels) rows = std::max(rows, ch.samples);
     if (rows > core.opt.max_log_rows)
         throw ApiError(413, "too_many_rows", fmt::format("the log has {} rows; the limit is {}", rows, core.opt.max_log_rows));
+    // Coarse data is said out loud before any prediction (docs/formats.md, "Coarse data").
+    const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, force_model::parse_run_spec(r.spec).tool.flutes);
     json warnings = json::array();
-    for (const auto& w : report.warnings)
-        warnings.push_back({{"code", w.code},
-                            {"message", replace_all(w.message, (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename)},
-                            {"count", w.count}});
+    for (const std::vector<motion_io::IngestWarning>* list :
+         std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&report.warnings, &sampling.warnings})
+        for (const auto& w : *list)
+            warnings.push_back({{"code", w.code},
+                                {"message", replace_all(w.message, (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename)},
+                                {"count", w.count}});
+    json data_quality = motion_io::to_json(sampling);
+    data_quality.erase("warnings");
     json inputs{{"log", log},
                 {"spec", r.spec},
                 {"ingest",
@@ -327,6 +354,7 @@ void create_run(Core& core, Ctx& x) {
                   {"sessions", report.sessions},
                   {"blocks", report.blocks},
                   {"rows", rows},
+                  {"data_quality", data_quality},
                   {"warnings", warnings}}}};
     if (!nc_program.is_null()) inputs["nc_program"] = nc_program;
 
@@ -481,9 +509,10 @@ void list_blocks(Core& core, Ctx& x) {
     x.res.set_header("Content-Type", "application/json");
 }
 
-// Block names of a finished run, raw (CSV) and as JSON strings, decoded once per run.
+// Block names of a finished run as CSV fields (quoted where they must be) and as JSON strings,
+// decoded once per run.
 struct BlockNames {
-    std::vector<std::string> raw, json;
+    std::vector<std::string> csv, json;
 };
 
 std::shared_ptr<const BlockNames> block_names(db::Connection& c, SeriesCache& cache, const RunRef& run) {
@@ -495,9 +524,9 @@ std::shared_ptr<const BlockNames> block_names(db::Connection& c, SeriesCache& ca
         std::size_t bytes = sizeof(BlockNames);
         if (st.step() && !st.is_null(0)) {
             for (const auto& n : json::parse(st.text(0))) {
-                names->raw.push_back(n.get<std::string>());
-                names->json.push_back(n.dump());
-                bytes += 2 * (sizeof(std::string) + names->raw.back().size());
+                names->csv.push_back(textio::csv_field(n.get<std::string>()));
+                names->json.push_back(body_text(n));
+                bytes += 2 * (sizeof(std::string) + names->csv.back().size());
             }
         }
         return std::pair{std::shared_ptr<const BlockNames>(std::move(names)), bytes};
@@ -552,7 +581,7 @@ std::string series_csv(const Window& w, const std::vector<std::string>& ch, cons
                        std::size_t block_col, const BlockNames& names) {
     const std::size_t n = w.t_s.size();
     std::size_t longest_name = 0;
-    for (const auto& b : names.raw) longest_name = std::max(longest_name, b.size());
+    for (const auto& b : names.csv) longest_name = std::max(longest_name, b.size());
     std::size_t header = 32, per_row = 2 * kTimeChars + 2;
     for (std::size_t j = 0; j < ch.size(); ++j)
         if (wanted[j]) {
@@ -579,7 +608,7 @@ std::string series_csv(const Window& w, const std::vector<std::string>& ch, cons
                 out.value(w.hi[j][i], "");
             } else if (j == block_col) {
                 const auto b = static_cast<std::size_t>(std::max(0.0f, w.lo[j][i]));
-                out << (b < names.raw.size() ? names.raw[b] : std::string());
+                out << (b < names.csv.size() ? names.csv[b] : std::string());
             } else {
                 out.value(w.lo[j][i], "");
             }

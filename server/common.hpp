@@ -35,6 +35,15 @@ inline json error_body(const std::string& code, const std::string& message) {
     return json{{"error", {{"code", code}, {"message", message}}}};
 }
 
+// A JSON body as text. Every string the service puts into one is valid UTF-8 (client text goes
+// through client_text(), logs and records through textio's readers); should one slip through, it
+// is replaced with U+FFFD here rather than failing the answer with an exception.
+inline std::string body_text(const json& body) { return body.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+// Text a client sent (a form part, an uploaded file's name) as UTF-8, decoded by textio's rules
+// (valid UTF-8 as is, else Windows-1252 / Latin-1); a byte that is not text is a 400 naming `what`.
+std::string client_text(const std::string& bytes, const std::string& what);
+
 // SQLite connections, one per concurrent user; a connection is never used by two threads at once.
 class DbPool {
 public:

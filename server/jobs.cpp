@@ -22,6 +22,7 @@ motion_io::ReadOptions read_options(const json& log, const fs::path& dir) {
              : fmt_name == "shdr" ? motion_io::Format::Shdr
                                   : motion_io::Format::Auto;
     if (log.contains("mapping") && log["mapping"].is_string()) o.map_file = (dir / log["mapping"].get<std::string>()).string();
+    if (log.contains("mapping_preset") && log["mapping_preset"].is_string()) o.map_file = log["mapping_preset"].get<std::string>();
     if (log.contains("units") && log["units"].is_string()) o.length_unit = log["units"].get<std::string>();
     if (log.contains("feed_units") && log["feed_units"].is_string()) o.feed_unit = log["feed_units"].get<std::string>();
     return o;

@@ -3,6 +3,8 @@
 #include "jobs.hpp"
 #include "results.hpp"
 
+#include "textio/csv.hpp"
+
 #include <fmt/format.h>
 
 #include <fstream>
@@ -181,7 +183,7 @@ std::string comparison_csv(const json& blocks) {
             first = false;
             const json& v = b.at(c);
             if (v.is_string())
-                out += v.get<std::string>();
+                textio::append_field(out, v.get<std::string>());
             else if (v.is_boolean())
                 out += v.get<bool>() ? "1" : "0";
             else if (v.is_number_float())

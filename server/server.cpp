@@ -8,6 +8,8 @@
 #include "jobs.hpp"
 #include "webhooks.hpp"
 
+#include "textio/text.hpp"
+
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -81,7 +83,15 @@ bool Ctx::wants_csv() const {
 
 void Ctx::reply(int status, const json& body) {
     res.status = status;
-    res.set_content(body.dump(), "application/json");
+    res.set_content(body_text(body), "application/json");
+}
+
+std::string client_text(const std::string& bytes, const std::string& what) {
+    if (textio::is_ascii(bytes) && bytes.find('\0') == std::string::npos) return bytes;
+    std::string out;
+    if (const auto r = textio::append_utf8(out, bytes))
+        bad_request(fmt::format("{}: character {}: {}", what, r->column, r->why()));
+    return out;
 }
 
 std::optional<std::string> Ctx::param(const char* name) const {
@@ -163,23 +173,23 @@ void Core::route(const std::string& method, const std::string& path, std::option
             h(ctx);
         } catch (const ApiError& e) {
             res.status = e.status;
-            res.set_content(error_body(e.code, e.what()).dump(), "application/json");
+            res.set_content(body_text(error_body(e.code, e.what())), "application/json");
         } catch (const force_model::SpecError& e) {
             res.status = 400;
-            res.set_content(error_body("bad_spec", e.what()).dump(), "application/json");
+            res.set_content(body_text(error_body("bad_spec", e.what())), "application/json");
         } catch (const motion_io::IngestError& e) {
             res.status = 400;
-            res.set_content(error_body("bad_log", e.what()).dump(), "application/json");
+            res.set_content(body_text(error_body("bad_log", e.what())), "application/json");
         } catch (const db::Error& e) {
             const bool conflict = e.is_constraint();
             res.status = conflict ? 409 : 500;
             if (!conflict) spdlog::error("{} {}: {}", method, req.path, e.what());
-            res.set_content(error_body(conflict ? "conflict" : "internal", conflict ? e.what() : "database error").dump(),
+            res.set_content(body_text(error_body(conflict ? "conflict" : "internal", conflict ? e.what() : "database error")),
                             "application/json");
         } catch (const std::exception& e) {
-            spdlog::error("{} {}: {}", method, req.path, e.what());
+            spdlog::error("{} {}: {}", method, req.path, textio::printable(e.what()));
             res.status = 500;
-            res.set_content(error_body("internal", e.what()).dump(), "application/json");
+            res.set_content(body_text(error_body("internal", e.what())), "application/json");
         }
         compress_answer(req, res);
         metrics.request(method, path, res.status,
@@ -251,7 +261,7 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
                         : res.status == 413 ? fmt::format("request body exceeds the limit of {} bytes", c.opt.max_body_bytes)
                         : no_length ? fmt::format("{} {}: send a body or Content-Length: 0 (curl: -d '' or -d '{{}}')", req.method, req.path)
                                     : fmt::format("HTTP {}", res.status);
-        res.set_content(error_body(status_code_name(res.status), msg).dump(), "application/json");
+        res.set_content(body_text(error_body(status_code_name(res.status), msg)), "application/json");
         c.metrics.request(req.method, "unmatched", res.status, 0);
     });
     if (!c.opt.web_dir.empty() && fs::is_directory(c.opt.web_dir)) c.http.set_mount_point("/", c.opt.web_dir);

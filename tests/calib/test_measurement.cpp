@@ -132,7 +132,7 @@ TEST_CASE("bad files name the line, the column and the reason", "[calib][measure
     }
     SECTION("missing unit for one column") {
         const std::string e = error_of("DynoWare,Version 3\nTime,Fx,Fy,Fz\ns,N,,N\n0,1,2,3\n0.1,1,2,3\n");
-        CHECK_THAT(e, Catch::Contains("test.csv:3: column 3 (Fy): missing unit"));
+        CHECK_THAT(e, Catch::Contains("test.csv:3:5: column 3 (Fy): missing unit"));
     }
     SECTION("unknown unit") {
         CHECK_THAT(error_of("t,fx [lbf],fy,fz\n0,1,2,3\n"),
@@ -154,7 +154,7 @@ TEST_CASE("bad files name the line, the column and the reason", "[calib][measure
     }
     SECTION("non-numeric value") {
         const std::string e = error_of("t,fx,fy,fz\n0,1,2,3\n0.001,1,abc,3\n");
-        CHECK_THAT(e, Catch::Contains("test.csv:3: column 3 (fy): `abc` is not a number"));
+        CHECK_THAT(e, Catch::Contains("test.csv:3:9: column 3 (fy): 'abc' is not a number"));
     }
     SECTION("short row") {
         CHECK_THAT(error_of("t,fx,fy,fz\n0,1,2,3\n0.001,1,2\n"),
@@ -199,4 +199,30 @@ TEST_CASE("axis matrices parse, reject bad input and map workpiece forces to the
     CHECK(m.fz_N[0] == Approx(-3.25f));
     CHECK(m.tool_machine_axes);
     CHECK_THROWS_AS(map_to_tool_machine_axes(m, seed), MeasurementError);
+}
+
+TEST_CASE("measurement: text as exports write it: Latin-1 headers, quoted names, no-break spaces", "[measurement][text]") {
+    // A German export: ';' separated, decimal commas, a Latin-1 degree sign in a channel name and
+    // its unit, names in quotes (RFC 4180), and a no-break space (0xA0) after one value.
+    const std::string text =
+        "\"Time\";\"Fx\";\"Fy\";\"Fz\";\"Temperatur [\xB0" "C]\"\n"
+        "s;N;N;N;\xB0" "C\n"
+        "0,0000;1,5;-2,0;3,25;21,5\n"
+        "0,0001;1,6\xA0;-2,1;3,5;21,5\n"
+        "0,0002;1,7;-2,2;3,75;21,5\n";
+    const Measurement m = read_text(text);
+    REQUIRE(m.size() == 3);
+    CHECK(m.fx_N[1] == Approx(1.6f));
+    CHECK(m.rate_Hz == Approx(10000));
+    REQUIRE(m.ignored_channels.size() == 1);
+    CHECK(m.ignored_channels[0] == "Temperatur [°C]");
+    // A no-break space inside a value is a digit group: refused at its line and column.
+    std::string grouped = text;
+    grouped.replace(grouped.find("3,75"), 4, "3\xA0" "750");
+    const std::string e = error_of(grouped);
+    CHECK_THAT(e, Catch::Contains("test.csv:5:17:") && Catch::Contains("(Fz)") && Catch::Contains("no-break space inside it"));
+    // A byte that is not text: refused with its place.
+    std::string bad = text;
+    bad.replace(bad.find("21,5"), 1, "\x81");
+    CHECK_THAT(error_of(bad), Catch::Contains("test.csv:3:22:") && Catch::Contains("0x81"));
 }

@@ -1,0 +1,153 @@
+// Channel maps: built-in defaults per format, JSON map files and the bundled presets.
+#include "channel_map.hpp"
+
+#include "textio/text.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+namespace cutload::motion_io::detail {
+
+// Generated at configure time from data/maps/*.json (motion_io/CMakeLists.txt).
+extern const std::map<std::string, std::string>& bundled_map_presets();
+
+namespace {
+
+constexpr std::array<const char*, kMapChannels> kKeys{
+    "position", "x", "y", "z", "x_cmd", "y_cmd", "z_cmd", "a", "b", "c",
+    "feed", "spindle", "block", "tool", "t", "t_pos", "t_feed", "t_spindle"};
+
+void set(ChannelMap& m, MapChannel c, std::vector<std::string> v) { m.candidates[static_cast<int>(c)] = std::move(v); }
+
+ChannelMap csv_defaults() {
+    ChannelMap m;
+    // CSV columns are matched case-insensitively by their name without the unit.
+    for (int c = 1; c < kMapChannels; ++c) m.candidates[c] = {kKeys[c]};
+    return m;
+}
+
+ChannelMap shdr_defaults() {
+    ChannelMap m;
+    using C = MapChannel;
+    set(m, C::Position, {"path_pos", "p1LPathPos", "Lp1LPathPos", "PathPos"});
+    set(m, C::X, {"X1actw", "Xact", "Xabs", "Xpos", "X1actm"});
+    set(m, C::Y, {"Y1actw", "YI1actw", "Yact", "Yabs", "Ypos", "Y1actm", "YI1actm"});
+    set(m, C::Z, {"Z1actw", "Zact", "Zabs", "Zpos", "Z1actm"});
+    set(m, C::XCmd, {"Xcom", "Xcmd", "X1cmdw"});
+    set(m, C::YCmd, {"Ycom", "Ycmd", "Y1cmdw"});
+    set(m, C::ZCmd, {"Zcom", "Zcmd", "Z1cmdw"});
+    set(m, C::Feed, {"p1Fact", "path_feedrate", "Fact", "Frt"});
+    // The milling (tool) spindle first: on Okuma multitasking controls S6 turns the cutter while
+    // S1/S2 turn the workpiece; a plain machining centre only has S1.
+    set(m, C::Spindle, {"S6speed", "S1speed", "Sspeed", "spindle_speed", "Srpm"});
+    set(m, C::Block, {"p1BlockNumber", "line", "block", "p1linenumber"});
+    return m;
+}
+
+// Keys a format cannot use are errors, not silently ignored: a map written for the other format
+// would otherwise read as if it applied.
+void check_applies(const std::string& key, Format format, const std::string& origin) {
+    static const std::vector<std::string> csv_only{"a", "b", "c", "tool", "t", "t_pos", "t_feed", "t_spindle",
+                                                   "sample_period_ms", "units.time", "units.angle"};
+    if (format == Format::Shdr && std::find(csv_only.begin(), csv_only.end(), key) != csv_only.end())
+        throw IngestError(fmt::format("{}: key '{}' applies to CSV logs only (SHDR lines carry their own time stamps; "
+                                      "rotary axes are not read from SHDR)", origin, key));
+    if (format != Format::Shdr && key == "position")
+        throw IngestError(fmt::format("{}: key 'position' is an SHDR 3-D path position; a CSV log names its axis "
+                                      "columns with x, y, z", origin));
+}
+
+std::string read_map_text(const std::string& spec, std::string& origin) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(spec, ec)) {
+        std::ifstream in(spec, std::ios::binary);
+        if (!in) throw IngestError(fmt::format("{}: cannot open the map file", spec));
+        std::ostringstream s;
+        s << in.rdbuf();
+        origin = spec;
+        return s.str();
+    }
+    const auto& presets = bundled_map_presets();
+    if (const auto it = presets.find(spec); it != presets.end()) {
+        origin = "map preset " + spec;
+        return it->second;
+    }
+    throw IngestError(fmt::format("{}: no such map file, and not a bundled preset ({})", textio::printable(spec),
+                                  fmt::join(map_preset_names(), ", ")));
+}
+
+}  // namespace
+
+const char* map_key(MapChannel c) { return kKeys[static_cast<int>(c)]; }
+
+std::vector<std::string> map_preset_names() {
+    std::vector<std::string> names;
+    for (const auto& [name, text] : bundled_map_presets()) names.push_back(name);
+    return names;
+}
+
+ChannelMap load_channel_map(const std::string& spec, Format format) {
+    ChannelMap m = format == Format::Shdr ? shdr_defaults() : csv_defaults();
+    if (spec.empty()) return m;
+    std::string origin;
+    const std::string text = read_map_text(spec, origin);
+    m.origin = origin;
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+        // nlohmann's message may quote the offending bytes: make it printable.
+        throw IngestError(fmt::format("{}: not valid JSON: {}", origin, textio::printable(e.what())));
+    }
+    if (!j.is_object()) throw IngestError(fmt::format("{}: expected a JSON object mapping channels to columns or keys", origin));
+    auto string_of = [&](const nlohmann::json& v, const std::string& key) {
+        if (!v.is_string()) throw IngestError(fmt::format("{}: key '{}': expected a string", origin, key));
+        return v.get<std::string>();
+    };
+    for (const auto& [key, value] : j.items()) {
+        check_applies(key, format, origin);
+        if (key == "description") {
+            (void)string_of(value, key);
+        } else if (key == "units") {
+            if (!value.is_object()) throw IngestError(fmt::format("{}: key 'units': expected an object", origin));
+            for (const auto& [u, v] : value.items()) {
+                std::optional<std::string>* dst = u == "length" ? &m.length_unit : u == "feed" ? &m.feed_unit
+                                                : u == "spindle" ? &m.spindle_unit : u == "time" ? &m.time_unit
+                                                : u == "angle" ? &m.angle_unit : nullptr;
+                if (!dst)
+                    throw IngestError(fmt::format("{}: key 'units.{}': expected length, feed, spindle, time or angle", origin, u));
+                check_applies("units." + u, format, origin);
+                *dst = string_of(v, "units." + u);
+            }
+        } else if (key == "sample_period_ms") {
+            if (!value.is_number() || !(value.get<double>() > 0) || value.get<double>() > 3.6e6)
+                throw IngestError(fmt::format("{}: key 'sample_period_ms': expected a positive number of milliseconds", origin));
+            m.sample_period_ms = value.get<double>();
+        } else if (key == "block_prefix") {
+            m.block_prefix = string_of(value, key);
+        } else {
+            const auto it = std::find(kKeys.begin(), kKeys.end(), key);
+            if (it == kKeys.end())
+                throw IngestError(fmt::format("{}: unknown key '{}' (expected {}, units, sample_period_ms, block_prefix, "
+                                              "description)", origin, key, fmt::join(kKeys, ", ")));
+            std::vector<std::string> keys;
+            if (value.is_string()) {
+                keys.push_back(value.get<std::string>());
+            } else if (value.is_array()) {
+                for (const auto& k : value) keys.push_back(string_of(k, key));
+            } else {
+                throw IngestError(fmt::format("{}: key '{}': expected a column/key name or a list of them", origin, key));
+            }
+            m.candidates[static_cast<std::size_t>(it - kKeys.begin())] = std::move(keys);
+        }
+    }
+    return m;
+}
+
+}  // namespace cutload::motion_io::detail
