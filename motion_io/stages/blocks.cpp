@@ -8,14 +8,16 @@ void BlockAttribution::begin_session() {
     emit_begin_session();
 }
 
-void BlockAttribution::sample(GridSample& s) {
-    if (current_ < 0 && !readings_.empty()) current_ = readings_.front().second;
-    while (!readings_.empty() && readings_.front().first <= s.t_s) {
-        current_ = readings_.front().second;
-        readings_.pop_front();
+void BlockAttribution::grid(std::span<GridSample> batch) {
+    for (GridSample& s : batch) {
+        if (current_ < 0 && !readings_.empty()) current_ = readings_.front().second;
+        while (!readings_.empty() && readings_.front().first <= s.t_s) {
+            current_ = readings_.front().second;
+            readings_.pop_front();
+        }
+        s.block = current_;
     }
-    s.block = current_;
-    emit(s);
+    emit(batch);
 }
 
 }  // namespace cutload::motion_io::detail

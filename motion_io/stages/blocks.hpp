@@ -18,7 +18,7 @@ public:
     Flows emits() const override { return Flow::Sessions | Flow::Grid; }
     void begin_session() override;
     void record(const Record& r) override { readings_.emplace_back(r.t_s, r.block); }
-    void sample(GridSample& s) override;
+    void grid(std::span<GridSample> batch) override;
 
 private:
     std::deque<std::pair<double, std::int32_t>> readings_;   // not yet passed by the grid

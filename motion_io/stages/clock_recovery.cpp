@@ -9,6 +9,7 @@ namespace cutload::motion_io::detail {
 namespace {
 
 constexpr std::size_t kPhaseChunk = 64;            // readings per phase estimate (follows clock drift)
+constexpr std::size_t kCalibrationMinReads = 1024;  // readings the period is estimated from, at any batch size
 constexpr std::size_t kCalibrationMaxWait = 16384; // readings held while waiting for motion
 constexpr std::size_t kCalibrationReads = 2048;
 constexpr std::size_t kMinMovingPairs = 40;
@@ -57,6 +58,7 @@ void ClockRecovery::end_session(SessionSummary& s) {
 
 // False while the calibration waits for more motion (the batch stays pending).
 bool ClockRecovery::calibrate(bool final) {
+    if (!final && pending_.size() < kCalibrationMinReads) return false;
     const std::size_t pairs = moving_pairs(pending_);
     if (pairs < kMinMovingPairs && !final && pending_.size() < kCalibrationMaxWait) return false;
     // A session that ends before the streaming wait is over still gets its grid from the

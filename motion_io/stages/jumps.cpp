@@ -42,7 +42,7 @@ void DropJumps::start_up(const Record& r) {
     if (n >= 2 && reachable(held_[n - 2], held_[n - 1]))
         settle_start(n - 1);
     else if (n >= limits_.max_glitch_readings)
-        accept_excursion(false);   // nothing agrees with anything: no basis to drop any of it
+        accept_excursion();   // nothing agrees with anything: no basis to drop any of it
 }
 
 // held_[pair_end - 1] and held_[pair_end] agree: the earlier readings that cannot reach the pair
@@ -73,12 +73,12 @@ void DropJumps::follow(const Record& r) {
         drop(held_, *anchor_, "the log comes back");
         held_.clear();
         accept(r);
-    } else if (from_anchor) {          // the motion through the excursion is possible after all
-        accept_excursion(false);
+    } else if (from_anchor) {          // the log goes on from where the excursion went
+        accept_excursion();
         accept(r);
     } else {
         held_.push_back(r);
-        if (held_.size() >= limits_.max_glitch_readings) accept_excursion(true);
+        if (held_.size() >= limits_.max_glitch_readings) accept_excursion();
     }
 }
 
@@ -87,8 +87,9 @@ void DropJumps::accept(const Record& r) {
     emit(Flow::Positions, r);
 }
 
-void DropJumps::accept_excursion(bool warn_jump) {
-    if (warn_jump && anchor_) {
+// Kept: the log stays where it jumped to. With an anchor, the jump itself was beyond reach.
+void DropJumps::accept_excursion() {
+    if (anchor_) {
         const Record& a = *anchor_;
         const Record& b = held_.front();
         const double dt = b.t_s - a.t_s;
@@ -116,7 +117,7 @@ void DropJumps::drop(const std::vector<Record>& readings, const Record& from, co
 
 void DropJumps::end_session(SessionSummary& s) {
     if (!anchor_)
-        accept_excursion(false);   // too few readings to tell: all kept
+        accept_excursion();   // too few readings to tell: all kept
     else if (!held_.empty()) {
         drop(held_, *anchor_, "the session ends before the log comes back");
         held_.clear();

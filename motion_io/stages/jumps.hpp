@@ -21,9 +21,10 @@ struct JumpLimits {
 // the excursion ends
 //  - as a glitch (dropped, `glitch_dropped`) when a reading is reachable from the anchor but not
 //    from the excursion's last reading: the log jumped away and back;
-//  - as real motion (kept) when a reading is reachable from both;
-//  - as a real jump (kept, `position_jump`) when it grows to max_glitch_readings readings
-//    without coming back; or, at the end of a session, as a glitch (it never came back).
+//  - as a real jump (kept, `position_jump`) when a reading is reachable from both (the log goes on
+//    from where it jumped to), or when the excursion grows to max_glitch_readings readings
+//    without coming back;
+//  - at the end of a session, as a glitch (it never came back).
 // At the start of a session the first readings are held until two consecutive ones are
 // reachable from each other: earlier ones not reachable from that pair are glitches.
 // Other channels are untouched (ranges are the validate stage's).
@@ -43,7 +44,7 @@ private:
     void settle_start(std::size_t pair_end);
     void follow(const Record& r);
     void accept(const Record& r);
-    void accept_excursion(bool warn_jump);
+    void accept_excursion();
     void drop(const std::vector<Record>& readings, const Record& from, const char* why);
 
     Diagnostics& diag_;

@@ -6,8 +6,16 @@
 #include <cmath>
 
 namespace cutload::motion_io::detail {
+namespace {
 
-Resample::Resample(Diagnostics& diag, double step_s) : Stage("resample"), diag_(diag), step_s_(step_s) {}
+// Samples handed on at once: a long segment (a silence at a fine step) goes in several batches.
+constexpr std::size_t kMaxBatch = 256;
+
+}  // namespace
+
+Resample::Resample(Diagnostics& diag, double step_s) : Stage("resample"), diag_(diag), step_s_(step_s) {
+    batch_.reserve(kMaxBatch);
+}
 
 void Resample::begin_session() {
     prev_.reset();
@@ -51,8 +59,16 @@ void Resample::emit_until(const Knot& a, const Knot& b, bool include_end) {
             s.v_mm_s[ax] = seg.velocity(u);
         }
         note_feed(s);
-        emit(s);
+        batch_.push_back(s);
+        if (batch_.size() == kMaxBatch) flush_batch();
     }
+    flush_batch();
+}
+
+void Resample::flush_batch() {
+    if (batch_.empty()) return;
+    emit(std::span<GridSample>(batch_));
+    batch_.clear();
 }
 
 void Resample::note_feed(const GridSample& s) {

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <optional>
+#include <vector>
 
 namespace cutload::motion_io::detail {
 
@@ -28,6 +29,7 @@ public:
 private:
     void emit_until(const Knot& a, const Knot& b, bool include_end);
     void note_feed(const GridSample& s);
+    void flush_batch();
 
     Diagnostics& diag_;
     double step_s_;
@@ -36,6 +38,7 @@ private:
     bool have_grid_ = false;
     double grid_t0_ = 0;
     std::size_t grid_i_ = 0;
+    std::vector<GridSample> batch_;   // samples of the current segment, handed on together
     // ---- whole log ----
     bool have_feed_ = false;
     double feed_min_ = 0, feed_max_ = 0;

@@ -9,14 +9,16 @@ void SpindleAngle::begin_session() {
     emit_begin_session();
 }
 
-void SpindleAngle::sample(GridSample& s) {
-    s.spindle_rpm = rpm_at(s.t_s);
-    // Trapezoid rule: exact for the linear speed that sample_between() assumes.
-    if (have_prev_) angle_deg_ += 6.0 * 0.5 * (prev_rpm_ + s.spindle_rpm) * step_s_;
-    have_prev_ = true;
-    prev_rpm_ = s.spindle_rpm;
-    s.spindle_angle_deg = angle_deg_;
-    emit(s);
+void SpindleAngle::grid(std::span<GridSample> batch) {
+    for (GridSample& s : batch) {
+        s.spindle_rpm = rpm_at(s.t_s);
+        // Trapezoid rule: exact for the linear speed that sample_between() assumes.
+        if (have_prev_) angle_deg_ += 6.0 * 0.5 * (prev_rpm_ + s.spindle_rpm) * step_s_;
+        have_prev_ = true;
+        prev_rpm_ = s.spindle_rpm;
+        s.spindle_angle_deg = angle_deg_;
+    }
+    emit(batch);
 }
 
 double SpindleAngle::rpm_at(double t_s) {

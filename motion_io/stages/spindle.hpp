@@ -20,7 +20,7 @@ public:
     Flows emits() const override { return Flow::Sessions | Flow::Grid; }
     void begin_session() override;
     void record(const Record& r) override { readings_.emplace_back(r.t_s, r.v[0]); }
-    void sample(GridSample& s) override;
+    void grid(std::span<GridSample> batch) override;
 
 private:
     double rpm_at(double t_s);

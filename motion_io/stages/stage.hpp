@@ -12,6 +12,7 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 
 namespace cutload::motion_io::detail {
@@ -38,7 +39,9 @@ constexpr std::size_t flow_index(Flow k) { return static_cast<std::size_t>(std::
 const char* flow_name(Flow k);
 
 // The kind a time-ordered session record travels as.
-Flow session_flow(Chan ch);
+constexpr Flow session_flow(Chan ch) {
+    return ch == Chan::Feed ? Flow::Feed : ch == Chan::Spindle ? Flow::Spindle : ch == Chan::Block ? Flow::Blocks : Flow::Positions;
+}
 
 // A position reading put at the time of the CNC tick it shows.
 struct Tick {
@@ -98,7 +101,8 @@ public:
     virtual void end_session(SessionSummary& s) { emit_end_session(s); }
     virtual void tick(const Tick&) {}
     virtual void knot(const Knot&) {}
-    virtual void sample(GridSample& s) { emit(s); }
+    // Grid samples come in time order, a few at a time (those of one segment between knots).
+    virtual void grid(std::span<GridSample> batch) { emit(batch); }
     // End of the reader's stream (stages before the sequence stage, which turns it into the end
     // of the last session).
     virtual void finish() { emit_finish(); }
@@ -109,7 +113,7 @@ protected:
     void emit(Flow kind, const Record& r) { route(kind).record(r); }
     void emit(const Tick& t) { route(Flow::Ticks).tick(t); }
     void emit(const Knot& k) { route(Flow::Knots).knot(k); }
-    void emit(GridSample& s) { route(Flow::Grid).sample(s); }
+    void emit(std::span<GridSample> batch) { route(Flow::Grid).grid(batch); }
     void emit_begin_session() { route(Flow::Sessions).begin_session(); }
     void emit_end_session(SessionSummary& s) { route(Flow::Sessions).end_session(s); }
     void emit_finish();
