@@ -1,8 +1,8 @@
-// The ingest pipeline's driver: reader -> Sequencer -> Repairer -> sink (model, CSV, nothing).
+// The ingest pipeline's driver: reader -> chain of stages -> sink (model, CSV, nothing).
 #include "motion_io/motion_io.hpp"
 #include "pipeline.hpp"
-#include "repair.hpp"
-#include "sequencer.hpp"
+#include "stages/standard.hpp"
+#include "stages/survey.hpp"
 
 #include "textio/csv.hpp"
 
@@ -17,8 +17,9 @@ namespace cutload::motion_io {
 namespace {
 
 using detail::GridSample;
+using detail::GridSink;
 
-class ModelSink final : public detail::GridSink {
+class ModelSink final : public GridSink {
 public:
     explicit ModelSink(MotionModel& m) : m_(m) {}
     void begin_session() override { new_session_ = true; }
@@ -41,12 +42,12 @@ private:
     bool new_session_ = true;
 };
 
-class NullSink final : public detail::GridSink {
+class NullSink final : public GridSink {
 public:
     void sample(const GridSample&) override {}
 };
 
-class CsvSink final : public detail::GridSink {
+class CsvSink final : public GridSink {
 public:
     CsvSink(std::FILE* f, const detail::BlockTable& blocks) : f_(f), blocks_(blocks) {
         buf_.append(std::string_view("t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block\n"));
@@ -99,7 +100,15 @@ void check_feed_unit(double ratio, detail::Diagnostics& diag) {
               fmt::format("feed channel integrates to {:.1f} x the path length of the positions; {}", ratio, hint));
 }
 
-IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detail::GridSink& sink,
+// When glitches were dropped, a failure for missing data says so (every reading may have been
+// one: a unit far off).
+std::string glitch_hint(std::string what, const detail::Diagnostics& diag) {
+    for (const IngestWarning& w : diag.warnings())
+        if (w.code == "glitch_dropped") what += fmt::format("; {} reading(s) dropped as glitches: {}", w.count, w.message);
+    return what;
+}
+
+IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, GridSink& sink,
                           detail::BlockTable& blocks) {
     // Below 0.01 ms the output grows without bound for no gain (a CNC updates every 1-8 ms);
     // 1 s is already coarser than an event-driven MTConnect log's own sampling.
@@ -107,22 +116,24 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, detai
         throw IngestError(fmt::format("step must be from 0.01 to 1000 ms, got {}", opt.step_ms));
     detail::Diagnostics diag(path);
     const Format format = opt.format == Format::Auto ? detail::detect_format(path, diag) : opt.format;
-    const bool event_driven = format == Format::Shdr;
-    detail::Repairer repair(diag, sink, opt.step_ms * 1e-3, event_driven);
-    detail::Sequencer sequencer(diag, repair, event_driven);
+    detail::ChainSettings settings;
+    settings.step_s = opt.step_ms * 1e-3;
+    settings.event_driven = format == Format::Shdr;
+    const auto chain = detail::make_ingest_chain(diag, sink, settings);
     if (format == Format::Csv)
-        detail::read_csv(path, opt, diag, blocks, sequencer);
+        detail::read_csv(path, opt, diag, blocks, *chain);
     else
-        detail::read_shdr(path, opt, diag, blocks, sequencer);
-    if (repair.position_reads() == 0)
-        diag.fail(0, "no position samples (CSV: columns x, y, z; SHDR: a path-position or axis key)");
+        detail::read_shdr(path, opt, diag, blocks, *chain);
+    const auto* survey = chain->find_as<detail::Survey>("survey");
+    if (survey->position_reads() == 0)
+        diag.fail(0, glitch_hint("no position samples (CSV: columns x, y, z; SHDR: a path-position or axis key)", diag));
 
     IngestReport report;
-    repair.fill_report(report);
+    chain->fill_report(report);
     detail::report_reader_facts(diag, report);
     if (!report.channels.count("spindle"))
         diag.warn("no_spindle", 0, "no spindle speed channel: speed 0 rpm assumed");
-    check_feed_unit(repair.feed_to_path_ratio(), diag);
+    check_feed_unit(survey->feed_to_path_ratio(), diag);
     report.file = path;
     report.format = format == Format::Csv ? "csv" : "shdr";
     report.blocks = blocks.names().size();

@@ -132,6 +132,7 @@ struct MotionState {
     double spindle_rpm = 0;
     double spindle_angle_deg = 0;
     std::int32_t block = -1;
+    std::int32_t tool = -1;   // tool in the spindle; -1: no tool channel
 };
 
 // Interpolates the model at time t_s inside sample interval [i, i+1] (i + 1 < size()).

@@ -28,6 +28,7 @@ MotionState sample_between(const MotionModel& m, std::size_t i, double t_s) {
     const double dt = t_s - t0;
     s.spindle_angle_deg = m.spindle_angle_deg[i] + 6.0 * (r0 * dt + 0.5 * (r1 - r0) * u * dt);
     s.block = u < 0.5 ? m.block[i] : m.block[i + 1];
+    if (i + 1 < m.tool.size()) s.tool = u < 0.5 ? m.tool[i] : m.tool[i + 1];
     return s;
 }
 

@@ -1,8 +1,8 @@
-// Internal to motion_io: the record stream that flows between the ingest stages.
+// Internal to motion_io: the record stream the readers push into the ingest stages.
 //
-//   reader (csv_reader / shdr_reader)  ->  Sequencer (reorder, sessions, axis alignment, holds)
-//   ->  Repairer (stale repeats, CNC clock, ticks, velocity, Hermite resample, spindle, block)
-//   ->  GridSink (MotionModel builder, CSV writer, or nothing for inspect)
+//   reader (csv_reader / shdr_reader)  ->  RecordSink: the chain of stages (stages/chain.hpp:
+//   validate, sequence, drop_jumps, ..., blocks)  ->  GridSink (MotionModel builder, CSV writer,
+//   live consumer, or nothing for inspect)
 #pragma once
 
 #include "motion_io/motion_io.hpp"
@@ -129,33 +129,8 @@ public:
     virtual void finish() = 0;
 };
 
-// Ordered, per-session records (positions already merged into Chan::Pos).
-class SessionConsumer {
-public:
-    virtual ~SessionConsumer() = default;
-    virtual void begin_session() = 0;
-    virtual void record(const Record& r) = 0;
-    virtual void end_session() = 0;
-};
-
-struct GridSample {
-    double t_s = 0;
-    double p_mm[3] = {0, 0, 0};
-    double v_mm_s[3] = {0, 0, 0};
-    double spindle_rpm = 0;
-    double spindle_angle_deg = 0;
-    std::int32_t block = -1;
-    std::int32_t tool = -1;
-};
-
-class GridSink {
-public:
-    virtual ~GridSink() = default;
-    virtual void begin_session() {}
-    virtual void sample(const GridSample& s) = 0;
-};
-
-// Tunables of the stages, documented in docs/ingest.md.
+// Plausible ranges (the readers warn `out_of_range` beyond them) and the sequence stage's tunables,
+// documented in docs/ingest.md.
 struct StageLimits {
     double reorder_horizon_s = 1.0;   // backward jumps up to this are reordered, larger start a session
     double session_gap_s = 60.0;      // a forward silence longer than this starts a session

@@ -1,6 +1,6 @@
-// Stage "align channels": puts records in time order, splits sessions, merges single-axis
-// position items into 3-D positions and, for event-driven logs, makes "value held" explicit.
-#include "sequencer.hpp"
+// Stage "sequence": puts records in time order and splits sessions (a jump back in time beyond the
+// reorder horizon, or a long silence), and merges single-axis position items into 3-D positions.
+#include "stages/sequence.hpp"
 
 #include <fmt/format.h>
 
@@ -9,10 +9,9 @@
 
 namespace cutload::motion_io::detail {
 
-Sequencer::Sequencer(Diagnostics& diag, SessionConsumer& out, bool event_driven, StageLimits limits)
-    : diag_(diag), out_(out), event_driven_(event_driven), limits_(limits) {}
+Sequence::Sequence(Diagnostics& diag, StageLimits limits) : Stage("sequence"), diag_(diag), limits_(limits) {}
 
-void Sequencer::push(const Record& r) {
+void Sequence::record(const Record& r) {
     if (have_max_) {
         if (r.t_s < max_t_ - limits_.reorder_horizon_s) {
             // A restart dump or another recording: everything before belongs to the old session.
@@ -40,12 +39,12 @@ void Sequencer::push(const Record& r) {
     drain(false);
 }
 
-void Sequencer::finish() {
+void Sequence::finish() {
     drain(true);
     end_session();
 }
 
-void Sequencer::drain(bool all) {
+void Sequence::drain(bool all) {
     while (!queue_.empty() && (all || queue_.front().t_s < max_t_ - limits_.reorder_horizon_s)) {
         const Record r = queue_.front();
         queue_.pop_front();
@@ -53,7 +52,7 @@ void Sequencer::drain(bool all) {
     }
 }
 
-void Sequencer::release(const Record& r) {
+void Sequence::release(const Record& r) {
     if (in_session_ && r.t_s - last_t_ > limits_.session_gap_s) {
         diag_.warn("session_gap", r.line,
                    fmt::format("no record for {:.1f} s (more than {} s): a new session starts", r.t_s - last_t_,
@@ -61,7 +60,7 @@ void Sequencer::release(const Record& r) {
         end_session();
     }
     if (!in_session_) {
-        out_.begin_session();
+        emit_begin_session();
         in_session_ = true;
     }
     if (axis_pending_ && r.t_s != axis_t_) flush_axes();
@@ -76,15 +75,12 @@ void Sequencer::release(const Record& r) {
             axis_pending_ = true;
             break;
         }
-        case Chan::Pos: case Chan::Spindle:
-            forward_held(r);
-            break;
         default:
-            out_.record(r);
+            emit(session_flow(r.ch), r);
     }
 }
 
-void Sequencer::flush_axes() {
+void Sequence::flush_axes() {
     axis_pending_ = false;
     if (axes_known_ != 7u) {
         diag_.warn("axis_incomplete", axes_.line, "position item before all three axes were known; skipped");
@@ -93,43 +89,15 @@ void Sequencer::flush_axes() {
     Record p = axes_;
     p.ch = Chan::Pos;
     p.t_s = axis_t_;
-    forward_held(p);
+    emit(Flow::Positions, p);
 }
 
-// An event-driven adapter sends a value only when it changes, so silence means "unchanged". The
-// next value after a silence longer than the usual update interval started to change at most one
-// interval earlier: a copy of the held value there stops interpolation from smearing the move
-// over the whole silence.
-void Sequencer::forward_held(const Record& r) {
-    Held& h = r.ch == Chan::Pos ? held_pos_ : held_spindle_;
-    if (event_driven_ && h.have) {
-        const double dt = r.t_s - h.last.t_s;
-        if (h.n_intervals >= 3) {
-            std::array<double, kIntervalRing> sorted = h.intervals;
-            const std::size_t n = std::min(h.n_intervals, kIntervalRing);
-            std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(n / 2), sorted.begin() + static_cast<long>(n));
-            const double usual = sorted[n / 2];
-            if (dt > 2 * usual) {
-                Record hold = h.last;
-                hold.t_s = r.t_s - usual;
-                hold.line = r.line;
-                out_.record(hold);
-            }
-        }
-        if (dt > 0) h.intervals[h.n_intervals++ % kIntervalRing] = dt;
-    }
-    h.last = r;
-    h.have = true;
-    out_.record(r);
-}
-
-void Sequencer::end_session() {
+void Sequence::end_session() {
     if (!in_session_) return;
     if (axis_pending_) flush_axes();
-    out_.end_session();
+    SessionSummary summary;
+    emit_end_session(summary);
     in_session_ = false;
-    held_pos_ = Held{};
-    held_spindle_ = Held{};
     axes_known_ = 0;
 }
 

@@ -1,4 +1,5 @@
-// Internal: recovering the CNC's position-update clock from client readings.
+// Internal: the estimates behind stage "clock" (clock_recovery.hpp): the CNC's position-update
+// period and tick phase from client readings.
 //
 // The CNC latches a new position every T seconds (4 ms on the seed's FANUC); the client reads at
 // its own, drifting times. A reading taken at t shows the position latched at the last tick

@@ -1,4 +1,4 @@
-#include "clock.hpp"
+#include "stages/clock.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,38 +1,32 @@
-// Internal: the "align channels" stage (see sequencer.cpp).
+// Internal: stage "sequence" (see sequence.cpp).
 #pragma once
 
-#include "pipeline.hpp"
+#include "stages/stage.hpp"
 
-#include <array>
 #include <deque>
 
 namespace cutload::motion_io::detail {
 
-class Sequencer final : public RecordSink {
+// Accepts checked readings; emits sessions and, within them, time-ordered positions (single-axis
+// items merged into 3-D positions), feed, spindle and block readings.
+class Sequence final : public Stage {
 public:
-    Sequencer(Diagnostics& diag, SessionConsumer& out, bool event_driven, StageLimits limits = {});
-    void push(const Record& r) override;
+    Sequence(Diagnostics& diag, StageLimits limits = {});
+    Flows accepts() const override { return static_cast<Flows>(Flow::Checked); }
+    Flows emits() const override {
+        return Flow::Sessions | Flow::Positions | Flow::Feed | Flow::Spindle | Flow::Blocks;
+    }
+    void record(const Record& r) override;
+    // The end of the stream ends the session; records pushed afterwards start a new one.
     void finish() override;
 
 private:
-
-    static constexpr std::size_t kIntervalRing = 15;
-    struct Held {
-        bool have = false;
-        Record last;
-        std::array<double, kIntervalRing> intervals{};
-        std::size_t n_intervals = 0;
-    };
-
     void drain(bool all);
     void release(const Record& r);
     void flush_axes();
-    void forward_held(const Record& r);
     void end_session();
 
     Diagnostics& diag_;
-    SessionConsumer& out_;
-    bool event_driven_;
     StageLimits limits_;
     // Records in time order (equal times in file order). Logs arrive nearly sorted, so an
     // insertion from the back costs O(1) on average.
@@ -45,7 +39,6 @@ private:
     unsigned axes_known_ = 0;
     bool axis_pending_ = false;
     double axis_t_ = 0;
-    Held held_pos_, held_spindle_;
 };
 
 }  // namespace cutload::motion_io::detail

@@ -1,0 +1,61 @@
+// Internal: stage "clock" - recovers the CNC's update grid and puts each reading at its tick.
+#pragma once
+
+#include "stages/clock.hpp"
+#include "stages/stage.hpp"
+
+#include <optional>
+#include <vector>
+
+namespace cutload::motion_io::detail {
+
+struct ClockLimits {
+    // Readings timed together. Each batch's phase chunks (64 readings) start at its first
+    // reading; a smaller batch lowers the latency of a live source at the price of other chunk
+    // boundaries (ticks then differ from the file's by microseconds). The period is estimated
+    // from the first 1024 readings at any batch size. Event-driven sources have no grid, and
+    // there the batch size changes nothing.
+    std::size_t batch_readings = 1024;
+};
+
+// Accepts sessions and positions; emits sessions and ticks. Polled logs: the update period is
+// estimated from the first moving stretch of a session (estimate_update_period, waiting for 40
+// moving pairs within 16384 readings, retried up to 3 times; a session that ends sooner is
+// calibrated at its end from as few as 12), the tick phase per chunk of 64 readings
+// (best_phase), each reading is put at the tick it shows on a reference grid that follows the
+// chunk phases slowly, and two readings on one tick are moved apart. Event-driven logs, or no
+// period found: each reading keeps its time stamp. Fills the session summary's period.
+class ClockRecovery final : public Stage {
+public:
+    ClockRecovery(Diagnostics& diag, bool event_driven, ClockLimits limits = {});
+    Flows accepts() const override { return Flow::Sessions | Flow::Positions; }
+    Flows emits() const override { return Flow::Sessions | Flow::Ticks; }
+    void begin_session() override;
+    void record(const Record& r) override;
+    void end_session(SessionSummary& s) override;
+    double period_s() const { return period_s_; }
+
+private:
+    void process_batch(bool final);
+    bool calibrate(bool final);
+    void time_chunk(std::size_t begin, std::size_t end);
+    void warn_short_stretch(const UpdatePeriod& found, std::size_t reads);
+    double tick_of(std::size_t pending_index) const;
+    double wrap_half_period(double d) const;
+    void follow_phase();
+    void add_tick(double t_s, const double p[3]);
+
+    Diagnostics& diag_;
+    bool event_driven_;
+    ClockLimits limits_;
+    std::vector<PosRead> pending_;
+    double period_s_ = 0, phase_s_ = 0, ref_phase_s_ = 0;
+    bool have_ref_phase_ = false;
+    int calibration_attempts_ = 0;
+    std::optional<PosRead> last_committed_;
+    std::optional<Tick> last_tick_;
+    std::size_t first_line_ = 0;
+    bool have_first_line_ = false;
+};
+
+}  // namespace cutload::motion_io::detail

@@ -1,0 +1,68 @@
+#include "stages/validate.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace cutload::motion_io::detail {
+namespace {
+
+const char* channel_name(Chan ch) {
+    switch (ch) {
+        case Chan::Pos: return "position";
+        case Chan::AxisX: return "x";
+        case Chan::AxisY: return "y";
+        case Chan::AxisZ: return "z";
+        case Chan::Feed: return "feed";
+        case Chan::Spindle: return "spindle";
+        case Chan::Block: return "block";
+        case Chan::Tool: return "tool";
+    }
+    return "?";
+}
+
+int values_of(Chan ch) { return ch == Chan::Pos ? 3 : (ch == Chan::Block || ch == Chan::Tool) ? 0 : 1; }
+
+}  // namespace
+
+Validate::Validate(Diagnostics& diag, PhysicalLimits limits) : Stage("validate"), diag_(diag), limits_(limits) {}
+
+void Validate::record(const Record& r) {
+    if (glitch(r)) {
+        drop(r);
+        return;
+    }
+    emit(Flow::Checked, r);
+}
+
+double Validate::limit_for(Chan ch) const {
+    return ch == Chan::Feed ? limits_.max_abs_feed_mm_min
+           : ch == Chan::Spindle ? limits_.max_abs_spindle_rpm
+                                 : limits_.max_abs_position_mm;
+}
+
+bool Validate::glitch(const Record& r) const {
+    if (!std::isfinite(r.t_s)) return true;
+    const double limit = limit_for(r.ch);
+    for (int k = 0; k < values_of(r.ch); ++k)
+        if (!(std::fabs(r.v[k]) <= limit)) return true;   // NaN fails the comparison too
+    return false;
+}
+
+void Validate::drop(const Record& r) {
+    ++dropped_;
+    std::string what;
+    if (!std::isfinite(r.t_s)) {
+        what = fmt::format("{} reading with time stamp {}", channel_name(r.ch), r.t_s);
+    } else if (r.ch == Chan::Pos) {
+        what = fmt::format("position ({:g}, {:g}, {:g}) mm beyond +-{:g} mm", r.v[0], r.v[1], r.v[2],
+                           limits_.max_abs_position_mm);
+    } else {
+        const char* unit = r.ch == Chan::Feed ? "mm/min" : r.ch == Chan::Spindle ? "rpm" : "mm";
+        what = fmt::format("{} {:g} {} beyond +-{:g} {}", channel_name(r.ch), r.v[0], unit, limit_for(r.ch), unit);
+    }
+    diag_.warn("glitch_dropped", r.line,
+               what + ": no machine reports that and no unit mix-up explains it; a glitch, dropped");
+}
+
+}  // namespace cutload::motion_io::detail
