@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 
 namespace cutload::server {
 namespace {
@@ -106,8 +107,8 @@ bool collision_flag(const std::string& flag) { return flag == "rapid_in_material
 
 // Evaluates every enabled threshold that applies to this run; inserts alerts and deliveries.
 // `limit_alerts`: a run whose blocks the engine flagged against the run's own limits raises an
-// alert of its own (threshold_id null, "run limits") unless an enabled "any flag" threshold that
-// applies to the run already covers them.
+// alert of its own (threshold_id null, "run limits") for the flags that no enabled flag threshold
+// applying to the run covers already (an "any flag" threshold covers all).
 int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Prediction& p, bool limit_alerts) {
     const RunRefs refs = load_refs(c, run_id);
     auto rules = c.prepare(
@@ -123,8 +124,10 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
 
     int raised = 0;
     // One rule over the run's blocks; inserts its alert when it trips.
+    // `covered`: flags left out (those other rules raise alerts for).
     auto evaluate = [&](std::optional<std::int64_t> threshold_id, const std::string& name, const std::string& metric,
-                        const std::string& flag, double limit, std::optional<std::string> severity) {
+                        const std::string& flag, double limit, std::optional<std::string> severity,
+                        const std::set<std::string>& covered = {}) {
         json blocks = json::array();
         double worst = 0;
         std::size_t hits = 0;
@@ -133,7 +136,7 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
             std::optional<double> v;
             if (metric == "flag") {
                 for (const auto& f : b.flags)
-                    if (flag == "any" || f.flag == flag) {
+                    if ((flag == "any" || f.flag == flag) && !covered.count(f.flag)) {
                         if (!v) v = f.value;
                         collision = collision || collision_flag(f.flag);
                     }
@@ -177,7 +180,7 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
         }
     };
 
-    bool any_flag_rule = false;
+    std::set<std::string> covered;   // flags that applicable flag thresholds raise alerts for
     while (rules.step()) {
         const std::string scope = rules.text(2);
         auto matches = [&](int col, const std::optional<std::int64_t>& ref) {
@@ -188,10 +191,15 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
             continue;
         const std::string metric = rules.text(6);
         const std::string flag = rules.opt_text(7).value_or("any");
-        any_flag_rule = any_flag_rule || (metric == "flag" && flag == "any");
+        if (metric == "flag") {
+            if (flag == "any")
+                covered.insert(known_flags().begin(), known_flags().end());
+            else
+                covered.insert(flag);
+        }
         evaluate(rules.i64(0), rules.text(1), metric, flag, rules.opt_real(8).value_or(0), rules.text(9));
     }
-    if (limit_alerts && !any_flag_rule) evaluate(std::nullopt, "run limits", "flag", "any", 0, std::nullopt);
+    if (limit_alerts) evaluate(std::nullopt, "run limits", "flag", "any", 0, std::nullopt, covered);
     return raised;
 }
 

@@ -32,7 +32,7 @@ struct ServerOptions {
     double webhook_timeout_s = 5;
     // A run whose blocks exceed the run's own limits (the engine's flags) raises an alert without
     // any threshold set up: critical for a collision (rapid in material, holder contact), else a
-    // warning. An enabled "any flag" threshold that applies to the run replaces it.
+    // warning. Flags an enabled flag threshold applying to the run covers are left to it.
     bool limit_alerts = true;
 };
 

@@ -17,9 +17,11 @@ json get_json(httplib::Client& c, const std::string& path, int status = 200) {
     return json::parse(r->body);
 }
 
+// Coarser than the default resolution: these runs check flags and alerts, not forces.
 json spec_with_limits(const json& limits) {
     json s = slot_spec();
     s["limits"] = limits;
+    s["resolution"] = {{"angle_step_deg", 4}, {"axial_step_mm", 0.5}, {"grid_mm", 0.5}};
     return s;
 }
 
@@ -133,6 +135,24 @@ TEST_CASE("view api: blocks over the run's own limits raise an alert with no thr
         REQUIRE(alerts.size() == 1);
         REQUIRE(alerts[0]["threshold_id"] == rule_id);
     }
+    SECTION("a threshold for one flag leaves the other flags to it") {
+        TestServer ts;
+        auto c = ts.admin();
+        // The slot trips both the force limit and, with rapids from 1000 mm/min, rapid in material.
+        json rule{{"name", "force flag"}, {"metric", "flag"}, {"flag", "force_limit"}};
+        const std::int64_t rule_id = body(c.Post("/api/v1/thresholds", rule.dump(), "application/json"))["id"];
+        // A threshold scoped to another machine does not apply and covers nothing.
+        json m{{"name", "elsewhere"}, {"spindle_power_kW", 10}, {"spindle_torque_Nm", 50}, {"max_feed_mm_min", 20000}};
+        const std::int64_t machine = body(c.Post("/api/v1/machines", m.dump(), "application/json"))["id"];
+        json other{{"name", "rapid elsewhere"}, {"scope", "machine"}, {"machine_id", machine}, {"metric", "flag"}, {"flag", "rapid_in_material"}};
+        REQUIRE(c.Post("/api/v1/thresholds", other.dump(), "application/json")->status == 201);
+        const json alerts = run_alerts(c, finished_run(c, spec_with_limits({{"force_N", 20}, {"rapid_feed_mm_min", 1000}})));
+        REQUIRE(alerts.size() == 2);
+        // Newest first: the run's own alert (raised after the thresholds) holds only the collision.
+        REQUIRE(alerts[0]["threshold_id"].is_null());
+        REQUIRE(alerts[0]["severity"] == "critical");
+        REQUIRE(alerts[1]["threshold_id"] == rule_id);
+    }
     SECTION("cutload serve --no-limit-alerts turns it off") {
         TestServer ts([](cutload::server::ServerOptions& o) { o.limit_alerts = false; });
         auto c = ts.admin();
@@ -144,7 +164,7 @@ TEST_CASE("view api: compared blocks carry their NC line and spindle speed; opti
     TestServer ts;
     auto c = ts.admin();
     // A force limit just under the slot's peak: both blocks are flagged, and a lower feed clears them.
-    const std::int64_t probe = finished_run(c, slot_spec());
+    const std::int64_t probe = finished_run(c, spec_with_limits(json::object()));
     const double peak_N = get_json(c, "/api/v1/runs/" + std::to_string(probe))["summary"]["peak_force_N"];
     const std::int64_t id = finished_run(c, spec_with_limits({{"force_N", 0.85 * peak_N}}),
                                          {{"nc_program", kSlotProgram, "slot.nc", "text/plain"}});

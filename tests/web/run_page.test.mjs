@@ -131,8 +131,7 @@ test('worst blocks first: collisions, then overruns by margin, each with block, 
     const [peakKey, limitKey] = QUANTITY[flag.flag];
     assert.match(top.text, new RegExp(`against ${limits[limitKey]}`));
     assert.match(top.text, new RegExp(`${(100 * (o.b[peakKey] / limits[limitKey] - 1)).toPrecision(2).replace('.', '\\.')} % over`));
-    if (width === 1400) await shot(page, 'run-page-top', { docs: true });
-    else await shot(page, 'run-page-top-1024', { docs: true });
+    await shot(page, `run-page-top-${width}`, { docs: true });
 
     // A click zooms the plot to the block, highlights it on the path and in the program.
     await items.filter({ hasText: top.block }).first().getByRole('button').click();
@@ -144,6 +143,11 @@ test('worst blocks first: collisions, then overruns by margin, each with block, 
     assert.equal(await page.locator(`#block-table tbody tr[data-block="${top.block}"]`).first().getAttribute('aria-selected'), 'true');
     assert.match(await page.locator(`#problem-list li[data-block="${top.block}"]`).first().getAttribute('class'), /selected/);
     await shot(page, `run-page-problem-selected-${width}`);
+    // The plot beside the listing and the 3-D view, with that block selected, for the documentation.
+    await page.evaluate(() => window.scrollBy(0, document.getElementById('forces-title').getBoundingClientRect().top - 10));
+    await shot(page, `run-page-plot-listing-${width}`, { docs: true });
+    await page.evaluate(() => window.scrollBy(0, document.getElementById('path-title').getBoundingClientRect().top - 10));
+    await shot(page, `run-page-3d-${width}`, { docs: true });
 
     // The layout fits the window: no page-wide sideways scrolling; the wide block table scrolls
     // in its own box.
@@ -196,8 +200,31 @@ test('the program beside the plot: the listing follows the cursor, block names o
   const firstCell = await page.locator('#block-table tbody th.sticky').first().boundingBox();
   const scrollerBox = await scroller.boundingBox();
   assert.ok(Math.abs(firstCell.x - scrollerBox.x) < 3, 'the block column stays at the left edge while the table scrolls');
-  await page.locator('#forces-title').scrollIntoViewIfNeeded();
-  await shot(page, 'run-page-program-listing', { docs: true });
+  // Multi-tool runs: blocks that name their tool get a tool column and filter, and the worst
+  // blocks say the tool; blocks without one show neither (the demo's table above has no Tool).
+  assert.ok(!heads.some((t) => t.startsWith('Tool')), 'no tool column without tools');
+  const withTools = await page.evaluate(async () => {
+    const { BlockTable } = await import('/js/block_table.js');
+    const { problemsPanel } = await import('/js/problems.js');
+    const base = { t_start_s: 0, t_end_s: 1, peak_force_N: 900, flags: [{ flag: 'force_limit', t_s: 0.5, value: 900 }] };
+    const blocks = [{ ...base, idx: 0, block: 'N1', tool: 1 }, { ...base, idx: 1, block: 'N2', tool: 2, peak_force_N: 100, flags: [] }, { ...base, idx: 2, block: 'N3', tool: 2 }];
+    const box = document.createElement('div');
+    document.body.append(box);
+    new BlockTable(box, blocks, { onSelect: () => {} });
+    const head = [...box.querySelectorAll('thead th')].map((th) => th.textContent);
+    const filter = box.querySelector('#tool-filter');
+    const options = [...filter.options].map((o) => o.textContent);
+    filter.value = '2';
+    filter.dispatchEvent(new Event('change'));
+    const rows = [...box.querySelectorAll('tbody tr')].map((tr) => tr.dataset.block);
+    box.remove();
+    const panel = problemsPanel(blocks, { force_N: 860 }, { onSelect: () => {} }).section;
+    return { head, options, rows, tools: [...panel.querySelectorAll('.tool')].map((t) => t.textContent) };
+  });
+  assert.ok(withTools.head.includes('Tool'), `tool column: ${withTools.head}`);
+  assert.deepEqual(withTools.options, ['All tools', 'T1', 'T2']);
+  assert.deepEqual(withTools.rows, ['N2', 'N3']);
+  assert.deepEqual(withTools.tools, ['T1', 'T2']);
   assert.deepEqual(errors, []);
   await page.context().close();
 });
@@ -271,7 +298,7 @@ test('3-D view: the final stock and the path, the tool at the cursor, orbit, pre
   await page.waitForFunction(() => document.getElementById('view3d').dataset.time > 0);
   await canvas.scrollIntoViewIfNeeded();
   await page.waitForTimeout(100);
-  await shot(page, 'run-page-3d', { docs: true });
+  await shot(page, 'run-page-3d-cursor');
   await page.selectOption('#path-colour', 'continuous');
   assert.match(await page.locator('#path-legend').innerText(), /120 %/);
   assert.deepEqual(errors, []);
@@ -300,7 +327,7 @@ test('an honest plot: limits in view, bucket values under the cursor, labels apa
   for (const l of labels) assert.ok(l.line >= 0 && l.line <= bbox.h + 60, `${l.text} in view`);
   const ys = labels.map((l) => l.y).sort((p, q) => p - q);
   for (let i = 1; i < ys.length; i++) assert.ok(ys[i] - ys[i - 1] >= 14, `limit labels apart: ${JSON.stringify(labels)}`);
-  await shot(page, 'plot-limits-headroom', { docs: true });
+  await shot(page, 'plot-limits-headroom-1400', { docs: true });
   await page.context().close();
 
   // The demo: under the cursor the legend gives each channel's bucket (min to max) from the data;
@@ -361,7 +388,7 @@ test('an honest plot: limits in view, bucket values under the cursor, labels apa
   assert.ok(contrast('#b91c1c', '#ffffff') >= 3, 'flag strip');
   await p.locator('#forces-title').scrollIntoViewIfNeeded();
   await p.evaluate(() => window.scrollBy(0, document.getElementById('forces-title').getBoundingClientRect().top - 10));
-  await shot(p, 'plot-block-zoomed', { docs: true });
+  await shot(p, 'plot-block-zoomed-1400', { docs: true });
   assert.deepEqual(demoPage.errors, []);
   assert.deepEqual(errors, []);
   await p.context().close();
@@ -426,7 +453,7 @@ test('optimization a shop can load: only flagged blocks, never faster, feeds to 
   const change = (100 * (opt.result.cycle_after_s - opt.result.cycle_before_s)) / opt.result.cycle_before_s;
   assert.match(summary, new RegExp(`\\(${change >= 0 ? '\\+' : '−'}${Math.abs(change).toFixed(1)} %\\)`), 'the net cycle change in %');
   await page.locator('#optimize').scrollIntoViewIfNeeded();
-  await shot(page, 'run-page-optimize', { docs: true });
+  await shot(page, 'run-page-optimize-1400', { docs: true });
   assert.deepEqual(errors, []);
   await page.context().close();
 });
@@ -463,7 +490,7 @@ test('words: all form errors at once in plain words, a decimal comma hint, requi
     assert.match(summary, /Diameter \(mm\): /);
     assert.doesNotMatch(summary, /tool\.|_mm\b|stock\.box/, 'no internal key names');
     await page.locator('#error-summary').scrollIntoViewIfNeeded();
-    await shot(page, width === 1400 ? 'form-errors' : 'form-errors-1024', { docs: true });
+    await shot(page, `form-errors-${width}`, { docs: true });
     assert.deepEqual(errors, []);
     await page.context().close();
   }

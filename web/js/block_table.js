@@ -70,11 +70,20 @@ export class BlockTable {
       this.flaggedOnly = only.checked;
       this.render();
     });
+    // A tool filter once the blocks name their tools (runs with tool changes).
+    this.tool = '';
+    const tools = [...new Set(blocks.map((b) => b.tool).filter((t) => t !== undefined && t !== null))].sort((a, b) => a - b);
+    const toolFilter = tools.length ? h('select', { id: 'tool-filter', 'aria-label': 'Tool' },
+      h('option', { value: '' }, 'All tools'), tools.map((t) => h('option', { value: String(t) }, `T${t}`))) : null;
+    toolFilter?.addEventListener('change', () => {
+      this.tool = toolFilter.value;
+      this.render();
+    });
     const flagged = blocks.filter((b) => b.flags.length).length;
     this.el = h('section', { class: 'blocks', 'aria-labelledby': 'blocks-title' },
       h('div', { class: 'section-head' },
         h('h2', { id: 'blocks-title' }, `Blocks (${blocks.length}, ${flagged} flagged)`),
-        h('label', { class: 'inline' }, only, ' Flagged blocks only')),
+        h('label', { class: 'inline' }, only, ' Flagged blocks only'), toolFilter),
       h('div', { class: 'table-scroll' },
         h('table', { class: 'grid block-table', id: 'block-table' },
           h('caption', { class: 'sr-only' }, 'Per-block results; select a row to zoom the plot to that block'),
@@ -97,7 +106,7 @@ export class BlockTable {
     }));
     const col = this.columns.find((c) => c.key === this.sort.key);
     const value = col.sortValue || ((b) => b[col.key]);
-    const rows = this.blocks.filter((b) => !this.flaggedOnly || b.flags.length)
+    const rows = this.blocks.filter((b) => (!this.flaggedOnly || b.flags.length) && (!this.tool || String(b.tool) === this.tool))
       .sort((a, b) => compareValues(value(a), value(b), this.sort.dir) || a.idx - b.idx);
     this.tbody.replaceChildren(...rows.map((b) => this.row(b)));
   }

@@ -217,6 +217,8 @@ function view3dSection(run, disposers) {
       disposers.push(() => view.destroy());
       box.view3d = view;   // for the bench, which turns the view frame by frame
       view.render();
+      // To the frame painted with it (the render only queues the drawing).
+      await new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)));
       box.dataset.firstDrawMs = String(performance.now() - started);
       box.dataset.ready = 'true';
       const btn = (label, fn, attrs = {}) => h('button', { type: 'button', onclick: fn, ...attrs }, label);

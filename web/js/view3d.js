@@ -437,7 +437,12 @@ export class View3D {
       this.pathGroup.add(line);
       return line;
     });
-    // Continuous: one line with a colour per segment.
+  }
+
+  // Continuous: one line with a colour per segment, built when first shown.
+  buildContinuous() {
+    const { x, y, z } = this.path;
+    const n = x.length;
     const pos = [];
     const col = [];
     for (let i = 1; i < n; i++) {
@@ -450,14 +455,14 @@ export class View3D {
     g.setPositions(pos);
     g.setColors(col);
     this.continuousLine = new LineSegments2(g, new LineMaterial({ vertexColors: true, linewidth: 2.5 }));
-    this.continuousLine.visible = false;
     this.pathGroup.add(this.continuousLine);
   }
 
   setColourMode(mode) {
     this.mode = mode;
+    if (mode === 'continuous' && !this.continuousLine) this.buildContinuous();
     for (const l of this.classLines) if (l) l.visible = mode === 'classes';
-    this.continuousLine.visible = mode === 'continuous';
+    if (this.continuousLine) this.continuousLine.visible = mode === 'continuous';
     this.requestRender();
   }
 
