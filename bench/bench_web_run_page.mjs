@@ -98,6 +98,10 @@ try {
     }));
     // Painted: the frame after the mark.
     firstPlot.push(t);
+    // The 3-D view loads when scrolled into view; let it settle before timing the plot.
+    await page.locator('#path-title').scrollIntoViewIfNeeded();
+    await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
+    await page.locator('#force-plot').scrollIntoViewIfNeeded();
     await page.locator('#force-plot .u-over').waitFor();
     const box = await page.locator('#force-plot .u-over').boundingBox();
     await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
@@ -118,6 +122,8 @@ try {
   for (let r = 0; r < repeat; r++) {
     const page = await context.newPage();
     await page.goto(`${server.url}/#/runs/${demo.id}`);
+    await page.locator('#path-title').waitFor();
+    await page.locator('#path-title').scrollIntoViewIfNeeded();   // the view loads once in view
     await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
     draws.push(Number(await page.locator('#view3d').getAttribute('data-first-draw-ms')));
     await page.locator('#view3d canvas').scrollIntoViewIfNeeded();

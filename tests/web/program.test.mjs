@@ -138,11 +138,14 @@ test('commanded overlay, mapping quality, comparison columns and a feed optimiza
   assert.equal(await page.locator('#optimize-target').inputValue(), '0.8');
   await page.getByLabel('Basis').selectOption('actual');
   await page.getByRole('button', { name: 'Optimize feeds' }).click();
-  await page.locator('#optimize-table tbody tr').first().waitFor({ timeout: 120000 });
+  await page.locator('#optimize-summary').waitFor({ timeout: 120000 });
   const opt = (await server.api('GET', `runs/${runId}/optimizations`)).items[0];
   assert.equal(opt.state, 'done');
   assert.equal(opt.params.target, 0.8);
-  assert.equal(await page.locator('#optimize-table tbody tr').count(), opt.result.blocks.length);
+  assert.equal(await page.locator('#optimize-table tbody tr:visible').count(), opt.result.changed_blocks || opt.result.blocks.length,
+    'changed blocks only, by default');
+  if (opt.result.changed_blocks) await page.getByLabel('Changed blocks only').uncheck();
+  assert.equal(await page.locator('#optimize-table tbody tr:visible').count(), opt.result.blocks.length);
   const changed = opt.result.blocks.find((b) => b.recommended_feed_mm_min !== b.programmed_feed_mm_min) || opt.result.blocks[0];
   const cells = await page.locator(`#optimize-table tbody tr[data-block="${changed.block}"] td`).allInnerTexts();
   // The block's name is the row header; the cells start with the feeds.

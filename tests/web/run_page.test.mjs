@@ -87,7 +87,10 @@ async function runPage(width, id = demo.id) {
   await page.setViewportSize({ width, height: 900 });
   await page.goto(`${server.url}/#/runs/${id}`);
   await page.locator('#block-table tbody tr').first().waitFor({ timeout: 60000 });
+  // The 3-D view loads once it is scrolled into view.
+  await page.locator('#path-title').scrollIntoViewIfNeeded();
   await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 30000 });
+  await page.evaluate(() => window.scrollTo(0, 0));
   return { page, context, errors };
 }
 
@@ -157,7 +160,6 @@ test('worst blocks first: collisions, then overruns by margin, each with block, 
     const scroller = await page.locator('.blocks .table-scroll').boundingBox();
     assert.ok(scroller.x >= 0 && scroller.x + scroller.width <= width, 'the table box fits the window');
     console.log(`${width} px: block table ${table.width.toFixed(0)} px wide in a ${scroller.width.toFixed(0)} px box`);
-    await screenshot(page, `run-page-full-${width}`);
     assert.deepEqual(errors, []);
     await page.context().close();
   }
@@ -382,8 +384,8 @@ test('an honest plot: limits in view, bucket values under the cursor, labels apa
   const signatures = palette.channels.map((c) => `${JSON.stringify(c.dash || [])}/${c.width}`);
   assert.equal(new Set(signatures).size, signatures.length, `each series has its own dash or width: ${signatures}`);
   for (const c of palette.classes.filter((k) => k.key !== 'air')) assert.ok(contrast(c.colour, '#c8cdd4') >= 3, `${c.label} against the stock`);
-  const classSig = palette.classes.map((c) => `${c.width}/${c.dashed}`);
-  assert.equal(new Set(classSig).size, classSig.length, 'path classes differ in width or dash, not only colour');
+  const classSig = palette.classes.map((c) => `${c.dashed}/${c.marker}/${c.key === 'air'}`);
+  assert.equal(new Set(classSig.filter((x) => !x.endsWith('true'))).size, classSig.length - 1, 'loaded path classes differ in dash or markers, not only colour');
   for (const s of palette.stops) assert.ok(contrast(s, '#c8cdd4') >= 3, `continuous stop ${s} against the stock`);
   assert.ok(contrast('#b91c1c', '#ffffff') >= 3, 'flag strip');
   await p.locator('#forces-title').scrollIntoViewIfNeeded();
@@ -426,16 +428,20 @@ test('optimization a shop can load: only flagged blocks, never faster, feeds to 
   await page.getByLabel('Never raise the feed').check();
   assert.equal(await page.getByLabel('Round feeds to (mm/min)').inputValue(), '50');
   await page.getByRole('button', { name: 'Optimize feeds' }).click();
-  await page.locator('#optimize-table tbody tr').first().waitFor({ timeout: 180000 });
+  await page.locator('#optimize-summary').waitFor({ timeout: 180000 });
   const opt = (await server.api('GET', `runs/${demo.id}/optimizations`)).items[0];
   assert.equal(opt.state, 'done');
   assert.equal(opt.params.only_flagged, true);
   assert.equal(opt.params.never_raise, true);
   assert.equal(opt.params.feed_step_mm_min, 50);
   const flaggedNames = new Set(demo.blocks.filter((b) => b.flags.length).map((b) => b.block));
+  // Changed blocks only at first; all of them on request.
+  assert.equal(await page.locator('#optimize-table tbody tr:visible').count(), opt.result.changed_blocks);
+  await page.getByLabel('Changed blocks only').uncheck();
   const rows = await page.locator('#optimize-table tbody tr').evaluateAll((trs) => trs.map((tr) => ({
     block: tr.dataset.block, changed: tr.dataset.changed === 'true', tinted: tr.classList.contains('changed'), text: tr.innerText,
   })));
+  await page.getByLabel('Changed blocks only').check();
   assert.equal(rows.length, opt.result.blocks.length);
   for (const b of opt.result.blocks) {
     const r = rows.find((x) => x.block === b.block);
@@ -462,18 +468,18 @@ test('words: all form errors at once in plain words, a decimal comma hint, requi
   for (const width of WIDTHS) {
     const { page, errors } = await openPage(browser, server);
     await page.setViewportSize({ width, height: 900 });
-    const titles = {};
-    for (const [hash, want] of [['#/runs', /^Runs – cutload$/], ['#/new', /^New run – cutload$/], ['#/alerts', /^Alerts – cutload$/],
-      ['#/libraries', /^Libraries – cutload$/]]) {
-      await page.goto(`${server.url}/${hash}`);
-      await page.waitForFunction((re) => new RegExp(re).test(document.title), want.source);
-      titles[hash] = await page.title();
+    if (width === 1400) {
+      for (const [hash, want] of [['#/runs', /^Runs – cutload$/], ['#/alerts', /^Alerts – cutload$/], ['#/libraries', /^Libraries – cutload$/]]) {
+        await page.goto(`${server.url}/${hash}`);
+        await page.waitForFunction((re) => new RegExp(re).test(document.title), want.source);
+      }
+      await page.goto(`${server.url}/#/runs/${demo.id}`);
+      await page.waitForFunction(() => /^Run #\d+ demo pocket \(\d+ flagged\) – cutload$/.test(document.title));
     }
-    await page.goto(`${server.url}/#/runs/${demo.id}`);
-    await page.waitForFunction(() => /^Run #\d+ demo pocket \(\d+ flagged\) – cutload$/.test(document.title));
     await page.goto(`${server.url}/#/new`);
+    await page.waitForFunction(() => document.title === 'New run – cutload');
     await page.locator('input[name="tool-diameter_mm"]').waitFor();
-    assert.ok(await page.locator('label .req').count() >= 10, 'required fields are marked');
+    assert.ok(await page.locator('.field .req').count() >= 10, 'required fields are marked');
     assert.equal(await page.locator('input[name="tool-diameter_mm"]').getAttribute('aria-required'), 'true');
     await page.locator('input[name="tool-diameter_mm"]').fill('8,5');
     await page.locator('input[name="tool-flutes"]').fill('2.5');
@@ -482,6 +488,7 @@ test('words: all form errors at once in plain words, a decimal comma hint, requi
     assert.match(await errorOf('input[name="tool-diameter_mm"]'), /decimal comma: write 8\.5 with a decimal point/);
     assert.match(await errorOf('input[name="tool-flutes"]'), /whole number/);
     assert.match(await errorOf('input[name="tool-helix_deg"]'), /^Required: enter the helix in deg\.$/);
+    assert.match(await errorOf('input[name="material-Ktc_N_mm2"]'), /^Required: enter the Ktc in N\/mm²\.$/);
     assert.match(await errorOf('#log-file'), /Required: choose the dry-run log file/);
     const summary = await page.locator('#error-summary').innerText();
     const invalid = await page.locator('[aria-invalid="true"]').count();

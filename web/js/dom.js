@@ -80,8 +80,9 @@ export function field(label, control, hint, target = control, { required = false
   const id = target.id || nextId('f');
   target.id = id;
   const labelable = /^(INPUT|SELECT|TEXTAREA)$/.test(target.tagName);
-  const lab = h('label', labelable ? { for: id } : { id: `${id}-label` }, label,
-    required ? h('span', { class: 'req', 'aria-hidden': 'true' }, ' *') : null);
+  // The asterisk sits beside the label, not in it: the control's name stays the label's words.
+  const lab = h('label', labelable ? { for: id } : { id: `${id}-label` }, label);
+  const head = required ? h('span', { class: 'label-row' }, lab, h('span', { class: 'req', 'aria-hidden': 'true' }, '*')) : lab;
   if (!labelable) target.setAttribute('aria-labelledby', `${id}-label`);
   if (required) {
     target.setAttribute('aria-required', 'true');
@@ -90,7 +91,7 @@ export function field(label, control, hint, target = control, { required = false
   const err = h('p', { class: 'field-error', id: `${id}-err`, 'aria-live': 'polite' });
   target.setAttribute('aria-describedby', `${id}-err`);
   target.dataset.label = label;
-  return h('div', { class: 'field' }, lab, control, hint ? h('small', { class: 'muted' }, hint) : null, err);
+  return h('div', { class: 'field' }, head, control, hint ? h('small', { class: 'muted' }, hint) : null, err);
 }
 
 // "Some fields need attention" with a link to each: errors [[control, message]].

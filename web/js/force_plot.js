@@ -326,7 +326,6 @@ export class ForcePlot {
         draw: [(u) => this.drawOverlays(u)],
         setScale: [(u, key) => key === 'x' && this.scaleChanged(u)],
         setSeries: [(u, i, opts) => this.seriesToggled(i, opts)],
-        setCursor: [(u) => this.cursorMoved(u)],
       },
     };
   }
@@ -337,6 +336,7 @@ export class ForcePlot {
     this.u = new uPlot(this.options(), this.plotData(), this.container);
     if (range) this.setRange(range[0], range[1]);
     this.u.over.addEventListener('wheel', (e) => this.wheel(e), { passive: false });
+    this.u.over.addEventListener('mousemove', (e) => this.pointerMoved(e));
     this.u.over.addEventListener('mouseleave', () => this.onCursor?.(null));
     if (!this.resizeObserver) {
       this.resizeObserver = new ResizeObserver(() => {
@@ -356,13 +356,15 @@ export class ForcePlot {
     this.u?.destroy();
   }
 
-  cursorMoved(u) {
+  // The pointer's time, once a frame, only when the pointer moves (not when the view moves under
+  // it: panning does not drag the listing and the 3-D view along).
+  pointerMoved(e) {
+    this.pointerX = e.clientX;
     if (!this.onCursor || this.cursorFrame) return;
     this.cursorFrame = requestAnimationFrame(() => {
       this.cursorFrame = 0;
-      const left = u.cursor.left;
-      if (left == null || left < 0) return;
-      this.onCursor(u.posToVal(left, 'x'));
+      const rect = this.u.over.getBoundingClientRect();
+      this.onCursor(this.u.posToVal(this.pointerX - rect.left, 'x'));
     });
   }
 

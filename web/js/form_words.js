@@ -9,7 +9,10 @@
 export function labelParts(label) {
   const m = /^(.*?)\s*\(([^)]*)\)\s*$/.exec(label);
   const name = (m ? m[1] : label).trim();
-  return { name: /^[A-Z][a-z]/.test(name) ? name[0].toLowerCase() + name.slice(1) : name, unit: m ? m[2] : '' };
+  // A word starts lower case inside a sentence; a symbol (Ktc, Kae) keeps its case.
+  const first = name.split(/[\s-]/)[0];
+  const word = /^[A-Z][a-z]/.test(first) && first.length > 3;
+  return { name: word ? name[0].toLowerCase() + name.slice(1) : name, unit: m ? m[2] : '' };
 }
 
 export function requiredMessage(label) {

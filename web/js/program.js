@@ -101,11 +101,20 @@ function resultTable(result, durations) {
       h('td', { class: 'num' }, num(100 * b.ratio_after)),
       h('td', {}, flags.length ? flags : ''));
   });
-  return h('div', { class: 'table-scroll' },
+  // Changed blocks only by default when some changed: the list a shop loads the program by.
+  const changedOnly = h('input', { type: 'checkbox', id: 'optimize-changed-only', checked: result.changed_blocks > 0 });
+  const apply = () => rows.forEach((tr) => {
+    tr.hidden = changedOnly.checked && tr.dataset.changed !== 'true';
+  });
+  changedOnly.addEventListener('change', apply);
+  apply();
+  return h('div', {},
+    h('label', { class: 'inline' }, changedOnly, ' Changed blocks only'),
+    h('div', { class: 'table-scroll' },
     h('table', { class: 'grid', id: 'optimize-table' },
       h('caption', { class: 'sr-only' }, 'Recommended feed per block; load is the binding quantity as a percentage of its limit'),
       h('thead', {}, h('tr', {}, head.map((c) => h('th', { scope: 'col' }, c)))),
-      h('tbody', {}, rows)));
+      h('tbody', {}, rows))));
 }
 
 function resultSummary(opt) {

@@ -195,10 +195,11 @@ function view3dSection(run, disposers) {
     controls, box, legend, status);
   let view = null;
   const pending = { time: undefined, block: undefined };
-  async function load({ plot, motion, onPick }) {
+  async function load({ plot, onPick }) {
     try {
-      const [{ View3D, webglAvailable, fieldHeights, LOAD_CLASSES, CONTINUOUS_STOPS }, field, baseField] = await Promise.all([
+      const [{ View3D, webglAvailable, fieldHeights, LOAD_CLASSES, CONTINUOUS_STOPS }, motion, field, baseField] = await Promise.all([
         import('./view3d.js'),
+        api.motion(run.id, { max_points: PATH_POINTS }),
         api.stock(run.id, { max_cells: STOCK_CELLS }),
         run.base_run ? api.stock(run.base_run, { max_cells: STOCK_CELLS }).catch(() => null) : null,
       ]);
@@ -216,6 +217,7 @@ function view3dSection(run, disposers) {
       });
       disposers.push(() => view.destroy());
       box.view3d = view;   // for the bench, which turns the view frame by frame
+      box.dataset.buildMs = String(performance.now() - started);
       view.render();
       // To the frame painted with it (the render only queues the drawing).
       await new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)));
@@ -248,7 +250,8 @@ function view3dSection(run, disposers) {
             h('span', {}, `120 % ${limitWord}`));
         } else {
           clear(legend, LOAD_CLASSES.map((c) => h('span', { class: 'key' },
-            h('span', { class: `swatch${c.dashed ? ' dashed' : ''}`, style: `border-top: ${c.width}px ${c.dashed ? 'dashed' : 'solid'} ${c.colour}` }),
+            h('span', { class: 'swatch', style: `border-top: 2px ${c.dashed ? 'dashed' : 'solid'} ${c.colour}` },
+              c.marker ? h('span', { class: 'marker', style: `background: ${c.colour}` }) : null),
             c.key === 'air' ? c.label : c.label.replace('of the limit', limitWord))));
         }
         legend.append(h('span', { class: 'muted' }, ` Stock ${num(field.box_mm.max[0] - field.box_mm.min[0])} × ${num(field.box_mm.max[1] - field.box_mm.min[1])} × ${num(field.box_mm.max[2] - field.box_mm.min[2])} mm, shown in ${num(field.cell_mm)} mm cells.`));
@@ -303,27 +306,6 @@ async function showResults(body, run, lib, disposers) {
     status.textContent = `Could not load finer data: ${errorText(e.detail)}`;
   });
 
-  // The plot first: it starts loading now, beside the blocks, the motion and the program.
-  const plotReady = plot.load();
-  const [runBlocks, motion, program, source] = await Promise.all([api.blocks(id), api.motion(id, { max_points: PATH_POINTS }),
-    comparing ? api.program(id).catch((error) => ({ error })) : null,
-    comparing ? api.text(`/api/v1/runs/${id}/program/source`).catch(() => null) : null]);
-  const compared = Boolean(program && !program.error);
-  blocks = compared ? withComparison(runBlocks, program.blocks) : runBlocks;
-  const rows = compared && source != null && program.blocks.some((b) => b.line) ? programRows(source, program.blocks) : null;
-  if (rows) {
-    const textOf = new Map();
-    for (const r of rows) if (r.block && !textOf.has(r.block)) textOf.set(r.block, r.text.trim());
-    blocks = blocks.map((b) => ({ ...b, nc_text: textOf.get(b.block) ?? null }));
-  }
-  const byStart = [...blocks].sort((a, b) => a.t_start_s - b.t_start_s);
-  const starts = Float64Array.from(byStart, (b) => b.t_start_s);
-  function blockAt(t) {
-    const i = lowerBound(starts, t + 1e-12) - 1;
-    for (let k = i; k >= Math.max(0, i - 3); k--) if (t >= byStart[k].t_start_s && t <= byStart[k].t_end_s) return byStart[k];
-    return null;
-  }
-
   const channel = (key, label) => {
     const box = h('input', { type: 'checkbox', id: `show-${key}` });
     box.addEventListener('change', () => plot.setChannels({ [key]: box.checked }));
@@ -362,8 +344,45 @@ async function showResults(body, run, lib, disposers) {
     }),
     exportStatus);
 
-  const flaggedNames = new Set(blocks.filter((b) => b.flags.length).map((b) => b.block));
+  // The page's frame first, the plot in it, so the plot draws at its width as soon as its data
+  // is in; the worst blocks, the listing and the rest fill in when the blocks and the program
+  // arrive (fetched at the same time).
+  const problemsBox = h('div');
   const listingBox = h('div', { class: 'listing-box' });
+  const restBox = h('div');
+  clear(body,
+    logWarnings(run),
+    summaryCards(run.summary, limits),
+    problemsBox,
+    h('section', { class: 'forces', 'aria-labelledby': 'forces-title' },
+      h('div', { class: 'section-head' }, h('h2', { id: 'forces-title' }, 'Forces'), h('span', { class: 'muted' }, 'Showing '), rangeText),
+      controls,
+      h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click for the whole run. Red strip on top: flagged blocks; blue strip: the selected block; dashed lines: limits.',
+        comparing ? ' Magenta dashed: the resultant predicted from the programmed motion, each block drawn over the time the machine took for it.' : ''),
+      h('div', { class: 'plot-and-listing' }, plotBox, listingBox),
+      selText),
+    restBox, status);
+  const plotReady = plot.load();
+  const [runBlocks, program, source] = await Promise.all([api.blocks(id),
+    comparing ? api.program(id).catch((error) => ({ error })) : null,
+    comparing ? api.text(`/api/v1/runs/${id}/program/source`).catch(() => null) : null]);
+  const compared = Boolean(program && !program.error);
+  blocks = compared ? withComparison(runBlocks, program.blocks) : runBlocks;
+  const rows = compared && source != null && program.blocks.some((b) => b.line) ? programRows(source, program.blocks) : null;
+  if (rows) {
+    const textOf = new Map();
+    for (const r of rows) if (r.block && !textOf.has(r.block)) textOf.set(r.block, r.text.trim());
+    blocks = blocks.map((b) => ({ ...b, nc_text: textOf.get(b.block) ?? null }));
+  }
+  const byStart = [...blocks].sort((a, b) => a.t_start_s - b.t_start_s);
+  const starts = Float64Array.from(byStart, (b) => b.t_start_s);
+  function blockAt(t) {
+    const i = lowerBound(starts, t + 1e-12) - 1;
+    for (let k = i; k >= Math.max(0, i - 3); k--) if (t >= byStart[k].t_start_s && t <= byStart[k].t_end_s) return byStart[k];
+    return null;
+  }
+
+  const flaggedNames = new Set(blocks.filter((b) => b.flags.length).map((b) => b.block));
   listing = new Listing(listingBox, rows
     ? { title: `NC program ${run.inputs?.nc_program?.filename || ''}`, rows, flagged: flaggedNames, onSelect: (name) => selectByName(name) }
     : { title: 'Blocks of the log', rows: blockRows(blocks), flagged: flaggedNames, onSelect: (name) => selectByName(name),
@@ -378,21 +397,9 @@ async function showResults(body, run, lib, disposers) {
   const measurementBox = measurementSection(id, plot);
   const alertsBox = h('section', { class: 'run-alerts', 'aria-labelledby': 'run-alerts-title' },
     h('h2', { id: 'run-alerts-title' }, 'Alerts'));
-  clear(body,
-    logWarnings(run),
-    summaryCards(run.summary, limits),
-    problems.section,
-    h('section', { class: 'forces', 'aria-labelledby': 'forces-title' },
-      h('div', { class: 'section-head' }, h('h2', { id: 'forces-title' }, 'Forces'), h('span', { class: 'muted' }, 'Showing '), rangeText),
-      controls,
-      h('p', { class: 'hint muted' }, 'Drag to zoom into a range, wheel to zoom, Shift-drag or Shift-wheel to pan, double-click for the whole run. Red strip on top: flagged blocks; blue strip: the selected block; dashed lines: limits.',
-        comparing ? ' Magenta dashed: the resultant predicted from the programmed motion, each block drawn over the time the machine took for it.' : ''),
-      h('div', { class: 'plot-and-listing' }, plotBox, listingBox),
-      selText),
-    threeD.section,
-    tableBox,
-    program ? programSection(run, program) : null,
-    optimizer?.section, measurementBox.section, alertsBox, status);
+  problemsBox.append(problems.section);
+  restBox.append(threeD.section, tableBox, program ? programSection(run, program) : null,
+    optimizer?.section || '', measurementBox.section, alertsBox);
 
   await plotReady;
   status.textContent = '';
@@ -406,8 +413,8 @@ async function showResults(body, run, lib, disposers) {
   function selectBlock(b, t, zoom) {
     table?.select(b ? b.idx : null);
     plot.select(b, t);
-    view3d.select(b);
-    listing.select(b ? b.block : null);
+    view3d?.select(b);
+    listing?.select(b ? b.block : null);
     for (const li of document.querySelectorAll('#problem-list li')) li.classList.toggle('selected', Boolean(b) && li.dataset.block === b.block);
     const at = t == null ? '' : `t = ${t.toFixed(4)} s, `;
     const load = b ? worstLoad(b, limits) : null;
@@ -419,13 +426,13 @@ async function showResults(body, run, lib, disposers) {
       const mid = (b.t_start_s + b.t_end_s) / 2;
       const half = Math.max(b.t_end_s - b.t_start_s, MIN_BLOCK_SPAN_S) / 2;
       plot.setRange(mid - half, mid + half);
-      view3d.setTime(b.t_start_s);
+      view3d?.setTime(b.t_start_s);
     }
   }
   function selectTime(t) {
     const b = blocks.find((x) => t >= x.t_start_s && t <= x.t_end_s) || null;
     selectBlock(b, t, false);
-    view3d.setTime(t);
+    view3d?.setTime(t);
   }
   function selectByName(name) {
     const b = blocks.find((x) => x.block === name);
@@ -435,8 +442,24 @@ async function showResults(body, run, lib, disposers) {
   if (run.summary?.alerts) alertTable(alertsBox, () => ({ run_id: id }), { showRun: false });
   else alertsBox.append(h('p', { class: 'muted', id: 'no-alerts' }, noAlertsText(run)));
 
-  // The rest after the plot is up: the 3-D view, the measurement, the newest optimization.
-  await Promise.all([threeD.load({ plot, motion, onPick: (t) => selectTime(t) }), measurementBox.load(), optimizer?.load()]);
+  // The rest after the plot is up: the measurement, the newest optimization, and the 3-D view
+  // once its section comes into view (loading three.js and building the scene would hold up the
+  // plot's first interactions otherwise).
+  const loads = [measurementBox.load(), optimizer?.load()];
+  await new Promise((resolve) => {
+    const seen = new IntersectionObserver((entries) => {
+      if (!entries.some((e) => e.isIntersecting)) return;
+      seen.disconnect();
+      resolve();
+    });
+    seen.observe(threeD.section);
+    disposers.push(() => {
+      seen.disconnect();
+      resolve();
+    });
+  });
+  if (!body.isConnected) return;
+  await Promise.all([threeD.load({ plot, onPick: (t) => selectTime(t) }), ...loads]);
 }
 
 export async function renderRun(main, id) {

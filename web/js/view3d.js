@@ -11,17 +11,14 @@
 // Three.js renders on demand (a changed view or cursor), never in a loop.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { LineSegments2 } from 'three/addons/lines/LineSegments2.js';
-import { LineSegmentsGeometry } from 'three/addons/lines/LineSegmentsGeometry.js';
-import { LineMaterial } from 'three/addons/lines/LineMaterial.js';
 import { h, lowerBound, num } from './dom.js';
 
-// Load classes against the limit: colour, line width and dash, so colour alone never tells.
+// Load classes against the limit: colour, dash and markers (pixels), so colour alone never tells.
 export const LOAD_CLASSES = [
-  { key: 'air', label: 'not cutting', colour: '#6b7280', width: 1, dashed: false },
-  { key: 'low', label: 'under 80 % of the limit', colour: '#005b8f', width: 2, dashed: false },
-  { key: 'near', label: '80–100 % of the limit', colour: '#8a5a00', width: 3, dashed: true },
-  { key: 'over', label: 'over the limit', colour: '#a50f15', width: 5, dashed: false },
+  { key: 'air', label: 'not cutting', colour: '#9ca3af', dashed: false, marker: 0 },
+  { key: 'low', label: 'under 80 % of the limit', colour: '#005b8f', dashed: false, marker: 0 },
+  { key: 'near', label: '80–100 % of the limit', colour: '#8a5a00', dashed: true, marker: 0 },
+  { key: 'over', label: 'over the limit', colour: '#a50f15', dashed: false, marker: 5 },
 ];
 // Continuous scale, 0 to 120 % of the limit; every stop at 3:1 or more against the stock's grey.
 export const CONTINUOUS_STOPS = ['#08306b', '#6a3d9a', '#b35806', '#a50f15'];
@@ -86,7 +83,7 @@ function toolMeshes(tool) {
   const cutter = new THREE.LatheGeometry(pts, 24);
   cutter.rotateX(Math.PI / 2);   // lathe axis y -> z
   const group = new THREE.Group();
-  group.add(new THREE.Mesh(cutter, new THREE.MeshLambertMaterial({ color: 0x52525b })));
+  group.add(new THREE.Mesh(cutter, litMaterial(cutter, 0x52525b)));
   const flute = tool.flute_length_mm || stickout;
   const band = new THREE.CylinderGeometry(R * 1.01, R * 1.01, 0.6, 24, 1, true);
   band.rotateX(Math.PI / 2);
@@ -97,9 +94,52 @@ function toolMeshes(tool) {
     const g = new THREE.CylinderGeometry(holder.diameter_mm / 2, holder.diameter_mm / 2, holder.length_mm, 32);
     g.rotateX(Math.PI / 2);
     g.translate(0, 0, stickout + holder.length_mm / 2);
-    group.add(new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: 0x7c8594, transparent: true, opacity: 0.45 })));
+    group.add(new THREE.Mesh(g, litMaterial(g, 0x7c8594, { transparent: true, opacity: 0.45 })));
   }
   return group;
+}
+
+// Vertex colours of a triangle soup lit by a fixed key light (from above, the front and the
+// left) and a fill light, each triangle by its own normal (either side: both are seen).
+const KEY_LIGHT = new THREE.Vector3(-0.45, -0.6, 0.66).normalize();
+const FILL_LIGHT = new THREE.Vector3(0.6, 0.3, 0.2).normalize();
+const BASE = new THREE.Color(STOCK_COLOUR);
+function shade(pos) {
+  const col = new Float32Array(pos.length);
+  const u = new THREE.Vector3();
+  const v = new THREE.Vector3();
+  const n = new THREE.Vector3();
+  for (let t = 0; t < pos.length; t += 9) {
+    u.set(pos[t + 3] - pos[t], pos[t + 4] - pos[t + 1], pos[t + 5] - pos[t + 2]);
+    v.set(pos[t + 6] - pos[t], pos[t + 7] - pos[t + 1], pos[t + 8] - pos[t + 2]);
+    n.crossVectors(u, v).normalize();
+    if (n.z < 0 || (n.z === 0 && n.dot(KEY_LIGHT) < 0)) n.negate();
+    const light = Math.min(1.12, 0.62 + 0.4 * Math.max(0, n.dot(KEY_LIGHT)) + 0.12 * Math.abs(n.dot(FILL_LIGHT)));
+    for (let k = 0; k < 3; k++) {
+      col[t + 3 * k] = BASE.r * light;
+      col[t + 3 * k + 1] = BASE.g * light;
+      col[t + 3 * k + 2] = BASE.b * light;
+    }
+  }
+  return col;
+}
+
+// An unlit material whose vertex colours carry the key light (a shaded look without lights:
+// the scene has no lit material, so no lighting shader to compile or run in software).
+function litMaterial(geometry, colour, extra = {}) {
+  const base = new THREE.Color(colour);
+  const nrm = geometry.attributes.normal;
+  const col = new Float32Array(nrm.count * 3);
+  const n = new THREE.Vector3();
+  for (let i = 0; i < nrm.count; i++) {
+    n.fromBufferAttribute(nrm, i);
+    const light = 0.55 + 0.45 * Math.max(0, n.dot(KEY_LIGHT)) + 0.15 * Math.abs(n.dot(FILL_LIGHT));
+    col[3 * i] = base.r * light;
+    col[3 * i + 1] = base.g * light;
+    col[3 * i + 2] = base.b * light;
+  }
+  geometry.setAttribute('color', new THREE.BufferAttribute(col, 3));
+  return new THREE.MeshBasicMaterial({ vertexColors: true, ...extra });
 }
 
 // The height field answer of /stock as heights per cell centre (NaN: no material).
@@ -148,15 +188,11 @@ export class View3D {
     container.append(this.wrap);
 
     this.scene = new THREE.Scene();
-    this.scene.add(new THREE.AmbientLight(0xffffff, 1.4));
     const b = field.box_mm;
     this.centre = new THREE.Vector3((b.min[0] + b.max[0]) / 2, (b.min[1] + b.max[1]) / 2, (b.min[2] + b.max[2]) / 2);
     this.size = Math.max(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
     this.camera = new THREE.PerspectiveCamera(35, width / height, this.size / 100, this.size * 40);
     this.camera.up.set(0, 0, 1);
-    this.headlight = new THREE.DirectionalLight(0xffffff, 1.6);
-    this.camera.add(this.headlight);
-    this.headlight.position.set(0.3, 0.6, 1);
     this.scene.add(this.camera);
 
     this.buildStock();
@@ -174,6 +210,7 @@ export class View3D {
     this.controls = new OrbitControls(this.camera, this.canvas);
     this.controls.target.copy(this.centre);
     this.controls.addEventListener('change', () => this.requestRender());
+    this.controls.addEventListener('start', () => this.interacting());
     this.setView('iso');
 
     this.canvas.addEventListener('pointerdown', (e) => {
@@ -224,106 +261,73 @@ export class View3D {
 
   // ---- stock ----------------------------------------------------------------------------------
 
-  // One vertex per cell centre; a triangle only where all its corners have material. The four
-  // sides of the box go down from the edge cells to the box bottom.
+  // The stock: its top from the height field and the box's four sides down to its bottom, as
+  // triangles with their lighting baked into vertex colours (a fixed light from above and the
+  // front left). Software rendering pays per shaded pixel, and the stock fills most of the view:
+  // an unlit material with baked colours costs a fraction of a lit one.
   buildStock() {
     const f = this.field;
     const { nx, ny } = f;
-    const n = nx * ny;
-    this.positions = new Float32Array(n * 3);
-    for (let j = 0; j < ny; j++) {
-      for (let i = 0; i < nx; i++) {
-        const k = j * nx + i;
-        this.positions[3 * k] = f.x0_mm + (i + 0.5) * f.cell_mm;
-        this.positions[3 * k + 1] = f.y0_mm + (j + 0.5) * f.cell_mm;
-      }
-    }
-    const index = [];
-    for (let j = 0; j + 1 < ny; j++) {
-      for (let i = 0; i + 1 < nx; i++) {
-        const a = j * nx + i;
-        index.push(a, a + 1, a + nx + 1, a, a + nx + 1, a + nx);
-      }
-    }
-    this.allIndex = Uint32Array.from(index);
-    const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.BufferAttribute(this.positions, 3));
-    g.setAttribute('normal', new THREE.BufferAttribute(new Float32Array(n * 3), 3));
-    g.setIndex(new THREE.BufferAttribute(new Uint32Array(this.allIndex.length), 1));
-    this.stockGeometry = g;
-    this.stockMesh = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: STOCK_COLOUR, side: THREE.DoubleSide }));
+    this.cx = Float32Array.from({ length: nx }, (_, i) => f.x0_mm + (i + 0.5) * f.cell_mm);
+    this.cy = Float32Array.from({ length: ny }, (_, j) => f.y0_mm + (j + 0.5) * f.cell_mm);
+    this.stockGeometry = new THREE.BufferGeometry();
+    this.stockMesh = new THREE.Mesh(this.stockGeometry, new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide }));
     this.scene.add(this.stockMesh);
-    this.sides = new THREE.Mesh(new THREE.BufferGeometry(), new THREE.MeshLambertMaterial({ color: 0xb3b9c2, side: THREE.DoubleSide }));
-    this.scene.add(this.sides);
     this.showHeights(this.finalTop);
   }
 
-  // Puts heights (per cell, NaN: empty) on the stock mesh: positions, normals, kept triangles, sides.
+  // Puts heights (per cell, NaN: empty) on the stock mesh. Between two rows of cell centres, a
+  // flat run (all corners at one height) is one quad, anything else two triangles per cell: most
+  // of a stock's top and a pocket's floor are flat.
   showHeights(top) {
     const f = this.field;
     const { nx, ny } = f;
-    const p = this.positions;
+    const { cx, cy } = this;
     const bottom = f.box_mm.min[2];
-    for (let k = 0; k < nx * ny; k++) p[3 * k + 2] = Number.isNaN(top[k]) ? bottom : top[k];
-    const idx = this.stockGeometry.index.array;
-    let m = 0;
-    const all = this.allIndex;
-    for (let t = 0; t < all.length; t += 3) {
-      if (Number.isNaN(top[all[t]]) || Number.isNaN(top[all[t + 1]]) || Number.isNaN(top[all[t + 2]])) continue;
-      idx[m++] = all[t];
-      idx[m++] = all[t + 1];
-      idx[m++] = all[t + 2];
-    }
-    this.stockGeometry.setDrawRange(0, m);
-    this.stockGeometry.index.needsUpdate = true;
-    // Normals from central differences of the height field (cheaper than per-face sums).
-    const nrm = this.stockGeometry.attributes.normal.array;
-    const c = f.cell_mm;
-    const z = (i, j) => p[3 * (Math.min(ny - 1, Math.max(0, j)) * nx + Math.min(nx - 1, Math.max(0, i))) + 2];
-    for (let j = 0; j < ny; j++) {
-      for (let i = 0; i < nx; i++) {
-        const dx = (z(i + 1, j) - z(i - 1, j)) / (2 * c);
-        const dy = (z(i, j + 1) - z(i, j - 1)) / (2 * c);
-        const l = Math.hypot(dx, dy, 1);
-        const k = 3 * (j * nx + i);
-        nrm[k] = -dx / l;
-        nrm[k + 1] = -dy / l;
-        nrm[k + 2] = 1 / l;
+    const pos = [];
+    const z = (k) => (Number.isNaN(top[k]) ? bottom : top[k]);
+    const tri = (x0, y0, z0, x1, y1, z1, x2, y2, z2) => pos.push(x0, y0, z0, x1, y1, z1, x2, y2, z2);
+    for (let j = 0; j + 1 < ny; j++) {
+      let i = 0;
+      while (i + 1 < nx) {
+        const a = j * nx + i;
+        const d = a + nx;
+        const za = top[a];
+        if (Number.isNaN(za) || Number.isNaN(top[a + 1]) || Number.isNaN(top[d]) || Number.isNaN(top[d + 1])) {
+          i += 1;
+          continue;
+        }
+        let k = i + 1;
+        if (za === top[a + 1] && za === top[d] && za === top[d + 1]) {
+          while (k + 1 < nx && top[j * nx + k + 1] === za && top[(j + 1) * nx + k + 1] === za) k += 1;
+        }
+        const e = j * nx + k;
+        tri(cx[i], cy[j], za, cx[k], cy[j], z(e), cx[k], cy[j + 1], z(e + nx));
+        tri(cx[i], cy[j], za, cx[k], cy[j + 1], z(e + nx), cx[i], cy[j + 1], z(d));
+        i = k;
       }
     }
-    this.stockGeometry.attributes.position.needsUpdate = true;
-    this.stockGeometry.attributes.normal.needsUpdate = true;
-    this.stockGeometry.computeBoundingSphere();
-    this.buildSides(top);
-  }
-
-  buildSides(top) {
-    const f = this.field;
-    const { nx, ny } = f;
-    const bottom = f.box_mm.min[2];
+    const topCount = pos.length / 9;
+    // The sides: from the edge cells' heights down to the box bottom, at the box's faces.
     const b = f.box_mm;
-    const verts = [];
-    const edge = (cells, fixed, axis) => {
-      for (let s = 0; s + 1 < cells.length; s++) {
-        const [k0, c0] = cells[s];
-        const [k1, c1] = cells[s + 1];
-        const z0 = Number.isNaN(top[k0]) ? bottom : top[k0];
-        const z1 = Number.isNaN(top[k1]) ? bottom : top[k1];
-        const P = (c, zz) => (axis === 'x' ? [c, fixed, zz] : [fixed, c, zz]);
-        verts.push(...P(c0, bottom), ...P(c1, bottom), ...P(c1, z1), ...P(c0, bottom), ...P(c1, z1), ...P(c0, z0));
+    const side = (cells, fixed, alongX) => {
+      for (let q = 0; q + 1 < cells.length; q++) {
+        const [k0, c0] = cells[q];
+        const [k1, c1] = cells[q + 1];
+        const P = (c, zz) => (alongX ? [c, fixed, zz] : [fixed, c, zz]);
+        tri(...P(c0, bottom), ...P(c1, bottom), ...P(c1, z(k1)));
+        tri(...P(c0, bottom), ...P(c1, z(k1)), ...P(c0, z(k0)));
       }
     };
-    const cx = (i) => f.x0_mm + (i + 0.5) * f.cell_mm;
-    const cy = (j) => f.y0_mm + (j + 0.5) * f.cell_mm;
-    edge(Array.from({ length: nx }, (_, i) => [i, cx(i)]), b.min[1], 'x');
-    edge(Array.from({ length: nx }, (_, i) => [(ny - 1) * nx + i, cx(i)]), b.max[1], 'x');
-    edge(Array.from({ length: ny }, (_, j) => [j * nx, cy(j)]), b.min[0], 'y');
-    edge(Array.from({ length: ny }, (_, j) => [j * nx + nx - 1, cy(j)]), b.max[0], 'y');
-    const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.BufferAttribute(Float32Array.from(verts), 3));
-    g.computeVertexNormals();
-    this.sides.geometry.dispose();
-    this.sides.geometry = g;
+    side(Array.from({ length: nx }, (_, i) => [i, cx[i]]), b.min[1], true);
+    side(Array.from({ length: nx }, (_, i) => [(ny - 1) * nx + i, cx[i]]), b.max[1], true);
+    side(Array.from({ length: ny }, (_, j) => [j * nx, cy[j]]), b.min[0], false);
+    side(Array.from({ length: ny }, (_, j) => [j * nx + nx - 1, cy[j]]), b.max[0], false);
+    const positions = Float32Array.from(pos);
+    this.stockGeometry.setAttribute('position', new THREE.BufferAttribute(positions, 3));
+    this.stockGeometry.setAttribute('color', new THREE.BufferAttribute(shade(positions), 3));
+    this.stockGeometry.computeBoundingSphere();
+    this.container.dataset.stockTriangles = String(topCount);
   }
 
   // ---- in-process stock -----------------------------------------------------------------------
@@ -392,6 +396,16 @@ export class View3D {
   setTime(t) {
     this.time = t;
     const { path } = this;
+    // Material not yet removed is see-through, so the path still to come shows inside it.
+    const ghost = t != null && t < path.t[path.t.length - 1];
+    for (const m of [this.stockMesh.material]) {
+      if (m.transparent !== ghost) {
+        m.transparent = ghost;
+        m.opacity = ghost ? 0.55 : 1;
+        m.depthWrite = !ghost;
+        m.needsUpdate = true;
+      }
+    }
     if (t == null || t >= path.t[path.t.length - 1]) {
       this.showHeights(this.finalTop);
       this.placeTool(t == null ? null : path.t.length - 1);
@@ -416,12 +430,14 @@ export class View3D {
 
   // ---- path -------------------------------------------------------------------------------------
 
+  // One line object per class. GL lines are one pixel wide, so a class is told by its dash and
+  // its markers as well as its colour: dashed 80-100 %, square markers over the limit.
+  // (Screen-space wide lines cost software rendering several times the whole scene.)
   buildPath() {
     const { x, y, z } = this.path;
     const n = x.length;
     this.pathGroup = new THREE.Group();
     this.scene.add(this.pathGroup);
-    // Classes: one line object per class, so width and dash differ as well as colour.
     const perClass = LOAD_CLASSES.map(() => []);
     for (let i = 1; i < n; i++) {
       const r = Math.max(this.ratio[i - 1], this.ratio[i]);
@@ -429,13 +445,19 @@ export class View3D {
     }
     this.classLines = LOAD_CLASSES.map((cls, k) => {
       if (!perClass[k].length) return null;
-      const g = new LineSegmentsGeometry();
-      g.setPositions(perClass[k]);
-      const m = new LineMaterial({ color: cls.colour, linewidth: cls.width, dashed: cls.dashed, dashSize: 1.2, gapSize: 0.8 });
-      const line = new LineSegments2(g, m);
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.Float32BufferAttribute(perClass[k], 3));
+      const m = cls.dashed ? new THREE.LineDashedMaterial({ color: cls.colour, dashSize: 1.5, gapSize: 1 })
+        : new THREE.LineBasicMaterial({ color: cls.colour });
+      const group = new THREE.Group();
+      const line = new THREE.LineSegments(g, m);
       if (cls.dashed) line.computeLineDistances();
-      this.pathGroup.add(line);
-      return line;
+      group.add(line);
+      if (cls.marker) {
+        group.add(new THREE.Points(g, new THREE.PointsMaterial({ color: cls.colour, size: cls.marker, sizeAttenuation: false })));
+      }
+      this.pathGroup.add(group);
+      return group;
     });
   }
 
@@ -443,18 +465,18 @@ export class View3D {
   buildContinuous() {
     const { x, y, z } = this.path;
     const n = x.length;
-    const pos = [];
-    const col = [];
+    const pos = new Float32Array(6 * (n - 1));
+    const col = new Float32Array(6 * (n - 1));
     for (let i = 1; i < n; i++) {
       const r = Math.max(this.ratio[i - 1], this.ratio[i]);
-      pos.push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
+      pos.set([x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]], 6 * (i - 1));
       const cc = r > 0 ? continuousColour(r) : new THREE.Color(LOAD_CLASSES[0].colour);
-      col.push(cc.r, cc.g, cc.b, cc.r, cc.g, cc.b);
+      col.set([cc.r, cc.g, cc.b, cc.r, cc.g, cc.b], 6 * (i - 1));
     }
-    const g = new LineSegmentsGeometry();
-    g.setPositions(pos);
-    g.setColors(col);
-    this.continuousLine = new LineSegments2(g, new LineMaterial({ vertexColors: true, linewidth: 2.5 }));
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+    g.setAttribute('color', new THREE.BufferAttribute(col, 3));
+    this.continuousLine = new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true }));
     this.pathGroup.add(this.continuousLine);
   }
 
@@ -466,11 +488,12 @@ export class View3D {
     this.requestRender();
   }
 
-  // The selected block's path, drawn wide under the coloured path.
+  // The selected block's path: its points as large blue squares drawn over everything, and its
+  // line.
   select(block) {
     if (this.selectionLine) {
       this.pathGroup.remove(this.selectionLine);
-      this.selectionLine.geometry.dispose();
+      this.selectionLine.traverse((o) => o.geometry?.dispose());
       this.selectionLine = null;
     }
     this.container.dataset.selectedSegments = '0';
@@ -482,10 +505,14 @@ export class View3D {
         pos.push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
       }
       if (pos.length) {
-        const g = new LineSegmentsGeometry();
-        g.setPositions(pos);
-        this.selectionLine = new LineSegments2(g, new LineMaterial({ color: SELECT_COLOUR, linewidth: 9, transparent: true, opacity: 0.55, depthTest: false }));
-        this.selectionLine.renderOrder = -1;
+        const g = new THREE.BufferGeometry();
+        g.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+        this.selectionLine = new THREE.Group();
+        const points = new THREE.Points(g, new THREE.PointsMaterial({ color: SELECT_COLOUR, size: 7, sizeAttenuation: false, depthTest: false, transparent: true, opacity: 0.6 }));
+        const line = new THREE.LineSegments(g, new THREE.LineBasicMaterial({ color: SELECT_COLOUR, depthTest: false }));
+        points.renderOrder = 1;
+        line.renderOrder = 1;
+        this.selectionLine.add(points, line);
         this.pathGroup.add(this.selectionLine);
         this.container.dataset.selectedSegments = String(pos.length / 6);
       }
@@ -534,7 +561,20 @@ export class View3D {
   }
 
   // Rotates the camera about the target by `radians` (the orbit benchmark and the keyboard).
+  // While the view moves it is drawn at half resolution (software rendering pays per pixel), and
+  // sharp again once it has stood still for a moment.
+  interacting() {
+    const full = Math.min(2, devicePixelRatio || 1);
+    if (this.renderer.getPixelRatio() !== full / 2) this.renderer.setPixelRatio(full / 2);
+    clearTimeout(this.sharpTimer);
+    this.sharpTimer = setTimeout(() => {
+      this.renderer.setPixelRatio(full);
+      this.requestRender();
+    }, 200);
+  }
+
   orbit(radians) {
+    this.interacting();
     const off = this.camera.position.clone().sub(this.controls.target);
     off.applyAxisAngle(new THREE.Vector3(0, 0, 1), radians);
     this.camera.position.copy(this.controls.target).add(off);
@@ -630,7 +670,7 @@ export class View3D {
     else {
       const ray = new THREE.Raycaster();
       ray.setFromCamera(new THREE.Vector2((px / rect.width) * 2 - 1, -(py / rect.height) * 2 + 1), this.camera);
-      const hit = ray.intersectObjects([this.stockMesh, this.sides], false)[0];
+      const hit = ray.intersectObject(this.stockMesh, false)[0];
       if (hit) point = hit.point;
     }
     if (point) this.addMeasurePoint(point);
