@@ -1,5 +1,5 @@
 // The stock seen from above, for display: the top of the material per cell of a coarser grid.
-#include "force_model/stock.hpp"
+#include "stock.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // Routes that serve the web page's views of a finished run: /api/v1/runs/{id}/stock (the final
 // stock as a height field for the 3-D view).
-#include "server/core.hpp"
-#include "server/jobs.hpp"
+#include "core.hpp"
+#include "jobs.hpp"
 
 #include <fmt/format.h>
 
