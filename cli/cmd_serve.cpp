@@ -91,6 +91,8 @@ void add_serve(CLI::App& app) {
         ->capture_default_str();
     sub->add_flag("--anonymous-loopback-reads", a->opt.anonymous_loopback_reads,
                   "Allow GET requests without an API key from 127.0.0.1 / ::1");
+    sub->add_flag("!--no-limit-alerts", a->opt.limit_alerts,
+                  "Do not raise an alert for blocks over the run's own limits (only thresholds raise alerts)");
     sub->add_option("--drain-s", a->opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")
         ->check(CLI::Range(0.0, 3600.0))
         ->capture_default_str();

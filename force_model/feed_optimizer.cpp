@@ -40,6 +40,7 @@ struct Unit {
     double best_feasible_scale = 0;    // largest scale seen at or below the target (0: none yet)
     bool cuts = false, done = false, at_limit = false;
     bool over_at_programmed = false;   // over the target at its programmed feed: never raised
+    bool fixed = false;                // keeps its programmed feed (only_flagged, never_raise)
 };
 
 double ratio(const std::array<double, kQuantities>& v, const std::array<double, kQuantities>& lim, int* which = nullptr) {
@@ -74,6 +75,15 @@ double next_feed(const Unit& u, const std::array<double, kQuantities>& lim, doub
         feed = std::min(feed, f);
     }
     return feed;
+}
+
+std::vector<std::string> flag_names(const BlockSummary* b) {
+    std::vector<std::string> names;
+    if (b)
+        for (const FlagHit& f : b->flags) names.push_back(f.flag);
+    std::sort(names.begin(), names.end());
+    names.erase(std::unique(names.begin(), names.end()), names.end());
+    return names;
 }
 
 }  // namespace
@@ -145,6 +155,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
     if (!(o.min_feed_mm_min > 0 && o.min_feed_mm_min < max_feed))
         throw std::invalid_argument(fmt::format("feed range {}..{} mm/min is empty", o.min_feed_mm_min, max_feed));
     if (o.max_predictions < 2) throw std::invalid_argument("max_predictions must be >= 2");
+    if (!(o.feed_step_mm_min >= 0)) throw std::invalid_argument("feed_step_mm_min must be >= 0");
 
     std::vector<Unit> units;
     std::map<std::string, std::size_t> unit_of;
@@ -161,14 +172,22 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         units[it->second].blocks.push_back(i);
     }
 
-    // Feeds as the rewritten program will state them: clamped to the range, floored to what an
-    // F word can say; the unit's effective scale follows its first block.
+    // A feed as the rewritten program will state it: clamped to the range, rounded down to the
+    // step (not below the minimum), floored to what an F word can say.
+    auto stated_feed = [&](const motion_io::NcBlock& b, double wanted_mm_min) {
+        double f = std::clamp(wanted_mm_min, o.min_feed_mm_min, max_feed);
+        if (o.feed_step_mm_min > 0) f = std::max(o.min_feed_mm_min, std::floor(f / o.feed_step_mm_min + 1e-9) * o.feed_step_mm_min);
+        return motion_io::representable_feed_mm_min(b, f);
+    };
+    // The unit's effective scale follows its first block; a unit left alone keeps its feeds as
+    // written.
     auto feeds_for = [&](std::vector<Unit>& us) {
         std::vector<double> feeds(program.blocks.size(), 0.0);
         for (Unit& u : us)
             for (std::size_t i : u.blocks) {
                 const motion_io::NcBlock& b = program.blocks[i];
-                feeds[i] = motion_io::representable_feed_mm_min(b, std::clamp(b.feed_mm_min * u.scale, o.min_feed_mm_min, max_feed));
+                feeds[i] = u.scale == 1.0 ? motion_io::representable_feed_mm_min(b, std::clamp(b.feed_mm_min, o.min_feed_mm_min, max_feed))
+                                          : stated_feed(b, b.feed_mm_min * u.scale);
             }
         return feeds;
     };
@@ -210,18 +229,21 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
             if (r.predictions == 1) {
                 u.cuts = rr > 0;
                 u.over_at_programmed = rr > o.target;
+                u.fixed = (o.only_flagged && (!s || s->flags.empty())) || (o.never_raise && rr <= o.target);
             }
-            if (!u.cuts) {
+            if (!u.cuts || u.fixed) {
                 u.done = true;
                 continue;
             }
             u.history.push_back({feed, v});
             const double scale_now = feed / u.programmed_mm_min;
             if (rr <= o.target) u.best_feasible_scale = std::max(u.best_feasible_scale, scale_now);
-            const bool at_max = feed >= motion_io::representable_feed_mm_min(program.blocks[u.blocks.front()], max_feed) - 1e-9;
+            const bool at_max = feed >= stated_feed(program.blocks[u.blocks.front()], max_feed) - 1e-9;
             const bool at_min = feed <= o.min_feed_mm_min + 1.0;   // within one F-word step
             u.at_limit = (at_max && rr <= o.target) || (at_min && rr > o.target);
-            u.done = (rr <= o.target && rr >= o.target * (1 - o.tolerance)) || u.at_limit;
+            // One feed step may be wider than the tolerance: landing within a step of it is done.
+            const double tol = std::max(o.tolerance, o.feed_step_mm_min / std::max(feed, 1.0));
+            u.done = (rr <= o.target && rr >= o.target * (1 - tol)) || u.at_limit;
             all_done = all_done && u.done;
         }
         if (r.predictions == 1) r.before = std::move(p);
@@ -245,7 +267,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
                 // A block's load also depends on its neighbours' feeds (what they leave, how the
                 // machine enters it), so its own history can point upwards even when it is over
                 // the target: a block over it as programmed is only ever slowed.
-                if (u.over_at_programmed) f = std::min(f, u.programmed_mm_min);
+                if (u.over_at_programmed || o.never_raise) f = std::min(f, u.programmed_mm_min);
                 u.scale = std::clamp(f, o.min_feed_mm_min, max_feed) / u.programmed_mm_min;
             }
         feeds = feeds_for(units);
@@ -256,7 +278,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
     for (int round = 0; round < 3; ++round) {
         bool over = false;
         for (Unit& u : units) {
-            if (!u.cuts) continue;
+            if (!u.cuts || u.fixed) continue;
             const BlockSummary* s = summary(r.after, u.name);
             const double rr = s ? ratio(values_of(*s), lim) : 0.0;
             if (rr > o.target && feeds[u.blocks.front()] > o.min_feed_mm_min + 1.0) {
@@ -285,7 +307,12 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         if (after) bf.ratio_after = ratio(values_of(*after), lim, &which);
         bf.binding = kQuantityNames[static_cast<std::size_t>(which)];
         bf.at_feed_limit = u.at_limit;
-        const bool close = bf.ratio_after >= o.target * (1 - o.tolerance) || bf.at_feed_limit;
+        bf.flags_before = flag_names(before);
+        bf.flags_after = flag_names(after);
+        const double tol = std::max(o.tolerance, o.feed_step_mm_min / std::max(bf.recommended_feed_mm_min, 1.0));
+        // A block left alone by choice (only_flagged, never_raise) has no target to meet, unless
+        // it is over it.
+        const bool close = u.fixed || bf.ratio_after >= o.target * (1 - tol) || bf.at_feed_limit;
         if (bf.ratio_after > o.target + 1e-9 || !close) r.target_met = false;
         r.blocks.push_back(bf);
     }

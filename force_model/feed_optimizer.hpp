@@ -27,6 +27,13 @@ struct FeedOptimizerOptions {
     int max_predictions = 8;          // of the search; up to 3 more lower blocks left over the target
     FeedBasis basis = FeedBasis::Actual;
     motion_io::CommandedOptions commanded;   // step and rapid rate (feeds are set by the optimizer)
+    // Only blocks the engine flags at their programmed feed are changed; the others keep it.
+    bool only_flagged = false;
+    // Feeds are only ever lowered: a block under the target keeps its programmed feed.
+    bool never_raise = false;
+    // A changed feed is rounded down to a multiple of this (not below min_feed_mm_min), so the
+    // program states feeds a shop would write; 0: only to what an F word can state.
+    double feed_step_mm_min = 0;
 };
 
 struct BlockFeed {
@@ -35,6 +42,7 @@ struct BlockFeed {
     std::string binding;                       // force, torque, power, chip, bending
     double ratio_before = 0, ratio_after = 0;  // binding quantity / its limit
     bool at_feed_limit = false;                // the feed range stopped it short of the target
+    std::vector<std::string> flags_before, flags_after;   // the block's engine flags (sorted, unique)
 };
 
 struct FeedOptimization {

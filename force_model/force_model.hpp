@@ -94,6 +94,20 @@ void save_stock(const Stock& s, const std::string& path);   // binary, versioned
 StockPtr load_stock(const std::string& path);               // throws std::runtime_error on bad file
 double stock_volume_mm3(const Stock& s);
 
+// The stock seen from above, for display (the web page's 3-D view): the top of the material over
+// a grid of at most max_cells cells, each the highest top of the k x k rays it covers (so material
+// is never shown removed where it remains). Row-major (j * nx + i), cell (i, j) spans
+// x0 + i cell .. x0 + (i + 1) cell; NaN where no ray of the cell has material left. Holes and
+// overhangs below the top are not represented.
+struct StockHeightField {
+    StockBox box;
+    double x0_mm = 0, y0_mm = 0, cell_mm = 0;
+    int nx = 0, ny = 0;
+    int rays_per_cell = 1;        // k: the field's cell is k x k of the stock's rays
+    std::vector<float> top_mm;
+};
+StockHeightField stock_height_field(const Stock& s, std::size_t max_cells);
+
 enum class Device { OpenCL, Cpu };
 
 // The OpenCL device predict() would use ("auto" choices in the CLI and service); throws

@@ -71,5 +71,6 @@ void add_measurement_routes(Core& c);
 void add_calibration_routes(Core& c);
 void add_alert_routes(Core& c);
 void add_misc_routes(Core& c);
+void add_view_routes(Core& c);
 
 }  // namespace cutload::server

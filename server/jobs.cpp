@@ -255,7 +255,8 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             auto c = pool_.get();
             std::optional<ProgramResult> program_result;
             if (program) program_result.emplace(ProgramResult{*program, *commanded, inputs["nc_program"].value("filename", "")});
-            alerts = store_result(*c, id, motion, prediction, stock_bytes, program_result ? &*program_result : nullptr);
+            alerts = store_result(*c, id, motion, prediction, stock_bytes, program_result ? &*program_result : nullptr,
+                                  opt_.limit_alerts);
         }
         metrics_.job_finished("done", elapsed_s());
         if (alerts > 0) {

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
 
@@ -162,8 +163,18 @@ force_model::ProgramRun load_program_run(const json& inputs, const fs::path& upl
 }
 
 json program_body(const ProgramResult& r, const json& commanded_summary) {
+    // Where each block is written and the spindle speed it runs at, for the page's NC listing.
+    std::map<std::string, const motion_io::NcBlock*> source;
+    for (const auto& b : r.run.program.blocks) source.try_emplace(b.name, &b);
     json blocks = json::array();
-    for (const auto& row : r.prediction.blocks) blocks.push_back(comparison_json(row));
+    for (const auto& row : r.prediction.blocks) {
+        json j = comparison_json(row);
+        if (const auto it = source.find(row.block); it != source.end()) {
+            j["line"] = it->second->line;
+            j["spindle_rpm"] = it->second->spindle_rpm;
+        }
+        blocks.push_back(std::move(j));
+    }
     return {{"filename", r.filename},
             {"program_blocks", r.run.program.blocks.size()},
             {"tools", motion_io::program_tools(r.run.program)},
@@ -198,7 +209,8 @@ std::string comparison_csv(const json& blocks) {
 
 json optimization_params(const json& body) {
     if (!body.is_object()) bad_request("request body: must be a JSON object");
-    json p{{"target", 0.8}, {"min_feed_mm_min", 10.0}, {"max_feed_mm_min", nullptr}, {"basis", "actual"}, {"max_predictions", 8}};
+    json p{{"target", 0.8},      {"min_feed_mm_min", 10.0}, {"max_feed_mm_min", nullptr}, {"basis", "actual"},
+           {"max_predictions", 8}, {"only_flagged", false},  {"never_raise", false},      {"feed_step_mm_min", 50.0}};
     auto number = [&](const std::string& key, double lo, double hi) {
         const json& v = body[key];
         if (!v.is_number()) bad_request(fmt::format("{}: must be a number", key));
@@ -219,8 +231,15 @@ json optimization_params(const json& body) {
         } else if (key == "max_predictions") {
             if (!v.is_number_integer()) bad_request("max_predictions: must be an integer");
             p[key] = static_cast<int>(number(key, 2, 20));
+        } else if (key == "only_flagged" || key == "never_raise") {
+            if (!v.is_boolean()) bad_request(fmt::format("{}: must be true or false", key));
+            p[key] = v;
+        } else if (key == "feed_step_mm_min") {
+            p[key] = number(key, 0, 1000);
         } else {
-            bad_request(fmt::format("unknown key '{}' (known: target, min_feed_mm_min, max_feed_mm_min, basis, max_predictions)", key));
+            bad_request(fmt::format("unknown key '{}' (known: target, min_feed_mm_min, max_feed_mm_min, basis, max_predictions, "
+                                    "only_flagged, never_raise, feed_step_mm_min)",
+                                    key));
         }
     }
     if (!p["max_feed_mm_min"].is_null() && p["max_feed_mm_min"].get<double>() <= p["min_feed_mm_min"].get<double>())
@@ -258,6 +277,10 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
     o.max_feed_mm_min = params["max_feed_mm_min"].is_null() ? 0.0 : params["max_feed_mm_min"].get<double>();
     o.max_predictions = params["max_predictions"].get<int>();
     o.basis = params["basis"] == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
+    // Optimizations stored before these options existed ran without them.
+    o.only_flagged = params.value("only_flagged", false);
+    o.never_raise = params.value("never_raise", false);
+    o.feed_step_mm_min = params.value("feed_step_mm_min", 0.0);
     o.commanded = run.commanded;
 
     // Each prediction reports 0..1; the search runs at most max_predictions + 3 of them.
@@ -280,6 +303,9 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
     std::size_t changed = 0;
     for (const auto& b : r.blocks) {
         if (b.recommended_feed_mm_min != b.programmed_feed_mm_min) ++changed;
+        std::vector<std::string> cleared;
+        std::set_difference(b.flags_before.begin(), b.flags_before.end(), b.flags_after.begin(), b.flags_after.end(),
+                            std::back_inserter(cleared));
         blocks.push_back({{"block", b.block},
                           {"programmed_feed_mm_min", b.programmed_feed_mm_min},
                           {"recommended_feed_mm_min", b.recommended_feed_mm_min},
@@ -288,7 +314,10 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
                           {"ratio_after", b.ratio_after},
                           {"at_feed_limit", b.at_feed_limit},
                           {"peak_force_before_N", peak_force_of(r.before, b.block)},
-                          {"peak_force_after_N", peak_force_of(r.after, b.block)}});
+                          {"peak_force_after_N", peak_force_of(r.after, b.block)},
+                          {"flags_before", b.flags_before},
+                          {"flags_after", b.flags_after},
+                          {"flags_cleared", cleared}});
     }
     const json result{{"blocks", blocks},
                       {"predictions", r.predictions},

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 
 namespace cutload::server {
 namespace {
@@ -101,8 +102,14 @@ std::optional<double> metric_value(const std::string& metric, const force_model:
     return std::nullopt;
 }
 
+// Flags that mean a collision rather than a load over its limit: their alerts are critical.
+bool collision_flag(const std::string& flag) { return flag == "rapid_in_material" || flag == "holder_contact"; }
+
 // Evaluates every enabled threshold that applies to this run; inserts alerts and deliveries.
-int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Prediction& p) {
+// `limit_alerts`: a run whose blocks the engine flagged against the run's own limits raises an
+// alert of its own (threshold_id null, "run limits") for the flags that no enabled flag threshold
+// applying to the run covers already (an "any flag" threshold covers all).
+int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Prediction& p, bool limit_alerts) {
     const RunRefs refs = load_refs(c, run_id);
     auto rules = c.prepare(
         "SELECT id, name, scope, machine_id, tool_id, material_id, metric, flag, limit_value, severity "
@@ -116,6 +123,64 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
     while (hooks.step()) hook_ids.push_back(hooks.i64(0));
 
     int raised = 0;
+    // One rule over the run's blocks; inserts its alert when it trips.
+    // `covered`: flags left out (those other rules raise alerts for).
+    auto evaluate = [&](std::optional<std::int64_t> threshold_id, const std::string& name, const std::string& metric,
+                        const std::string& flag, double limit, std::optional<std::string> severity,
+                        const std::set<std::string>& covered = {}) {
+        json blocks = json::array();
+        double worst = 0;
+        std::size_t hits = 0;
+        bool collision = false;
+        for (const auto& b : p.blocks) {
+            std::optional<double> v;
+            if (metric == "flag") {
+                for (const auto& f : b.flags)
+                    if ((flag == "any" || f.flag == flag) && !covered.count(f.flag)) {
+                        if (!v) v = f.value;
+                        collision = collision || collision_flag(f.flag);
+                    }
+            } else if (auto x = metric_value(metric, b, refs); x && *x > limit) {
+                v = x;
+            }
+            if (!v) continue;
+            if (hits == 0 || *v > worst) worst = *v;
+            // The alert lists the first blocks; the count says how many there were.
+            if (++hits <= 50) blocks.push_back({{"block", b.block}, {"t_start_s", b.t_start_s}, {"value", *v}});
+        }
+        if (hits == 0) return;
+
+        const std::string first = blocks[0]["block"].get<std::string>();
+        std::string message =
+            !threshold_id ? fmt::format("run {}: {} block(s) over the run's own limits{}, first {}", run_id, hits,
+                                        collision ? " (with a collision)" : "", first)
+            : metric == "flag"
+                ? fmt::format("run {}: flag {} in {} block(s), first {}", run_id, flag, hits, first)
+                : fmt::format("run {}: {} {:.4g} over the limit {:.4g} in {} block(s), first {}", run_id, metric, worst,
+                              limit, hits, first);
+        json body{{"threshold_name", name},
+                  {"metric", metric},
+                  {"flag", metric == "flag" ? json(flag) : json(nullptr)},
+                  {"limit", metric == "flag" ? json(nullptr) : json(limit)},
+                  {"value", worst},
+                  {"block_count", hits},
+                  {"blocks", blocks},
+                  {"message", message}};
+        const std::string now = db::now_iso();
+        ins.reset();
+        ins.bind(1, run_id).bind(2, threshold_id).bind(3, severity.value_or(collision ? "critical" : "warning"));
+        ins.bind(4, body.dump()).bind(5, now).run();
+        const std::int64_t alert_id = c.last_insert_id();
+        ++raised;
+
+        const json payload{{"event", "alert.raised"}, {"alert", load_alert(c, alert_id)}};
+        for (auto hook : hook_ids) {
+            deliver.reset();
+            deliver.bind(1, hook).bind(2, alert_id).bind(3, payload.dump()).bind(4, unix_now_s()).bind(5, now).run();
+        }
+    };
+
+    std::set<std::string> covered;   // flags that applicable flag thresholds raise alerts for
     while (rules.step()) {
         const std::string scope = rules.text(2);
         auto matches = [&](int col, const std::optional<std::int64_t>& ref) {
@@ -126,55 +191,15 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
             continue;
         const std::string metric = rules.text(6);
         const std::string flag = rules.opt_text(7).value_or("any");
-        const double limit = rules.opt_real(8).value_or(0);
-
-        json blocks = json::array();
-        double worst = 0;
-        std::size_t hits = 0;
-        for (const auto& b : p.blocks) {
-            std::optional<double> v;
-            if (metric == "flag") {
-                for (const auto& f : b.flags)
-                    if (flag == "any" || f.flag == flag) {
-                        v = f.value;
-                        break;
-                    }
-            } else if (auto x = metric_value(metric, b, refs); x && *x > limit) {
-                v = x;
-            }
-            if (!v) continue;
-            if (hits == 0 || *v > worst) worst = *v;
-            // The alert lists the first blocks; the count says how many there were.
-            if (++hits <= 50) blocks.push_back({{"block", b.block}, {"t_start_s", b.t_start_s}, {"value", *v}});
+        if (metric == "flag") {
+            if (flag == "any")
+                covered.insert(known_flags().begin(), known_flags().end());
+            else
+                covered.insert(flag);
         }
-        if (hits == 0) continue;
-
-        std::string message =
-            metric == "flag"
-                ? fmt::format("run {}: flag {} in {} block(s), first {}", run_id, flag, hits,
-                              blocks[0]["block"].get<std::string>())
-                : fmt::format("run {}: {} {:.4g} over the limit {:.4g} in {} block(s), first {}", run_id, metric, worst,
-                              limit, hits, blocks[0]["block"].get<std::string>());
-        json body{{"threshold_name", rules.text(1)},
-                  {"metric", metric},
-                  {"flag", metric == "flag" ? json(flag) : json(nullptr)},
-                  {"limit", metric == "flag" ? json(nullptr) : json(limit)},
-                  {"value", worst},
-                  {"block_count", hits},
-                  {"blocks", blocks},
-                  {"message", message}};
-        const std::string now = db::now_iso();
-        ins.reset();
-        ins.bind(1, run_id).bind(2, rules.i64(0)).bind(3, rules.text(9)).bind(4, body.dump()).bind(5, now).run();
-        const std::int64_t alert_id = c.last_insert_id();
-        ++raised;
-
-        const json payload{{"event", "alert.raised"}, {"alert", load_alert(c, alert_id)}};
-        for (auto hook : hook_ids) {
-            deliver.reset();
-            deliver.bind(1, hook).bind(2, alert_id).bind(3, payload.dump()).bind(4, unix_now_s()).bind(5, now).run();
-        }
+        evaluate(rules.i64(0), rules.text(1), metric, flag, rules.opt_real(8).value_or(0), rules.text(9));
     }
+    if (limit_alerts) evaluate(std::nullopt, "run limits", "flag", "any", 0, std::nullopt, covered);
     return raised;
 }
 
@@ -250,7 +275,8 @@ json alert_row_json(const db::Stmt& st) {
 }
 
 int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program) {
+                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
+                 bool limit_alerts) {
     db::Transaction tx(c);
     {
         auto st = c.prepare("SELECT state FROM runs WHERE id = ?");
@@ -272,7 +298,7 @@ int store_result(db::Connection& c, std::int64_t run_id, const motion_io::Motion
         .bind(1, run_id)
         .bind_blob(2, stock_bytes.data(), stock_bytes.size())
         .run();
-    const int alerts = raise_alerts(c, run_id, p);
+    const int alerts = raise_alerts(c, run_id, p, limit_alerts);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0);
     summary["alerts"] = alerts;
     std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;

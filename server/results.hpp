@@ -12,8 +12,10 @@ struct ProgramResult;
 
 // Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
 // the commanded prediction and comparison of a run uploaded with an NC program, or null.
+// `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
 int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program);
+                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
+                 bool limit_alerts = true);
 
 // An alert as the API shows it; null when unknown. alert_row_json reads the columns of the
 // SELECT in load_alert (a.id, a.run_id, a.threshold_id, a.severity, a.body, a.created_at,

@@ -273,6 +273,7 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     add_calibration_routes(c);
     add_alert_routes(c);
     add_misc_routes(c);
+    add_view_routes(c);
 }
 
 Server::~Server() { stop(); }

@@ -30,6 +30,10 @@ struct ServerOptions {
     double webhook_backoff_s = 2;          // first retry delay; doubles per attempt
     int webhook_max_attempts = 6;
     double webhook_timeout_s = 5;
+    // A run whose blocks exceed the run's own limits (the engine's flags) raises an alert without
+    // any threshold set up: critical for a collision (rapid in material, holder contact), else a
+    // warning. Flags an enabled flag threshold applying to the run covers are left to it.
+    bool limit_alerts = true;
 };
 
 class Server {

@@ -35,8 +35,8 @@ const submit = () => page.getByRole('button', { name: 'Upload and compute' }).cl
 test('missing inputs are named before anything is sent', async () => {
   await submit();
   assert.match(await errorOf('#log-file'), /choose the dry-run log file/);
-  assert.match(await errorOf('input[name="tool-diameter_mm"]'), /tool\.diameter_mm: required/);
-  assert.match(await errorOf('#stock-box_mm-min-group'), /stock\.box_mm\.min: required/);
+  assert.match(await errorOf('input[name="tool-diameter_mm"]'), /^Required: enter the diameter in mm\.$/);
+  assert.match(await errorOf('#stock-box_mm-min-group'), /^Required: enter x, y and z \(mm\)\.$/);
   assert.equal(await page.locator('input[name="tool-diameter_mm"]').getAttribute('aria-invalid'), 'true');
   await screenshot(page, 'bad-upload-1-missing-fields');
 });
@@ -66,7 +66,7 @@ test('a spec value the engine rejects: its error sits by that field', async () =
   await page.waitForFunction(() => document.querySelector('input[name="tool-diameter_mm"]').getAttribute('aria-invalid') === 'true');
   const message = await errorOf('input[name="tool-diameter_mm"]');
   console.log(`diameter field error: ${message}`);
-  assert.match(message, /^tool\.diameter_mm: /);
+  assert.match(message, /^Diameter \(mm\): /, 'the server\'s key is said as the field\'s label');
   assert.equal(await errorOf('#log-file'), '', 'the log error from before is cleared');
   await screenshot(page, 'bad-upload-3-bad-spec');
 });

@@ -86,12 +86,27 @@ test('attaching a measurement overlays it on the plot and shows the metrics', as
   console.log(`caption: ${caption}`);
   assert.match(caption, /dyno\.csv/);
   // The record is the prediction itself: the overall Fx row has a near-zero NRMSE and correlation near 1.
-  const overallFx = await page.locator('#measurement-metrics tbody tr').first().locator('td').allTextContents();
+  // Columns after the axis: mean error, RMSE, NRMSE, peak error, correlation.
+  const fxRow = page.locator('#measurement-metrics tbody tr').first();
+  assert.equal(await fxRow.locator('th').textContent(), 'Fx');
+  const overallFx = await fxRow.locator('td').allTextContents();
   console.log(`overall Fx row: ${overallFx.join(' | ')}`);
-  assert.equal(overallFx[0], 'overall');
-  assert.ok(Math.abs(Number(overallFx[4])) < 0.01, `nrmse ${overallFx[4]}`);
-  assert.ok(Number(overallFx[6]) > 0.99, `correlation ${overallFx[6]}`);
+  assert.ok(Math.abs(Number(overallFx[2])) < 0.01, `nrmse ${overallFx[2]}`);
+  assert.ok(Number(overallFx[4]) > 0.99, `correlation ${overallFx[4]}`);
+  // Per block, folded away below the overall table.
+  assert.equal(await page.locator('.per-block-metrics').getAttribute('open'), null);
   await screenshot(page, 'measurement-2-overlay');
+
+  // The overview is an envelope of the whole record; zoomed in, the record is drawn at full resolution.
+  const plot = page.locator('#force-plot');
+  assert.equal(await plot.getAttribute('data-measured-resolution'), 'envelope');
+  await plot.focus();
+  for (let i = 0; i < 5; i++) await page.keyboard.press('+');
+  await page.waitForFunction(() => document.getElementById('force-plot').dataset.measuredResolution === 'full', null, { timeout: 15000 });
+  assert.ok(Number(await plot.getAttribute('data-measured-window-points')) > 10, 'measured samples in the window');
+  await screenshot(page, 'measurement-3-zoomed-full-resolution');
+  await page.keyboard.press('0');
+  await page.waitForFunction(() => document.getElementById('force-plot').dataset.measuredResolution === 'envelope', null, { timeout: 15000 });
   // A reload finds the attached record again.
   await page.reload();
   await page.locator('#measurement-metrics').waitFor();

@@ -138,15 +138,19 @@ test('commanded overlay, mapping quality, comparison columns and a feed optimiza
   assert.equal(await page.locator('#optimize-target').inputValue(), '0.8');
   await page.getByLabel('Basis').selectOption('actual');
   await page.getByRole('button', { name: 'Optimize feeds' }).click();
-  await page.locator('#optimize-table tbody tr').first().waitFor({ timeout: 120000 });
+  await page.locator('#optimize-summary').waitFor({ timeout: 120000 });
   const opt = (await server.api('GET', `runs/${runId}/optimizations`)).items[0];
   assert.equal(opt.state, 'done');
   assert.equal(opt.params.target, 0.8);
-  assert.equal(await page.locator('#optimize-table tbody tr').count(), opt.result.blocks.length);
+  assert.equal(await page.locator('#optimize-table tbody tr:visible').count(), opt.result.changed_blocks || opt.result.blocks.length,
+    'changed blocks only, by default');
+  if (opt.result.changed_blocks) await page.getByLabel('Changed blocks only').uncheck();
+  assert.equal(await page.locator('#optimize-table tbody tr:visible').count(), opt.result.blocks.length);
   const changed = opt.result.blocks.find((b) => b.recommended_feed_mm_min !== b.programmed_feed_mm_min) || opt.result.blocks[0];
   const cells = await page.locator(`#optimize-table tbody tr[data-block="${changed.block}"] td`).allInnerTexts();
-  assert.ok(close(cellNumber(cells[1]), changed.programmed_feed_mm_min), `programmed F ${cells[1]}`);
-  assert.ok(close(cellNumber(cells[2]), changed.recommended_feed_mm_min), `recommended F ${cells[2]}`);
+  // The block's name is the row header; the cells start with the feeds.
+  assert.ok(close(cellNumber(cells[0]), changed.programmed_feed_mm_min), `programmed F ${cells[0]}`);
+  assert.ok(close(cellNumber(cells[1]), changed.recommended_feed_mm_min), `recommended F ${cells[1]}`);
   const summary = await page.locator('#optimize-summary').innerText();
   console.log(summary);
   assert.match(summary, new RegExp(`^${opt.result.changed_blocks} of ${opt.result.blocks.length} blocks changed`));
@@ -177,8 +181,8 @@ test('a program the server cannot read: its error names the line by the program 
   await page.locator('.nc-options summary').click();
   await page.getByLabel('G00 rapid feed (mm/min)').fill('-5');
   await submit();
-  assert.match(await errorOf(await page.getByLabel('G00 rapid feed (mm/min)').getAttribute('id')), /rapid_feed_mm_min: must be a number > 0/);
-  assert.match(await errorOf('nc-program-file'), /choose the NC program file/);
+  assert.match(await errorOf(await page.getByLabel('G00 rapid feed (mm/min)').getAttribute('id')), /Enter a feed above 0 mm\/min/);
+  assert.match(await errorOf('nc-program-file'), /Choose the NC program file/);
   await page.getByLabel('G00 rapid feed (mm/min)').fill('');
 
   await programField.setInputFiles(tempFile(server, 'bad_program.nc', '%\nO0001\nG21 G90\nN10 G41 X1.\nM30\n%\n'));

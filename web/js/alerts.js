@@ -1,7 +1,23 @@
 // Alerts: raised by thresholds when a run finishes; list, filter and acknowledge. The same table
 // appears on a run's page, filtered to that run.
 import { api } from './api.js';
-import { h, clear, field, when, statusLine, errorText } from './dom.js';
+import { h, clear, field, when, num, statusLine, errorText } from './dom.js';
+import { flagLabel, metricLabel } from './labels.js';
+
+// An alert in plain words, from its fields (the server's message names metrics by key).
+export function alertMessage(a) {
+  const n = a.block_count ?? a.blocks?.length ?? 0;
+  const where = `${n} block${n === 1 ? '' : 's'}${a.blocks?.length ? `, first ${a.blocks[0].block}` : ''}`;
+  if (a.threshold_id == null && a.threshold_name === 'run limits') return `Over the run's own limits in ${where}`;
+  if (a.metric === 'flag') return `${a.flag && a.flag !== 'any' ? flagLabel(a.flag) : 'A flag'} in ${where}`;
+  if (a.metric) return `${metricLabel(a.metric)} reached ${num(a.value)}, over the limit ${num(a.limit)}, in ${where}`;
+  return a.message;
+}
+
+function ruleName(a) {
+  if (a.threshold_id == null && a.threshold_name === 'run limits') return 'The run\'s own limits';
+  return a.threshold_name || '–';
+}
 
 // onAcked(updated alert): the row is redrawn in place, so it stays visible under an "open" filter.
 function ackCell(alert, onAcked) {
@@ -50,8 +66,8 @@ export function alertTable(container, filters, { showRun = true } = {}) {
     h('td', {}, when(a.created_at)),
     h('td', {}, h('span', { class: `sev sev-${a.severity}` }, a.severity)),
     showRun ? h('td', {}, h('a', { href: `#/runs/${a.run_id}` }, `#${a.run_id}`), a.run?.name ? ` ${a.run.name}` : '') : null,
-    h('td', {}, a.threshold_name || '–'),
-    h('td', {}, a.message),
+    h('td', {}, ruleName(a)),
+    h('td', { title: a.message }, alertMessage(a)),
     h('td', {}, ackCell(a, onAcked))].filter(Boolean);
 
   async function load(append) {

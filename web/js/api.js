@@ -97,8 +97,10 @@ export const api = {
   forces: (id, window, signal) => request('GET', `runs/${id}/forces`, { query: window, signal }),
   forcesCsv: (id, window) => request('GET', `runs/${id}/forces`, { query: window, accept: 'text/csv' }),
   motion: (id, window, signal) => request('GET', `runs/${id}/motion`, { query: window, signal }),
+  // The final stock as a height field ({max_cells}), for the 3-D view.
+  stock: (id, query) => request('GET', `runs/${id}/stock`, { query }),
   // Dynamometer comparison: {report, series}; 404 when no measurement is attached.
-  measurement: (id, window) => request('GET', `runs/${id}/measurement`, { query: window }),
+  measurement: (id, window, signal) => request('GET', `runs/${id}/measurement`, { query: window, signal }),
   attachMeasurement: (id, form) => request('POST', `runs/${id}/measurement`, { form }),
 
   // NC program of a run (404 no_program without one): mapping quality, commanded summary, per-block comparison.

@@ -75,15 +75,39 @@ export function errorText(e) {
 // One labelled form control: <div class=field><label/> control <p class=field-error/></div>.
 // target is the element named by the label and described by the error slot: the control itself,
 // or an input inside it (a drop zone), or a role=group (three inputs of a vector).
-export function field(label, control, hint, target = control) {
+// required: the label gets a red asterisk and the control aria-required.
+export function field(label, control, hint, target = control, { required = false } = {}) {
   const id = target.id || nextId('f');
   target.id = id;
   const labelable = /^(INPUT|SELECT|TEXTAREA)$/.test(target.tagName);
+  // The asterisk sits beside the label, not in it: the control's name stays the label's words.
   const lab = h('label', labelable ? { for: id } : { id: `${id}-label` }, label);
+  const head = required ? h('span', { class: 'label-row' }, lab, h('span', { class: 'req', 'aria-hidden': 'true' }, '*')) : lab;
   if (!labelable) target.setAttribute('aria-labelledby', `${id}-label`);
+  if (required) {
+    target.setAttribute('aria-required', 'true');
+    target.dataset.label = label;
+  }
   const err = h('p', { class: 'field-error', id: `${id}-err`, 'aria-live': 'polite' });
   target.setAttribute('aria-describedby', `${id}-err`);
-  return h('div', { class: 'field' }, lab, control, hint ? h('small', { class: 'muted' }, hint) : null, err);
+  target.dataset.label = label;
+  return h('div', { class: 'field' }, head, control, hint ? h('small', { class: 'muted' }, hint) : null, err);
+}
+
+// "Some fields need attention" with a link to each: errors [[control, message]].
+export function errorSummary(box, errors) {
+  if (!errors.length) {
+    box.replaceChildren();
+    return;
+  }
+  box.replaceChildren(h('strong', {}, errors.length === 1 ? 'One field needs attention:' : `${errors.length} fields need attention:`),
+    h('ul', {}, errors.map(([control, message]) => h('li', {}, h('a', {
+      href: `#${control.id}`,
+      onclick: (e) => {
+        e.preventDefault();
+        (control.querySelector?.('input') || control).focus();
+      },
+    }, control.dataset.label || 'Field'), `: ${message}`))));
 }
 
 export function setFieldError(control, message) {

@@ -1,10 +1,18 @@
 // Libraries: machines, tools, materials and alert thresholds. Each section lists its items with
 // Edit and Delete, and has a form that creates or updates one; server errors sit by the field.
 import { api } from './api.js';
-import { h, clear, field, num, setFieldError, statusLine, errorText } from './dom.js';
+import { h, clear, field, num, setFieldError, statusLine, errorText, errorSummary } from './dom.js';
+import { METRICS, metricLabel, flagLabel, QUANTITIES } from './labels.js';
+import { parseNumber } from './form_words.js';
 import { fieldGroup, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, LIMIT_FIELDS } from './spec_form.js';
 
 const nameField = (label) => [{ key: 'name', label, text: true, required: true }];
+
+// "force_N 860" -> "Force 860 N".
+function limitText(key, v) {
+  const q = Object.values(QUANTITIES).find((x) => x.limit === key);
+  return q ? `${q.label} ${num(v)} ${q.unit}` : `${key.replace(/_/g, ' ')} ${num(v)}`;
+}
 
 // Several field groups read and shown as one form; a group with a prefix reads into that key.
 function compose(...groups) {
@@ -22,7 +30,7 @@ function compose(...groups) {
       return { value, errors };
     },
     fill: (item) => groups.forEach((g) => g.fill(item)),
-    showError: (path, msg) => groups.some((g) => g.showError(path, msg)),
+    showError: (path, msg) => groups.reduce((found, g) => found || g.showError(path, msg), null),
     clearErrors: () => groups.forEach((g) => g.clearErrors()),
   };
 }
@@ -52,21 +60,21 @@ function materialForm() {
   return compose(fieldGroup('', MATERIAL_FIELDS.map((f) => (f.key === 'name' ? { ...f, required: true } : f))));
 }
 
-const METRICS = ['peak_force_N', 'peak_torque_Nm', 'peak_power_kW', 'power_pct', 'max_chip_mm', 'max_bending_MPa', 'flag'];
-const FLAGS = ['any', 'force_limit', 'torque_limit', 'power_limit', 'chip_load_limit', 'bending_limit', 'rapid_in_material', 'holder_contact'];
+const METRIC_KEYS = Object.keys(METRICS);
+const FLAG_KEYS = ['any', 'force_limit', 'torque_limit', 'power_limit', 'chip_load_limit', 'bending_limit', 'rapid_in_material', 'holder_contact'];
 
 function thresholdForm(lib) {
   const name = h('input', { name: 'name', type: 'text' });
   const target = h('select', { name: 'target' }, h('option', { value: 'any' }, 'every run'),
     ['machines', 'tools', 'materials'].map((k) => h('optgroup', { label: k },
       lib[k].map((x) => h('option', { value: `${k.slice(0, -1)}:${x.id}` }, x.name)))));
-  const metric = h('select', { name: 'metric' }, METRICS.map((m) => h('option', { value: m }, m)));
-  const flag = h('select', { name: 'flag' }, FLAGS.map((m) => h('option', { value: m }, m)));
+  const metric = h('select', { name: 'metric' }, METRIC_KEYS.map((m) => h('option', { value: m }, metricLabel(m))));
+  const flag = h('select', { name: 'flag' }, FLAG_KEYS.map((m) => h('option', { value: m }, flagLabel(m))));
   const limit = h('input', { name: 'limit', type: 'text', inputmode: 'decimal' });
   const severity = h('select', { name: 'severity' }, ['warning', 'critical', 'info'].map((m) => h('option', { value: m }, m)));
   const enabled = h('select', { name: 'enabled' }, h('option', { value: 'true' }, 'yes'), h('option', { value: 'false' }, 'no'));
   const flagField = field('Flag', flag);
-  const limitField = field('Limit', limit, 'power_pct: percent of the spindle power');
+  const limitField = field('Limit', limit, 'In the unit of the metric; for peak power as % of the spindle, a percentage', limit, { required: true });
   const sync = () => {
     flagField.hidden = metric.value !== 'flag';
     limitField.hidden = metric.value === 'flag';
@@ -75,18 +83,22 @@ function thresholdForm(lib) {
   sync();
   const controls = { name, scope: target, machine_id: target, tool_id: target, material_id: target, metric, flag, limit, severity, enabled };
   return {
-    el: h('div', { class: 'field-grid' }, field('Threshold name', name), field('Applies to', target), field('Metric', metric),
+    el: h('div', { class: 'field-grid' }, field('Threshold name', name, null, name, { required: true }), field('Applies to', target), field('Metric', metric),
       flagField, limitField, field('Severity', severity), field('Enabled', enabled)),
     read() {
       const errors = [];
       const value = { name: name.value.trim(), metric: metric.value, severity: severity.value, enabled: enabled.value === 'true' };
-      if (!value.name) errors.push(['name', 'required']);
+      if (!value.name) errors.push(['name', 'Required: enter a name for the threshold.']);
       const [scope, sid] = target.value.split(':');
       value.scope = scope;
       if (sid) value[`${scope}_id`] = Number(sid);
       if (metric.value === 'flag') value.flag = flag.value;
-      else if (limit.value.trim() === '' || !Number.isFinite(Number(limit.value))) errors.push(['limit', 'must be a number']);
-      else value.limit = Number(limit.value);
+      else if (limit.value.trim() === '') errors.push(['limit', 'Required: enter the limit the metric must stay under.']);
+      else {
+        const p = parseNumber(limit.value, 'Limit');
+        if (p.error) errors.push(['limit', p.error]);
+        else value.limit = p.value;
+      }
       return { value, errors };
     },
     fill(t) {
@@ -102,9 +114,9 @@ function thresholdForm(lib) {
     },
     showError(path, msg) {
       const c = controls[path];
-      if (!c) return false;
-      setFieldError(c, msg);
-      return true;
+      if (!c) return null;
+      setFieldError(c, msg.replace(/^(name|scope|machine_id|tool_id|material_id|metric|flag|limit|severity|enabled):\s*/, ''));
+      return c;
     },
     clearErrors: () => new Set(Object.values(controls)).forEach((c) => setFieldError(c, '')),
   };
@@ -116,6 +128,7 @@ function section({ id, title, singular, columns, makeForm, list, create, update,
   const form = makeForm();
   const formTitle = h('h3', {}, `New ${singular}`);
   const formError = h('p', { class: 'form-error', role: 'alert' });
+  const summary = h('div', { class: 'error-summary', role: 'alert' });
   const save = h('button', { type: 'submit', class: 'primary' }, 'Create');
   const cancel = h('button', { type: 'button', hidden: true }, 'Cancel edit');
   let editing = null;
@@ -125,13 +138,15 @@ function section({ id, title, singular, columns, makeForm, list, create, update,
       h('thead', {}, h('tr', {}, [...columns.map(([c]) => c), ''].map((c) => h('th', { scope: 'col' }, c)))), tbody),
     status,
     h('form', { class: 'library-form', novalidate: true, 'aria-labelledby': `${id}-form-title`, onsubmit: submit },
-      formTitle, form.el, formError, h('div', { class: 'actions' }, save, cancel)));
+      formTitle, h('p', { class: 'required-note muted' }, 'Fields marked ', h('span', { class: 'req' }, '*'), ' are required.'),
+      form.el, summary, formError, h('div', { class: 'actions' }, save, cancel)));
   formTitle.id = `${id}-form-title`;
 
   function edit(item) {
     editing = item;
     form.clearErrors();
     formError.textContent = '';
+    errorSummary(summary, []);
     form.fill(item);
     formTitle.textContent = item ? `Edit ${singular} ${item.name}` : `New ${singular}`;
     save.textContent = item ? 'Save' : 'Create';
@@ -170,9 +185,18 @@ function section({ id, title, singular, columns, makeForm, list, create, update,
     e.preventDefault();
     form.clearErrors();
     formError.textContent = '';
+    errorSummary(summary, []);
     const { value, errors } = form.read();
     if (errors.length) {
-      for (const [path, why] of errors) if (!form.showError(path, `${path}: ${why}`)) formError.textContent = `${path}: ${why}`;
+      // Every problem at once, by its field and in the list above the button.
+      const shown = [];
+      for (const [path, why] of errors) {
+        const c = form.showError(path, why);
+        if (c) shown.push([c, why]);
+        else formError.textContent = why;
+      }
+      errorSummary(summary, shown);
+      el.querySelector('[aria-invalid="true"]')?.focus();
       return;
     }
     try {
@@ -183,7 +207,9 @@ function section({ id, title, singular, columns, makeForm, list, create, update,
     } catch (ex) {
       const [path] = splitKeyMessage(ex.message);
       const key = ex.code === 'name_taken' ? 'name' : path;
-      if (!key || !form.showError(key, ex.message)) formError.textContent = ex.message;
+      const c = key ? form.showError(key, ex.message) : null;
+      if (c) errorSummary(summary, [[c, document.getElementById(`${c.id}-err`)?.textContent || ex.message]]);
+      else formError.textContent = ex.message;
     }
   }
 
@@ -223,7 +249,7 @@ export async function renderLibraries(main) {
         ['Spindle torque', (m) => `${num(m.spindle_torque_Nm)} N·m`], ['Max feed', (m) => `${num(m.max_feed_mm_min)} mm/min`]] }),
     section({ id: 'lib-tools', title: 'Tools', singular: 'tool', makeForm: toolForm, ...crud('tools'),
       columns: [['Name', (t) => t.name], ['Shape', (t) => t.tool.shape], ['Diameter', (t) => `${t.tool.diameter_mm} mm`],
-        ['Flutes', (t) => t.tool.flutes], ['Limits', (t) => Object.entries(t.limits || {}).map(([k, v]) => `${k} ${v}`).join(', ') || '–']] }),
+        ['Flutes', (t) => t.tool.flutes], ['Limits', (t) => Object.entries(t.limits || {}).filter(([, v]) => v > 0).map(([k, v]) => limitText(k, v)).join(', ') || '–']] }),
     section({ id: 'lib-materials', title: 'Materials', singular: 'material', makeForm: materialForm, ...crud('materials'),
       columns: [['Name', (m) => m.name], ['Ktc', (m) => `${num(m.Ktc_N_mm2)} N/mm²`], ['Krc', (m) => `${num(m.Krc_N_mm2)} N/mm²`],
         ['Kte', (m) => `${num(m.Kte_N_mm)} N/mm`]] }),
@@ -231,7 +257,7 @@ export async function renderLibraries(main) {
       list: () => api.thresholds(), create: (b) => api.createItem('thresholds', b),
       update: (id, b) => api.updateItem('thresholds', id, b), remove: (id) => api.deleteItem('thresholds', id),
       columns: [['Name', (t) => t.name], ['Applies to', scopeName],
-        ['Rule', (t) => (t.metric === 'flag' ? `flag ${t.flag}` : `${t.metric} > ${num(t.limit)}`)],
+        ['Rule', (t) => (t.metric === 'flag' ? `flag: ${flagLabel(t.flag)}` : `${metricLabel(t.metric)} over ${num(t.limit)}`)],
         ['Severity', (t) => t.severity], ['Enabled', (t) => (t.enabled ? 'yes' : 'no')]] }));
   return null;
 }

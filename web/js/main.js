@@ -5,13 +5,15 @@ import { renderNewRun } from './new_run.js';
 import { renderRun } from './run_page.js';
 import { renderAlerts } from './alerts.js';
 import { renderLibraries } from './libraries.js';
+import { setTitle } from './title.js';
 
+// [hash pattern, nav entry, page title, render]; a page may refine its title once loaded.
 const routes = [
-  [/^#\/runs\/(\d+)$/, 'runs', (main, m) => renderRun(main, Number(m[1]))],
-  [/^#\/runs$/, 'runs', (main) => renderRuns(main)],
-  [/^#\/new$/, 'new', (main) => renderNewRun(main)],
-  [/^#\/alerts$/, 'alerts', (main) => renderAlerts(main)],
-  [/^#\/libraries$/, 'libraries', (main) => renderLibraries(main)],
+  [/^#\/runs\/(\d+)$/, 'runs', (m) => `Run #${m[1]}`, (main, m) => renderRun(main, Number(m[1]))],
+  [/^#\/runs$/, 'runs', () => 'Runs', (main) => renderRuns(main)],
+  [/^#\/new$/, 'new', () => 'New run', (main) => renderNewRun(main)],
+  [/^#\/alerts$/, 'alerts', () => 'Alerts', (main) => renderAlerts(main)],
+  [/^#\/libraries$/, 'libraries', () => 'Libraries', (main) => renderLibraries(main)],
 ];
 
 let cleanup = null;
@@ -29,7 +31,8 @@ async function route() {
     location.hash = '#/runs';
     return;
   }
-  const [re, nav, render] = found;
+  const [re, nav, pageTitle, render] = found;
+  setTitle(pageTitle(hash.match(re)));
   if (cleanup) cleanup();
   cleanup = null;
   showBanner('');

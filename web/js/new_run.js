@@ -2,7 +2,8 @@
 // inline, give the stock, optionally a base run and the NC program with its reading options;
 // errors appear next to the field they concern.
 import { api } from './api.js';
-import { h, clear, field, setFieldError, statusLine } from './dom.js';
+import { h, clear, field, setFieldError, statusLine, errorSummary } from './dom.js';
+import { parseNumber, humanizeMessage } from './form_words.js';
 import { loadLibraries } from './runs.js';
 import {
   fieldGroup, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, STOCK_FIELDS, SETUP_FIELDS, LIMIT_FIELDS, RESOLUTION_FIELDS,
@@ -74,18 +75,19 @@ function programOptions() {
     const number = (key, ok, why) => {
       const text = c[key].value.trim();
       if (!text) return;
-      const v = Number(text);
-      if (!Number.isFinite(v) || !ok(v)) errors.push([c[key], `nc_options.${key}: ${why}`]);
-      else value[key] = v;
+      const p = parseNumber(text, c[key].dataset.label || key);
+      if (p.error) errors.push([c[key], p.error]);
+      else if (!ok(p.value)) errors.push([c[key], why]);
+      else value[key] = p.value;
     };
     if (c.map_blocks.checked) value.map_blocks = true;
     if (c.decimal_less_is_increment.checked) value.decimal_less_is_increment = true;
     const words = c.ignore_words.value.split(/[\s,]+/).filter(Boolean).map((w) => w.toUpperCase());
     const badWord = words.find((w) => !/^[A-Z](\d+(\.\d+)?)?$/.test(w));
-    if (badWord) errors.push([c.ignore_words, `nc_options.ignore_words: '${badWord}' is not a code (G28) or a letter (H)`]);
+    if (badWord) errors.push([c.ignore_words, `“${badWord}” is not a code (like G28) or a letter (like H).`]);
     else if (words.length) value.ignore_words = words;
-    number('rapid_feed_mm_min', (v) => v > 0, 'must be a number > 0 mm/min');
-    number('block_lead_ms', (v) => v >= 0, 'must be a number >= 0 ms');
+    number('rapid_feed_mm_min', (v) => v > 0, 'Enter a feed above 0 mm/min, e.g. 30000.');
+    number('block_lead_ms', (v) => v >= 0, 'Enter 0 or more milliseconds.');
     const offsets = {};
     for (const item of c.work_offsets_mm.value.split(';').map((x) => x.trim()).filter(Boolean)) {
       const m = /^(G5[4-9])\s*=\s*(.+)$/i.exec(item);
@@ -93,7 +95,7 @@ function programOptions() {
       // Number('') is 0: an empty component must not pass as zero.
       const xyz = parts.every((x) => x !== '') ? parts.map(Number) : [];
       if (!m || xyz.length !== 3 || !xyz.every(Number.isFinite)) {
-        errors.push([c.work_offsets_mm, `nc_options.work_offsets_mm: '${item}' is not G54..G59=x,y,z (mm)`]);
+        errors.push([c.work_offsets_mm, `“${item}” is not a work offset: write G54..G59=x,y,z in mm, e.g. G55=-150,250,340.`]);
         break;
       }
       offsets[m[1].toUpperCase()] = xyz;
@@ -105,6 +107,7 @@ function programOptions() {
   function showError(control, message) {
     el.open = true;
     setFieldError(control, message);
+    return control;
   }
   return { el, controls: c, read, showError };
 }
@@ -155,11 +158,12 @@ export async function renderNewRun(main) {
   syncInline();
 
   const formError = h('p', { class: 'form-error', role: 'alert' });
+  const summary = h('div', { class: 'error-summary', id: 'error-summary', role: 'alert' });
   const status = statusLine();
   const submit = h('button', { type: 'submit', class: 'primary' }, 'Upload and compute');
   const form = h('form', { class: 'new-run', novalidate: true, 'aria-label': 'New run' },
     h('fieldset', {}, h('legend', {}, 'Dry-run log'),
-      field('Log file', dropZone(log), 'Actual positions, feed and spindle speed from the dry run', log),
+      field('Log file', dropZone(log), 'Actual positions, feed and spindle speed from the dry run', log, { required: true }),
       h('div', { class: 'field-grid' }, field('Run name', name), field('Program', program), field('Format', format), field('Length units', units)),
       h('details', {}, h('summary', {}, 'Channel mapping (for logs with other column names)'), field('Mapping file (JSON)', mapping))),
     h('fieldset', {}, h('legend', {}, 'NC program'),
@@ -174,8 +178,9 @@ export async function renderNewRun(main) {
       h('div', { class: 'field-grid' }, field('Base run', baseRun, 'Start from the final stock of a finished run'))),
     h('fieldset', {}, h('legend', {}, 'Limits (0 or empty: from the tool and machine)'), groups.limits.el),
     h('details', {}, h('summary', {}, 'Resolution'), groups.resolution.el),
-    formError, h('div', { class: 'actions' }, submit), status);
-  clear(main, h('h1', {}, 'New run'), form);
+    summary, formError, h('div', { class: 'actions' }, submit), status);
+  clear(main, h('h1', {}, 'New run'),
+    h('p', { class: 'required-note muted' }, 'Fields marked ', h('span', { class: 'req' }, '*'), ' are required.'), form);
 
   specFile.addEventListener('change', async () => {
     setFieldError(specFile, '');
@@ -198,30 +203,43 @@ export async function renderNewRun(main) {
 
   function clearErrors() {
     formError.textContent = '';
+    errorSummary(summary, []);
     Object.values(groups).forEach((g) => g.clearErrors());
     Object.values(selects).forEach((c) => setFieldError(c, ''));
     Object.values(ncOptions.controls).forEach((c) => setFieldError(c, ''));
   }
 
-  // Puts a server message next to its field; unmatched messages go under the form.
+  // Puts a server message next to its field (key paths said as the fields' labels) and in the
+  // summary; unmatched messages go under the form.
   function showServerError(e) {
     const msg = e.message;
-    if (e.code === 'bad_log' || /part 'log'/.test(msg)) return setFieldError(log, msg);
+    const at = (c, text = msg) => {
+      setFieldError(c, text);
+      errorSummary(summary, [[c, text]]);
+    };
+    if (e.code === 'bad_log' || /part 'log'/.test(msg)) return at(log);
     if (/^ignore word/.test(msg)) return ncOptions.showError(ncOptions.controls.ignore_words, msg);
-    if (e.code === 'bad_program' || /part 'nc_program'/.test(msg)) return setFieldError(ncProgram, msg);
+    if (e.code === 'bad_program' || /part 'nc_program'/.test(msg)) return at(ncProgram);
     if (/nc_options/.test(msg)) {
       const key = /nc_options\W+(\w+)/.exec(msg)?.[1];
-      return ncOptions.controls[key] ? ncOptions.showError(ncOptions.controls[key], msg) : setFieldError(ncProgram, msg);
+      const c = ncOptions.controls[key];
+      if (c) {
+        const text = humanizeMessage(msg.replace(/nc_options\.?/, ''), new Map([[key, c.dataset.label || key]]));
+        ncOptions.showError(c, text);
+        return errorSummary(summary, [[c, text]]);
+      }
+      return at(ncProgram);
     }
     for (const [partName, c] of Object.entries(selects)) {
-      if (new RegExp(`^(part )?${partName}\\b`).test(msg)) return setFieldError(c, msg);
+      if (new RegExp(`^(part )?${partName}\\b`).test(msg)) return at(c);
     }
     const [path] = splitKeyMessage(msg);
     if (path) {
       const top = path.split(/[.[]/)[0];
-      if (top === 'tool' && tool.value !== INLINE) return setFieldError(tool, msg);
-      if (top === 'material' && material.value !== INLINE) return setFieldError(material, msg);
-      if (groups[top]?.showError(path, msg)) return undefined;
+      if (top === 'tool' && tool.value !== INLINE) return at(tool);
+      if (top === 'material' && material.value !== INLINE) return at(material);
+      const c = groups[top]?.showError(path, msg);
+      if (c) return errorSummary(summary, [[c, document.getElementById(`${c.id}-err`)?.textContent || msg]]);
     }
     formError.textContent = msg;
     return undefined;
@@ -235,18 +253,23 @@ export async function renderNewRun(main) {
     for (const [k, g] of Object.entries(groups)) {
       if ((k === 'tool' && tool.value !== INLINE) || (k === 'material' && material.value !== INLINE)) continue;
       const { value, errors } = g.read();
-      for (const [path, why] of errors) problems.push(() => g.showError(path, `${path}: ${why}`));
+      for (const [path, why] of errors) problems.push(() => [g.showError(path, why), why]);
       if (Object.keys(value).length) spec[k] = value;
     }
-    if (!log.files[0]) problems.push(() => setFieldError(log, 'choose the dry-run log file'));
+    const fieldError = (c, why) => () => {
+      setFieldError(c, why);
+      return [c, why];
+    };
+    if (!log.files[0]) problems.push(fieldError(log, 'Required: choose the dry-run log file (CSV or MTConnect SHDR).'));
     const programOpts = ncOptions.read();
-    for (const [control, why] of programOpts.errors) problems.push(() => ncOptions.showError(control, why));
+    for (const [control, why] of programOpts.errors) problems.push(() => [ncOptions.showError(control, why), why]);
     if (!ncProgram.files[0] && (Object.keys(programOpts.value).length || programOpts.errors.length)) {
-      problems.push(() => setFieldError(ncProgram, 'choose the NC program file the program options apply to'));
+      problems.push(fieldError(ncProgram, 'Choose the NC program file the program options apply to, or clear the options.'));
     }
     if (problems.length) {
-      problems.forEach((p) => p());
-      formError.textContent = 'Some fields need attention.';
+      // Every problem at once: by its field, and listed above the button.
+      const shown = problems.map((p) => p());
+      errorSummary(summary, shown.map(([c, why]) => [c.closest?.('[role=group]') || c, why]));
       form.querySelector('[aria-invalid="true"]')?.focus();
       return;
     }

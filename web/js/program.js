@@ -3,6 +3,7 @@
 // run: started, polled for progress, its recommendations shown with the rewritten program).
 import { api } from './api.js';
 import { h, clear, field, setFieldError, num, download, errorText } from './dom.js';
+import { flagLabel, quantityLabel } from './labels.js';
 
 const POLL_MS = 250;
 const TARGET_RANGE = [0.05, 1];
@@ -72,41 +73,78 @@ export function programSection(run, program) {
     err);
 }
 
-function resultTable(result) {
-  const head = ['Block', 'F programmed (mm/min)', 'F recommended (mm/min)', 'Binding', 'Load before (%)', 'Load after (%)'];
+// Per block: F as programmed and as recommended, the change, the time it saves or costs
+// (estimated from the block's duration as logged), the binding load before and after, and the
+// flags the change clears. Only changed rows are tinted.
+function resultTable(result, durations) {
+  const head = ['Block', 'F programmed (mm/min)', 'F recommended (mm/min)', 'Change', 'Time change (s, est.)', 'Binding',
+    'Load before (%)', 'Load after (%)', 'Flags'];
   const rows = result.blocks.map((b) => {
     const changed = b.recommended_feed_mm_min !== b.programmed_feed_mm_min;
-    return h('tr', { class: changed ? 'changed' : null, dataset: { block: b.block } },
-      h('td', {}, b.block),
-      h('td', { class: 'num' }, num(b.programmed_feed_mm_min, 5)),
-      h('td', { class: 'num' }, num(b.recommended_feed_mm_min, 5)),
-      h('td', {}, b.binding + (b.at_feed_limit ? ' (at the feed limit)' : '')),
+    const d = durations.get(b.block);
+    // A block's cutting time scales with 1 / feed (acceleration aside: an estimate).
+    const dt = changed && d > 0 ? d * (b.programmed_feed_mm_min / b.recommended_feed_mm_min - 1) : 0;
+    const cleared = b.flags_cleared || [];
+    const still = b.flags_after || [];
+    const flags = [
+      ...cleared.map((f) => h('span', { class: 'flag-cleared' }, `clears: ${flagLabel(f, { short: true })}`)),
+      ...still.map((f) => h('span', { class: 'flag' }, `still: ${flagLabel(f, { short: true })}`)),
+    ];
+    return h('tr', { class: changed ? 'changed' : null, dataset: { block: b.block, changed: String(changed) } },
+      h('th', { scope: 'row' }, b.block),
+      h('td', { class: 'num' }, num(b.programmed_feed_mm_min, 6)),
+      h('td', { class: 'num' }, changed ? num(b.recommended_feed_mm_min, 6) : num(b.recommended_feed_mm_min, 6)),
+      h('td', { class: 'num' }, changed ? `${b.recommended_feed_mm_min > b.programmed_feed_mm_min ? '+' : '−'}${num(Math.abs(100 * (b.recommended_feed_mm_min / b.programmed_feed_mm_min - 1)), 2)} %` : 'unchanged'),
+      h('td', { class: 'num' }, changed && d > 0 ? `${dt >= 0 ? '+' : '−'}${Math.abs(dt).toFixed(3)}` : ''),
+      h('td', {}, quantityLabel(b.binding) + (b.at_feed_limit ? ' (at the feed limit)' : '')),
       h('td', { class: 'num' }, num(100 * b.ratio_before)),
-      h('td', { class: 'num' }, num(100 * b.ratio_after)));
+      h('td', { class: 'num' }, num(100 * b.ratio_after)),
+      h('td', {}, flags.length ? flags : ''));
   });
-  return h('div', { class: 'table-scroll' },
+  // Changed blocks only by default when some changed: the list a shop loads the program by.
+  const changedOnly = h('input', { type: 'checkbox', id: 'optimize-changed-only', checked: result.changed_blocks > 0 });
+  const apply = () => rows.forEach((tr) => {
+    tr.hidden = changedOnly.checked && tr.dataset.changed !== 'true';
+  });
+  changedOnly.addEventListener('change', apply);
+  apply();
+  return h('div', {},
+    h('label', { class: 'inline' }, changedOnly, ' Changed blocks only'),
+    h('div', { class: 'table-scroll' },
     h('table', { class: 'grid', id: 'optimize-table' },
       h('caption', { class: 'sr-only' }, 'Recommended feed per block; load is the binding quantity as a percentage of its limit'),
       h('thead', {}, h('tr', {}, head.map((c) => h('th', { scope: 'col' }, c)))),
-      h('tbody', {}, rows)));
+      h('tbody', {}, rows))));
 }
 
 function resultSummary(opt) {
   const r = opt.result;
-  const change = r.cycle_before_s ? ` (${num((100 * (r.cycle_after_s - r.cycle_before_s)) / r.cycle_before_s)} %)` : '';
+  const change = r.cycle_before_s ? (100 * (r.cycle_after_s - r.cycle_before_s)) / r.cycle_before_s : 0;
+  const cleared = r.blocks.filter((b) => (b.flags_cleared || []).length).length;
   return `${r.changed_blocks} of ${r.blocks.length} blocks changed. Target ${pct(opt.params.target)} of each limit `
     + `${r.target_met ? 'met' : 'not met'} (highest load after ${pct(r.max_ratio_after)}${r.max_ratio_block ? ` in ${r.max_ratio_block}` : ''}). `
     + (r.exceeds_limit ? `Warning: ${r.max_ratio_block} still exceeds a limit with these feeds; check it before running the program. ` : '')
-    + `Cycle ${r.cycle_before_s.toFixed(2)} s before, ${r.cycle_after_s.toFixed(2)} s after${change}; `
+    + (r.blocks.some((b) => b.flags_cleared) ? `${cleared} block(s) lose a flag. ` : '')
+    + `Cycle time ${r.cycle_before_s.toFixed(2)} s before, ${r.cycle_after_s.toFixed(2)} s after (${change >= 0 ? '+' : '−'}${Math.abs(change).toFixed(1)} %); `
     + `${r.predictions} predictions on the ${opt.params.basis} motion.`;
 }
 
 // "Optimize feeds": target and basis, start, progress, then the recommendations and the program.
-export function optimizePanel(run) {
+// blocks: the run's blocks (with the comparison's durations), for the time each change costs.
+export function optimizePanel(run, { blocks = [] } = {}) {
+  const durations = new Map(blocks.map((b) => [b.block, b.t_end_s - b.t_start_s]));
   const target = h('input', { type: 'number', id: 'optimize-target', min: TARGET_RANGE[0], max: TARGET_RANGE[1], step: 0.05, value: '0.8' });
   const basis = h('select', { id: 'optimize-basis' },
     h('option', { value: 'actual' }, 'actual motion (dry run)'),
     h('option', { value: 'commanded' }, 'commanded motion (program)'));
+  const onlyFlagged = h('input', { type: 'checkbox', id: 'optimize-only-flagged' });
+  const neverRaise = h('input', { type: 'checkbox', id: 'optimize-never-raise' });
+  const step = h('input', { type: 'number', id: 'optimize-step', min: 0, max: 1000, step: 10, value: '50' });
+  const check = (box, label, hint) => {
+    const f = field(label, box, hint);
+    f.classList.add('check');
+    return f;
+  };
   const start = h('button', { type: 'button', class: 'primary' }, 'Optimize feeds');
   const cancel = h('button', { type: 'button', hidden: true }, 'Cancel');
   const progress = h('progress', { id: 'optimize-progress', max: 100, 'aria-labelledby': 'optimize-progress-label' });
@@ -123,6 +161,9 @@ export function optimizePanel(run) {
     h('div', { class: 'optimize-form' },
       field('Target (fraction of each limit, 0.05–1)', target),
       field('Basis', basis),
+      field('Round feeds to (mm/min)', step, '0: any feed an F word can state'),
+      check(onlyFlagged, 'Only flagged blocks', 'other blocks keep their feed'),
+      check(neverRaise, 'Never raise the feed', 'only slow blocks down'),
       h('div', { class: 'field actions' }, h('div', { class: 'actions' }, start, cancel))),
     progressBox, error, result);
 
@@ -146,7 +187,7 @@ export function optimizePanel(run) {
           error.textContent = errorText(e);
         },
       })),
-      resultTable(opt.result));
+      resultTable(opt.result, durations));
   }
 
   function show(opt) {
@@ -192,10 +233,20 @@ export function optimizePanel(run) {
   start.addEventListener('click', async () => {
     error.textContent = '';
     setFieldError(target, '');
+    setFieldError(step, '');
     const t = Number(target.value);
+    const st = Number(step.value || 0);
+    let bad = null;
     if (!target.value.trim() || !(t >= TARGET_RANGE[0] && t <= TARGET_RANGE[1])) {
-      setFieldError(target, `target: must be a number in [${TARGET_RANGE[0]}, ${TARGET_RANGE[1]}]`);
-      target.focus();
+      setFieldError(target, `Enter a fraction from ${TARGET_RANGE[0]} to ${TARGET_RANGE[1]}, e.g. 0.8 for 80 % of each limit`);
+      bad = bad || target;
+    }
+    if (!(st >= 0 && st <= 1000)) {
+      setFieldError(step, 'Enter a step from 0 to 1000 mm/min, e.g. 50');
+      bad = bad || step;
+    }
+    if (bad) {
+      bad.focus();
       return;
     }
     clearTimeout(timer);
@@ -204,7 +255,9 @@ export function optimizePanel(run) {
     progress.removeAttribute('value');
     progressLabel.textContent = 'Starting…';
     try {
-      const opt = await api.createOptimization(run.id, { target: t, basis: basis.value });
+      const opt = await api.createOptimization(run.id, {
+        target: t, basis: basis.value, only_flagged: onlyFlagged.checked, never_raise: neverRaise.checked, feed_step_mm_min: st,
+      });
       if (show(opt)) timer = setTimeout(() => poll(opt.id), POLL_MS);
     } catch (e) {
       busy(false);
@@ -235,6 +288,9 @@ export function optimizePanel(run) {
     if (!newest || stopped) return;
     target.value = String(newest.params.target);
     basis.value = newest.params.basis;
+    onlyFlagged.checked = Boolean(newest.params.only_flagged);
+    neverRaise.checked = Boolean(newest.params.never_raise);
+    step.value = String(newest.params.feed_step_mm_min ?? 0);
     if (show(newest)) timer = setTimeout(() => poll(newest.id), POLL_MS);
   }
 

@@ -1,7 +1,9 @@
 // Form fields for the parts of a run spec (docs/run_spec.md): tool, material, stock, setup,
 // limits, resolution. A field group reads to and fills from the spec's JSON shape, and shows the
-// server's "key.path: why" messages next to the matching field.
+// server's "key.path: why" messages next to the matching field, with the field's label for the
+// key (form_words.js). These lists are the page's one copy of the spec's fields.
 import { h, field, setFieldError } from './dom.js';
+import { labelParts, parseNumber, requiredMessage, humanizeMessage } from './form_words.js';
 
 export const TOOL_FIELDS = [
   { key: 'shape', label: 'Shape', options: ['flat', 'ball', 'bull'], required: true },
@@ -77,38 +79,42 @@ export function fieldGroup(prefix, defs) {
       const group = h('div', { class: 'vec3', role: 'group', id: `${name}-group` }, parts);
       group.parts = parts;
       inputs.set(path, group);
-      el.append(field(def.label, group));
+      el.append(field(def.label, group, null, group, { required: def.required }));
     } else {
       const c = control(def, name);
       inputs.set(path, c);
-      el.append(field(def.label, c));
+      el.append(field(def.label, c, null, c, { required: def.required }));
     }
   }
+  const labelOf = new Map(defs.map((d) => [prefix ? `${prefix}.${d.key}` : d.key, d.label]));
 
   // Returns {value, errors: [[path, message]]}: value without the prefix ({diameter_mm: 8} for
-  // the tool group); empty optional fields are left out.
+  // the tool group); empty optional fields are left out. Every field is checked: all problems
+  // at once, each in plain words.
   function read() {
     const value = {};
     const errors = [];
-    const parse = (path, text) => {
-      const v = Number(text);
-      if (text.trim() === '' || !Number.isFinite(v)) errors.push([path, 'must be a number']);
-      return v;
-    };
     for (const def of defs) {
       const path = prefix ? `${prefix}.${def.key}` : def.key;
       const c = inputs.get(path);
       if (def.vec3) {
         const texts = c.parts.map((p) => p.value);
         if (texts.every((t) => t.trim() === '')) {
-          if (def.required) errors.push([path, 'required']);
+          if (def.required) errors.push([path, `Required: enter x, y and z (${labelParts(def.label).unit || 'mm'}).`]);
           continue;
         }
-        setPath(value, def.key, texts.map((t) => parse(path, t)));
+        const parsed = texts.map((t, k) => (t.trim() === '' ? { error: `Enter ${'xyz'[k]} too.` } : parseNumber(t, def.label)));
+        const bad = parsed.find((p) => p.error);
+        if (bad) errors.push([path, bad.error]);
+        else setPath(value, def.key, parsed.map((p) => p.value));
       } else if (c.value.trim() === '') {
-        if (def.required) errors.push([path, 'required']);
+        if (def.required) errors.push([path, requiredMessage(def.label)]);
+      } else if (def.options || def.text) {
+        setPath(value, def.key, c.value);
       } else {
-        setPath(value, def.key, def.options || def.text ? c.value : parse(path, c.value));
+        const p = parseNumber(c.value, def.label, { integer: def.step === 1 });
+        if (p.error) errors.push([path, p.error]);
+        else setPath(value, def.key, p.value);
       }
     }
     return { value, errors };
@@ -126,21 +132,22 @@ export function fieldGroup(prefix, defs) {
 
   // Shows message at the field whose key path starts the message ("tool.diameter_mm: ...");
   // returns false when no field of this group matches.
+  // The message's key paths become the fields' labels. Returns the control, or null.
   function showError(path, message) {
     let best = null;
     for (const key of inputs.keys()) {
       if ((path === key || path.startsWith(`${key}.`) || path.startsWith(`${key}[`)) && (!best || key.length > best.length)) best = key;
     }
-    if (!best) return false;
-    setFieldError(inputs.get(best), message);
-    return true;
+    if (!best) return null;
+    setFieldError(inputs.get(best), humanizeMessage(message, labelOf));
+    return inputs.get(best);
   }
 
   function clearErrors() {
     for (const c of inputs.values()) setFieldError(c, '');
   }
 
-  return { el, read, fill, showError, clearErrors, inputs, prefix };
+  return { el, read, fill, showError, clearErrors, inputs, prefix, labelOf };
 }
 
 // "tool.diameter_mm: must be in (0, 200] mm" -> ["tool.diameter_mm", whole message]

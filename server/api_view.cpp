@@ -1,0 +1,52 @@
+// Routes that serve the web page's views of a finished run: /api/v1/runs/{id}/stock (the final
+// stock as a height field for the 3-D view).
+#include "core.hpp"
+#include "jobs.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace cutload::server {
+namespace {
+
+constexpr std::int64_t kDefaultStockCells = 40000;
+constexpr std::int64_t kMaxStockCells = 1000000;
+
+// Millimetres to the micrometre: the stock's float carries no more, and the answer stays small.
+json micrometres(double v_mm) { return std::isfinite(v_mm) ? json(std::round(v_mm * 1000.0) / 1000.0) : json(nullptr); }
+
+json height_field_json(std::int64_t run_id, const force_model::StockHeightField& f) {
+    json top = json::array();
+    for (float v : f.top_mm) top.push_back(micrometres(v));
+    const auto& b = f.box;
+    return {{"run_id", run_id},
+            {"box_mm", {{"min", {b.min_mm[0], b.min_mm[1], b.min_mm[2]}}, {"max", {b.max_mm[0], b.max_mm[1], b.max_mm[2]}}}},
+            {"x0_mm", f.x0_mm},
+            {"y0_mm", f.y0_mm},
+            {"cell_mm", f.cell_mm},
+            {"nx", f.nx},
+            {"ny", f.ny},
+            {"rays_per_cell", f.rays_per_cell},
+            {"top_mm", std::move(top)}};
+}
+
+}  // namespace
+
+void add_view_routes(Core& core) {
+    core.route("GET", "/api/v1/runs/{id}/stock", Role::Read, [&core](Ctx& x) {
+        const std::int64_t id = x.id();
+        const std::int64_t max_cells = x.param_int("max_cells").value_or(kDefaultStockCells);
+        if (max_cells < 1 || max_cells > kMaxStockCells)
+            bad_request(fmt::format("query parameter max_cells: {} is outside 1..{}", max_cells, kMaxStockCells));
+        {
+            auto c = core.pool.get();
+            require_done(*c, id);
+        }
+        // The final stock is stored as the engine's stock file (what base_run starts from).
+        const auto stock = load_base_stock(core.pool, id, core.data_dir / "tmp");
+        x.reply(200, height_field_json(id, force_model::stock_height_field(*stock, static_cast<std::size_t>(max_cells))));
+    });
+}
+
+}  // namespace cutload::server

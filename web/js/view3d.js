@@ -1,0 +1,714 @@
+// The 3-D view of a run: the stock (the run's final stock from GET /runs/{id}/stock, or the
+// in-process stock at the plot cursor), the tool and its holder at the cursor, and the tool path
+// coloured by load against the limit. Orbit (drag), zoom (wheel), pan (right drag), preset views,
+// a measuring tool (two clicks on the stock or the path), a click on the path picks its time.
+//
+// The in-process stock is a display approximation: the final stock's height field plus what the
+// tool had not yet removed at the cursor, found by sweeping the tool's profile along the logged
+// path over the starting top surface (the box top, or the base run's final stock) and never
+// shown below the final stock. It sees the top surface only, like the height field.
+//
+// Three.js renders on demand (a changed view or cursor), never in a loop.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { h, lowerBound, num } from './dom.js';
+
+// Load classes against the limit: colour, dash and markers (pixels), so colour alone never tells.
+export const LOAD_CLASSES = [
+  { key: 'air', label: 'not cutting', colour: '#9ca3af', dashed: false, marker: 0 },
+  { key: 'low', label: 'under 80 % of the limit', colour: '#005b8f', dashed: false, marker: 0 },
+  { key: 'near', label: '80–100 % of the limit', colour: '#8a5a00', dashed: true, marker: 0 },
+  { key: 'over', label: 'over the limit', colour: '#a50f15', dashed: false, marker: 5 },
+];
+// Continuous scale, 0 to 120 % of the limit; every stop at 3:1 or more against the stock's grey.
+export const CONTINUOUS_STOPS = ['#08306b', '#6a3d9a', '#b35806', '#a50f15'];
+const CONTINUOUS_MAX = 1.2;
+const STOCK_COLOUR = 0xc8cdd4;
+const SELECT_COLOUR = '#1d4ed8';
+const CHECKPOINT_EVERY = 200;   // path points between saved in-process stocks
+
+export function loadClass(ratio) {
+  if (!(ratio > 0)) return 0;
+  if (ratio < 0.8) return 1;
+  if (ratio <= 1) return 2;
+  return 3;
+}
+
+export function continuousColour(ratio) {
+  const f = Math.min(1, Math.max(0, ratio / CONTINUOUS_MAX)) * (CONTINUOUS_STOPS.length - 1);
+  const i = Math.min(CONTINUOUS_STOPS.length - 2, Math.floor(f));
+  const a = new THREE.Color(CONTINUOUS_STOPS[i]);
+  return a.lerp(new THREE.Color(CONTINUOUS_STOPS[i + 1]), f - i);
+}
+
+// The canvas height for a width: wide but not taller than a laptop screen can show with its controls.
+function viewHeight(width) {
+  return Math.max(260, Math.min(540, Math.round(width * 0.55)));
+}
+
+export function webglAvailable() {
+  try {
+    const c = document.createElement('canvas');
+    return Boolean(c.getContext('webgl2') || c.getContext('webgl'));
+  } catch {
+    return false;
+  }
+}
+
+// Height of the tool's lower surface above its tip at distance r from its axis (flat, ball, bull).
+export function toolProfile(tool) {
+  const R = tool.diameter_mm / 2;
+  const rc = tool.shape === 'ball' ? R : tool.shape === 'bull' ? Math.min(R, tool.corner_radius_mm || 0) : 0;
+  const flat = R - rc;
+  return (r) => {
+    if (r > R) return Infinity;
+    if (r <= flat || rc <= 0) return 0;
+    const d = r - flat;
+    return rc - Math.sqrt(Math.max(0, rc * rc - d * d));
+  };
+}
+
+// The tool (cutting part and shank) and holder as lathe profiles around +z from the tip.
+function toolMeshes(tool) {
+  const R = tool.diameter_mm / 2;
+  const profile = toolProfile(tool);
+  const pts = [new THREE.Vector2(0, 0)];
+  for (let k = 1; k <= 12; k++) {
+    const r = (R * k) / 12;
+    pts.push(new THREE.Vector2(r, Math.min(profile(r), R)));
+  }
+  const stickout = tool.stickout_mm || tool.flute_length_mm || 4 * R;
+  pts.push(new THREE.Vector2(R, stickout));
+  pts.push(new THREE.Vector2(0, stickout));
+  const cutter = new THREE.LatheGeometry(pts, 24);
+  cutter.rotateX(Math.PI / 2);   // lathe axis y -> z
+  const group = new THREE.Group();
+  group.add(new THREE.Mesh(cutter, litMaterial(cutter, 0x52525b)));
+  const flute = tool.flute_length_mm || stickout;
+  const band = new THREE.CylinderGeometry(R * 1.01, R * 1.01, 0.6, 24, 1, true);
+  band.rotateX(Math.PI / 2);
+  band.translate(0, 0, flute);
+  group.add(new THREE.Mesh(band, new THREE.MeshBasicMaterial({ color: 0xf59e0b })));
+  const holder = tool.holder || {};
+  if (holder.diameter_mm > 0 && holder.length_mm > 0) {
+    const g = new THREE.CylinderGeometry(holder.diameter_mm / 2, holder.diameter_mm / 2, holder.length_mm, 32);
+    g.rotateX(Math.PI / 2);
+    g.translate(0, 0, stickout + holder.length_mm / 2);
+    group.add(new THREE.Mesh(g, litMaterial(g, 0x7c8594, { transparent: true, opacity: 0.45 })));
+  }
+  return group;
+}
+
+// Vertex colours of a triangle soup lit by a fixed key light (from above, the front and the
+// left) and a fill light, each triangle by its own normal (either side: both are seen).
+const KEY_LIGHT = new THREE.Vector3(-0.45, -0.6, 0.66).normalize();
+const FILL_LIGHT = new THREE.Vector3(0.6, 0.3, 0.2).normalize();
+const BASE = new THREE.Color(STOCK_COLOUR);
+function shade(pos) {
+  const col = new Float32Array(pos.length);
+  const u = new THREE.Vector3();
+  const v = new THREE.Vector3();
+  const n = new THREE.Vector3();
+  for (let t = 0; t < pos.length; t += 9) {
+    u.set(pos[t + 3] - pos[t], pos[t + 4] - pos[t + 1], pos[t + 5] - pos[t + 2]);
+    v.set(pos[t + 6] - pos[t], pos[t + 7] - pos[t + 1], pos[t + 8] - pos[t + 2]);
+    n.crossVectors(u, v).normalize();
+    if (n.z < 0 || (n.z === 0 && n.dot(KEY_LIGHT) < 0)) n.negate();
+    const light = Math.min(1.12, 0.62 + 0.4 * Math.max(0, n.dot(KEY_LIGHT)) + 0.12 * Math.abs(n.dot(FILL_LIGHT)));
+    for (let k = 0; k < 3; k++) {
+      col[t + 3 * k] = BASE.r * light;
+      col[t + 3 * k + 1] = BASE.g * light;
+      col[t + 3 * k + 2] = BASE.b * light;
+    }
+  }
+  return col;
+}
+
+// An unlit material whose vertex colours carry the key light (a shaded look without lights:
+// the scene has no lit material, so no lighting shader to compile or run in software).
+function litMaterial(geometry, colour, extra = {}) {
+  const base = new THREE.Color(colour);
+  const nrm = geometry.attributes.normal;
+  const col = new Float32Array(nrm.count * 3);
+  const n = new THREE.Vector3();
+  for (let i = 0; i < nrm.count; i++) {
+    n.fromBufferAttribute(nrm, i);
+    const light = 0.55 + 0.45 * Math.max(0, n.dot(KEY_LIGHT)) + 0.15 * Math.abs(n.dot(FILL_LIGHT));
+    col[3 * i] = base.r * light;
+    col[3 * i + 1] = base.g * light;
+    col[3 * i + 2] = base.b * light;
+  }
+  geometry.setAttribute('color', new THREE.BufferAttribute(col, 3));
+  return new THREE.MeshBasicMaterial({ vertexColors: true, ...extra });
+}
+
+// The height field answer of /stock as heights per cell centre (NaN: no material).
+export function fieldHeights(field) {
+  return Float32Array.from(field.top_mm, (v) => (v == null ? NaN : v));
+}
+
+export class View3D {
+  // field: /stock answer (final stock); startTop: Float32Array of the starting heights on the same
+  // grid (null: the box top); path: {t, x, y, z} in stock coordinates; ratio: load / limit per
+  // path point (Float32Array), relative: true when no limit was set (ratio is load / peak);
+  // tool: the run spec's tool; onPick(t).
+  constructor(container, { field, startTop = null, path, ratio, relative = false, tool, onPick, onMeasure }) {
+    this.container = container;
+    this.field = field;
+    this.path = path;
+    this.ratio = ratio;
+    this.relative = relative;
+    this.tool = tool;
+    this.onPick = onPick;
+    this.onMeasure = onMeasure;
+    this.finalTop = fieldHeights(field);
+    const boxTop = field.box_mm.max[2];
+    this.startTop = startTop || new Float32Array(this.finalTop.length).fill(boxTop);
+    this.profile = toolProfile(tool);
+    this.mode = 'classes';
+    this.time = null;          // cursor time; null: the final stock, no tool
+    this.measuring = false;
+    this.measurePoints = [];
+    this.frames = 0;
+
+    const width = Math.max(320, container.clientWidth);
+    const height = viewHeight(width);
+    this.renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(2, devicePixelRatio || 1));
+    this.renderer.setSize(width, height);
+    this.renderer.setClearColor(0xf3f4f6);
+    this.canvas = this.renderer.domElement;
+    this.canvas.setAttribute('role', 'img');
+    this.canvas.setAttribute('aria-label', '3-D view of the stock, the tool and the tool path coloured by load; the worst blocks panel and the block table list the same data');
+    this.canvas.tabIndex = 0;
+    this.overlay = h('div', { class: 'view3d-overlay' });
+    this.scaleBar = h('div', { class: 'scale-bar' }, h('span', { class: 'bar' }), h('span', { class: 'label' }));
+    this.measureText = h('div', { class: 'measure-text', 'aria-live': 'polite', id: 'measure-result' });
+    this.wrap = h('div', { class: 'view3d-canvas' }, this.canvas, this.overlay, this.scaleBar, this.measureText);
+    container.append(this.wrap);
+
+    this.scene = new THREE.Scene();
+    const b = field.box_mm;
+    this.centre = new THREE.Vector3((b.min[0] + b.max[0]) / 2, (b.min[1] + b.max[1]) / 2, (b.min[2] + b.max[2]) / 2);
+    this.size = Math.max(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
+    this.camera = new THREE.PerspectiveCamera(35, width / height, this.size / 100, this.size * 40);
+    this.camera.up.set(0, 0, 1);
+    this.scene.add(this.camera);
+
+    this.buildStock();
+    this.buildPath();
+    this.buildAxes();
+    this.toolGroup = toolMeshes(tool);
+    this.toolGroup.visible = false;
+    this.scene.add(this.toolGroup);
+    this.selectionLine = null;
+    this.measureGroup = new THREE.Group();
+    this.scene.add(this.measureGroup);
+
+    this.cutBox = this.cutRegion();
+    this.frame = 'cut';
+    this.controls = new OrbitControls(this.camera, this.canvas);
+    this.controls.target.copy(this.centre);
+    this.controls.addEventListener('change', () => this.requestRender());
+    this.controls.addEventListener('start', () => this.interacting());
+    this.setView('iso');
+
+    this.canvas.addEventListener('pointerdown', (e) => {
+      this.downAt = [e.clientX, e.clientY];
+    });
+    this.canvas.addEventListener('pointerup', (e) => {
+      if (!this.downAt || Math.hypot(e.clientX - this.downAt[0], e.clientY - this.downAt[1]) > 4) return;
+      this.click(e);
+    });
+    this.resizeObserver = new ResizeObserver(() => this.resize());
+    this.resizeObserver.observe(container);
+  }
+
+  destroy() {
+    cancelAnimationFrame(this.raf);
+    this.resizeObserver.disconnect();
+    this.controls.dispose();
+    this.renderer.dispose();
+    this.scene.traverse((o) => {
+      o.geometry?.dispose();
+      o.material?.dispose?.();
+    });
+  }
+
+  resize() {
+    const width = Math.max(320, this.container.clientWidth);
+    if (Math.abs(width - this.renderer.domElement.clientWidth) < 2) return;
+    const height = viewHeight(width);
+    this.renderer.setSize(width, height);
+    this.camera.aspect = width / height;
+    this.camera.updateProjectionMatrix();
+    this.requestRender();
+  }
+
+  requestRender() {
+    if (this.raf) return;
+    this.raf = requestAnimationFrame(() => {
+      this.raf = 0;
+      this.render();
+    });
+  }
+
+  render() {
+    this.renderer.render(this.scene, this.camera);
+    this.frames += 1;
+    this.updateOverlay();
+  }
+
+  // ---- stock ----------------------------------------------------------------------------------
+
+  // The stock: its top from the height field and the box's four sides down to its bottom, as
+  // triangles with their lighting baked into vertex colours (a fixed light from above and the
+  // front left). Software rendering pays per shaded pixel, and the stock fills most of the view:
+  // an unlit material with baked colours costs a fraction of a lit one.
+  buildStock() {
+    const f = this.field;
+    const { nx, ny } = f;
+    this.cx = Float32Array.from({ length: nx }, (_, i) => f.x0_mm + (i + 0.5) * f.cell_mm);
+    this.cy = Float32Array.from({ length: ny }, (_, j) => f.y0_mm + (j + 0.5) * f.cell_mm);
+    this.stockGeometry = new THREE.BufferGeometry();
+    this.stockMesh = new THREE.Mesh(this.stockGeometry, new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide }));
+    this.scene.add(this.stockMesh);
+    this.showHeights(this.finalTop);
+  }
+
+  // Puts heights (per cell, NaN: empty) on the stock mesh. Between two rows of cell centres, a
+  // flat run (all corners at one height) is one quad, anything else two triangles per cell: most
+  // of a stock's top and a pocket's floor are flat.
+  showHeights(top) {
+    const f = this.field;
+    const { nx, ny } = f;
+    const { cx, cy } = this;
+    const bottom = f.box_mm.min[2];
+    const pos = [];
+    const z = (k) => (Number.isNaN(top[k]) ? bottom : top[k]);
+    const tri = (x0, y0, z0, x1, y1, z1, x2, y2, z2) => pos.push(x0, y0, z0, x1, y1, z1, x2, y2, z2);
+    for (let j = 0; j + 1 < ny; j++) {
+      let i = 0;
+      while (i + 1 < nx) {
+        const a = j * nx + i;
+        const d = a + nx;
+        const za = top[a];
+        if (Number.isNaN(za) || Number.isNaN(top[a + 1]) || Number.isNaN(top[d]) || Number.isNaN(top[d + 1])) {
+          i += 1;
+          continue;
+        }
+        let k = i + 1;
+        if (za === top[a + 1] && za === top[d] && za === top[d + 1]) {
+          while (k + 1 < nx && top[j * nx + k + 1] === za && top[(j + 1) * nx + k + 1] === za) k += 1;
+        }
+        const e = j * nx + k;
+        tri(cx[i], cy[j], za, cx[k], cy[j], z(e), cx[k], cy[j + 1], z(e + nx));
+        tri(cx[i], cy[j], za, cx[k], cy[j + 1], z(e + nx), cx[i], cy[j + 1], z(d));
+        i = k;
+      }
+    }
+    const topCount = pos.length / 9;
+    // The sides: from the edge cells' heights down to the box bottom, at the box's faces.
+    const b = f.box_mm;
+    const side = (cells, fixed, alongX) => {
+      for (let q = 0; q + 1 < cells.length; q++) {
+        const [k0, c0] = cells[q];
+        const [k1, c1] = cells[q + 1];
+        const P = (c, zz) => (alongX ? [c, fixed, zz] : [fixed, c, zz]);
+        tri(...P(c0, bottom), ...P(c1, bottom), ...P(c1, z(k1)));
+        tri(...P(c0, bottom), ...P(c1, z(k1)), ...P(c0, z(k0)));
+      }
+    };
+    side(Array.from({ length: nx }, (_, i) => [i, cx[i]]), b.min[1], true);
+    side(Array.from({ length: nx }, (_, i) => [(ny - 1) * nx + i, cx[i]]), b.max[1], true);
+    side(Array.from({ length: ny }, (_, j) => [j * nx, cy[j]]), b.min[0], false);
+    side(Array.from({ length: ny }, (_, j) => [j * nx + nx - 1, cy[j]]), b.max[0], false);
+    const positions = Float32Array.from(pos);
+    this.stockGeometry.setAttribute('position', new THREE.BufferAttribute(positions, 3));
+    this.stockGeometry.setAttribute('color', new THREE.BufferAttribute(shade(positions), 3));
+    this.stockGeometry.computeBoundingSphere();
+    this.container.dataset.stockTriangles = String(topCount);
+  }
+
+  // ---- in-process stock -----------------------------------------------------------------------
+
+  // Lowers `top` where the tool's lower surface at path points [from, to) passes below it;
+  // segments are stepped at half a cell so a sparse path still sweeps continuously.
+  sweep(top, from, to) {
+    const f = this.field;
+    const { nx, ny } = f;
+    const c = f.cell_mm;
+    const R = this.tool.diameter_mm / 2;
+    const rc = Math.ceil(R / c);
+    const { x, y, z } = this.path;
+    const stamp = (px, py, pz) => {
+      const ci = Math.floor((px - f.x0_mm) / c);
+      const cj = Math.floor((py - f.y0_mm) / c);
+      for (let j = Math.max(0, cj - rc); j <= Math.min(ny - 1, cj + rc); j++) {
+        const dy = f.y0_mm + (j + 0.5) * c - py;
+        for (let i = Math.max(0, ci - rc); i <= Math.min(nx - 1, ci + rc); i++) {
+          const dx = f.x0_mm + (i + 0.5) * c - px;
+          const lift = this.profile(Math.hypot(dx, dy));
+          if (lift === Infinity) continue;
+          const k = j * nx + i;
+          if (pz + lift < top[k]) top[k] = pz + lift;
+        }
+      }
+    };
+    for (let i = Math.max(1, from); i < to; i++) {
+      const len = Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
+      const steps = Math.max(1, Math.ceil(len / (c / 2)));
+      if (steps > 4000) continue;   // a jump in the log (a new session), not a move
+      for (let s = 1; s <= steps; s++) {
+        const u = s / steps;
+        stamp(x[i - 1] + u * (x[i] - x[i - 1]), y[i - 1] + u * (y[i] - y[i - 1]), z[i - 1] + u * (z[i] - z[i - 1]));
+      }
+    }
+    if (from === 0 && to > 0) stamp(x[0], y[0], z[0]);
+  }
+
+  // The in-process heights after path point `upto` (exclusive), from the nearest saved state.
+  heightsAt(upto) {
+    if (!this.checkpoints) this.checkpoints = [{ at: 0, top: this.startTop }];
+    let cp = this.checkpoints[0];
+    for (const c of this.checkpoints) if (c.at <= upto) cp = c;
+    const top = Float32Array.from(cp.top);
+    let at = cp.at;
+    while (at < upto) {
+      const next = Math.min(upto, (Math.floor(at / CHECKPOINT_EVERY) + 1) * CHECKPOINT_EVERY);
+      this.sweep(top, at, next);
+      at = next;
+      if (at % CHECKPOINT_EVERY === 0 && !this.checkpoints.some((c) => c.at === at)) {
+        this.checkpoints.push({ at, top: Float32Array.from(top) });
+        this.checkpoints.sort((a, b) => a.at - b.at);
+      }
+    }
+    // Never below the engine's final stock: the sweep is the display's, the final stock the engine's.
+    for (let k = 0; k < top.length; k++) {
+      const fin = this.finalTop[k];
+      if (Number.isNaN(fin)) continue;
+      if (Number.isNaN(top[k]) || top[k] < fin) top[k] = fin;
+    }
+    return top;
+  }
+
+  // Cursor time: the in-process stock and the tool there; null: the final stock without the tool.
+  setTime(t) {
+    this.time = t;
+    const { path } = this;
+    // Material not yet removed is see-through, so the path still to come shows inside it.
+    const ghost = t != null && t < path.t[path.t.length - 1];
+    for (const m of [this.stockMesh.material]) {
+      if (m.transparent !== ghost) {
+        m.transparent = ghost;
+        m.opacity = ghost ? 0.55 : 1;
+        m.depthWrite = !ghost;
+        m.needsUpdate = true;
+      }
+    }
+    if (t == null || t >= path.t[path.t.length - 1]) {
+      this.showHeights(this.finalTop);
+      this.placeTool(t == null ? null : path.t.length - 1);
+    } else {
+      const i = Math.max(0, lowerBound(path.t, t));
+      this.showHeights(this.heightsAt(i));
+      this.placeTool(i);
+    }
+    this.container.dataset.time = t == null ? '' : String(t);
+    this.requestRender();
+  }
+
+  placeTool(i) {
+    if (i == null) {
+      this.toolGroup.visible = false;
+      return;
+    }
+    const { x, y, z } = this.path;
+    this.toolGroup.position.set(x[i], y[i], z[i]);
+    this.toolGroup.visible = true;
+  }
+
+  // ---- path -------------------------------------------------------------------------------------
+
+  // One line object per class. GL lines are one pixel wide, so a class is told by its dash and
+  // its markers as well as its colour: dashed 80-100 %, square markers over the limit.
+  // (Screen-space wide lines cost software rendering several times the whole scene.)
+  buildPath() {
+    const { x, y, z } = this.path;
+    const n = x.length;
+    this.pathGroup = new THREE.Group();
+    this.scene.add(this.pathGroup);
+    const perClass = LOAD_CLASSES.map(() => []);
+    for (let i = 1; i < n; i++) {
+      const r = Math.max(this.ratio[i - 1], this.ratio[i]);
+      perClass[loadClass(r)].push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
+    }
+    this.classLines = LOAD_CLASSES.map((cls, k) => {
+      if (!perClass[k].length) return null;
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.Float32BufferAttribute(perClass[k], 3));
+      const m = cls.dashed ? new THREE.LineDashedMaterial({ color: cls.colour, dashSize: 1.5, gapSize: 1 })
+        : new THREE.LineBasicMaterial({ color: cls.colour });
+      const group = new THREE.Group();
+      const line = new THREE.LineSegments(g, m);
+      if (cls.dashed) line.computeLineDistances();
+      group.add(line);
+      if (cls.marker) {
+        group.add(new THREE.Points(g, new THREE.PointsMaterial({ color: cls.colour, size: cls.marker, sizeAttenuation: false })));
+      }
+      this.pathGroup.add(group);
+      return group;
+    });
+  }
+
+  // Continuous: one line with a colour per segment, built when first shown.
+  buildContinuous() {
+    const { x, y, z } = this.path;
+    const n = x.length;
+    const pos = new Float32Array(6 * (n - 1));
+    const col = new Float32Array(6 * (n - 1));
+    for (let i = 1; i < n; i++) {
+      const r = Math.max(this.ratio[i - 1], this.ratio[i]);
+      pos.set([x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]], 6 * (i - 1));
+      const cc = r > 0 ? continuousColour(r) : new THREE.Color(LOAD_CLASSES[0].colour);
+      col.set([cc.r, cc.g, cc.b, cc.r, cc.g, cc.b], 6 * (i - 1));
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+    g.setAttribute('color', new THREE.BufferAttribute(col, 3));
+    this.continuousLine = new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true }));
+    this.pathGroup.add(this.continuousLine);
+  }
+
+  setColourMode(mode) {
+    this.mode = mode;
+    if (mode === 'continuous' && !this.continuousLine) this.buildContinuous();
+    for (const l of this.classLines) if (l) l.visible = mode === 'classes';
+    if (this.continuousLine) this.continuousLine.visible = mode === 'continuous';
+    this.requestRender();
+  }
+
+  // The selected block's path: its points as large blue squares drawn over everything, and its
+  // line.
+  select(block) {
+    if (this.selectionLine) {
+      this.pathGroup.remove(this.selectionLine);
+      this.selectionLine.traverse((o) => o.geometry?.dispose());
+      this.selectionLine = null;
+    }
+    this.container.dataset.selectedSegments = '0';
+    if (block) {
+      const { t, x, y, z } = this.path;
+      const pos = [];
+      for (let i = 1; i < t.length; i++) {
+        if (t[i] < block.t_start_s || t[i - 1] > block.t_end_s) continue;
+        pos.push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
+      }
+      if (pos.length) {
+        const g = new THREE.BufferGeometry();
+        g.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+        this.selectionLine = new THREE.Group();
+        const points = new THREE.Points(g, new THREE.PointsMaterial({ color: SELECT_COLOUR, size: 7, sizeAttenuation: false, depthTest: false, transparent: true, opacity: 0.6 }));
+        const line = new THREE.LineSegments(g, new THREE.LineBasicMaterial({ color: SELECT_COLOUR, depthTest: false }));
+        points.renderOrder = 1;
+        line.renderOrder = 1;
+        this.selectionLine.add(points, line);
+        this.pathGroup.add(this.selectionLine);
+        this.container.dataset.selectedSegments = String(pos.length / 6);
+      }
+    }
+    this.requestRender();
+  }
+
+  // ---- camera, axes, scale ------------------------------------------------------------------------
+
+  // The box around the path where the tool cuts (and a tool diameter around it): what the view
+  // frames first. The whole stock when nothing cuts.
+  cutRegion() {
+    const { x, y, z } = this.path;
+    const box = new THREE.Box3();
+    const b = this.field.box_mm;
+    const stock = new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max));
+    // Loaded points inside the stock (the load of a point comes from buckets that may reach
+    // past the end of a cut, so a point of the approach can carry some).
+    const p = new THREE.Vector3();
+    for (let i = 0; i < x.length; i++) {
+      if (this.ratio[i] > 0 && stock.containsPoint(p.set(x[i], y[i], z[i]))) box.expandByPoint(p);
+    }
+    if (box.isEmpty()) return stock;
+    box.expandByScalar(this.tool.diameter_mm);
+    box.max.z = Math.max(box.max.z, b.max[2]);
+    return box.intersect(stock).isEmpty() ? stock : box;
+  }
+
+  // which: iso, top, front, side; frame: 'cut' (the region the tool cuts) or 'stock' (all of it).
+  setView(which, frame = this.frame) {
+    this.frame = frame;
+    const b = this.field.box_mm;
+    const box = frame === 'stock' ? new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max)) : this.cutBox;
+    const centre = box.getCenter(new THREE.Vector3());
+    const radius = box.getSize(new THREE.Vector3()).length() / 2;
+    const fov = THREE.MathUtils.degToRad(this.camera.fov);
+    const fit = Math.min(fov, 2 * Math.atan(Math.tan(fov / 2) * this.camera.aspect));
+    const d = (radius / Math.sin(fit / 2)) * 1.05;
+    const dirs = { iso: [-0.9, -1.3, 1.1], top: [0, -0.001, 1], front: [0, -1, 0.001], side: [1, 0, 0.001] };
+    const v = new THREE.Vector3(...(dirs[which] || dirs.iso)).normalize().multiplyScalar(d);
+    this.camera.position.copy(centre).add(v);
+    this.controls.target.copy(centre);
+    this.camera.lookAt(centre);
+    this.controls.update();
+    this.requestRender();
+  }
+
+  // Rotates the camera about the target by `radians` (the orbit benchmark and the keyboard).
+  // While the view moves it is drawn at half resolution (software rendering pays per pixel), and
+  // sharp again once it has stood still for a moment.
+  interacting() {
+    const full = Math.min(2, devicePixelRatio || 1);
+    if (this.renderer.getPixelRatio() !== full / 2) this.renderer.setPixelRatio(full / 2);
+    clearTimeout(this.sharpTimer);
+    this.sharpTimer = setTimeout(() => {
+      this.renderer.setPixelRatio(full);
+      this.requestRender();
+    }, 200);
+  }
+
+  orbit(radians) {
+    this.interacting();
+    const off = this.camera.position.clone().sub(this.controls.target);
+    off.applyAxisAngle(new THREE.Vector3(0, 0, 1), radians);
+    this.camera.position.copy(this.controls.target).add(off);
+    this.camera.lookAt(this.controls.target);
+    this.controls.update();
+  }
+
+  buildAxes() {
+    const b = this.field.box_mm;
+    const box = new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max));
+    const helper = new THREE.Box3Helper(box, 0x4b5563);
+    this.scene.add(helper);
+    const len = this.size * 0.25;
+    const o = new THREE.Vector3(...b.min);
+    const axis = (dir, colour) => {
+      const g = new THREE.BufferGeometry().setFromPoints([o, o.clone().add(dir.clone().multiplyScalar(len))]);
+      this.scene.add(new THREE.Line(g, new THREE.LineBasicMaterial({ color: colour })));
+    };
+    axis(new THREE.Vector3(1, 0, 0), 0xa50f15);
+    axis(new THREE.Vector3(0, 1, 0), 0x047857);
+    axis(new THREE.Vector3(0, 0, 1), 0x1d4ed8);
+    // Labels in HTML over the canvas: the axis names and the box corners' coordinates.
+    this.labels = [
+      { at: o.clone().add(new THREE.Vector3(len * 1.1, 0, 0)), text: 'X' },
+      { at: o.clone().add(new THREE.Vector3(0, len * 1.1, 0)), text: 'Y' },
+      { at: o.clone().add(new THREE.Vector3(0, 0, len * 1.1)), text: 'Z' },
+      { at: new THREE.Vector3(...b.min), text: `(${num(b.min[0])}, ${num(b.min[1])}, ${num(b.min[2])})`, small: true },
+      { at: new THREE.Vector3(...b.max), text: `(${num(b.max[0])}, ${num(b.max[1])}, ${num(b.max[2])})`, small: true },
+    ].map((l) => ({ ...l, el: h('span', { class: l.small ? 'axis-label small' : 'axis-label' }, l.text) }));
+    this.overlay.append(...this.labels.map((l) => l.el));
+  }
+
+  project(v) {
+    const p = v.clone().project(this.camera);
+    const w = this.canvas.clientWidth;
+    const hh = this.canvas.clientHeight;
+    return [(p.x + 1) / 2 * w, (1 - p.y) / 2 * hh, p.z];
+  }
+
+  updateOverlay() {
+    for (const l of this.labels) {
+      const [sx, sy, sz] = this.project(l.at);
+      l.el.style.transform = `translate(${sx.toFixed(1)}px, ${sy.toFixed(1)}px)`;
+      l.el.hidden = sz > 1;
+    }
+    // Scale bar: a round length that spans about 80-160 px at the target's distance.
+    const dist = this.camera.position.distanceTo(this.controls.target);
+    const pxPerMm = this.canvas.clientHeight / (2 * dist * Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2)));
+    const want = 120 / pxPerMm;
+    const pow = 10 ** Math.floor(Math.log10(want));
+    const mm = [1, 2, 5, 10].map((m) => m * pow).find((m) => m * pxPerMm >= 80) || 10 * pow;
+    this.scaleBar.querySelector('.bar').style.width = `${(mm * pxPerMm).toFixed(0)}px`;
+    this.scaleBar.querySelector('.label').textContent = `${num(mm)} mm (at the centre)`;
+  }
+
+  // ---- picking and measuring -----------------------------------------------------------------------
+
+  // The path point nearest to the pointer within 12 px, or null.
+  nearestPathPoint(px, py) {
+    const { x, y, z } = this.path;
+    let best = -1;
+    let bestD = 12 * 12;
+    const v = new THREE.Vector3();
+    const w = this.canvas.clientWidth;
+    const hh = this.canvas.clientHeight;
+    const m = new THREE.Matrix4().multiplyMatrices(this.camera.projectionMatrix, this.camera.matrixWorldInverse);
+    for (let i = 0; i < x.length; i++) {
+      v.set(x[i], y[i], z[i]).applyMatrix4(m);
+      if (v.z > 1) continue;
+      const sx = (v.x + 1) / 2 * w;
+      const sy = (1 - v.y) / 2 * hh;
+      const d = (sx - px) ** 2 + (sy - py) ** 2;
+      if (d < bestD) {
+        bestD = d;
+        best = i;
+      }
+    }
+    return best >= 0 ? best : null;
+  }
+
+  click(e) {
+    const rect = this.canvas.getBoundingClientRect();
+    const px = e.clientX - rect.left;
+    const py = e.clientY - rect.top;
+    if (!this.measuring) {
+      const i = this.nearestPathPoint(px, py);
+      if (i != null) this.onPick?.(this.path.t[i]);
+      return;
+    }
+    const i = this.nearestPathPoint(px, py);
+    let point = null;
+    if (i != null) point = new THREE.Vector3(this.path.x[i], this.path.y[i], this.path.z[i]);
+    else {
+      const ray = new THREE.Raycaster();
+      ray.setFromCamera(new THREE.Vector2((px / rect.width) * 2 - 1, -(py / rect.height) * 2 + 1), this.camera);
+      const hit = ray.intersectObject(this.stockMesh, false)[0];
+      if (hit) point = hit.point;
+    }
+    if (point) this.addMeasurePoint(point);
+  }
+
+  setMeasuring(on) {
+    this.measuring = on;
+    this.controls.enabled = true;
+    this.clearMeasure();
+    this.measureText.textContent = on ? 'Click two points on the stock or the path.' : '';
+  }
+
+  clearMeasure() {
+    this.measurePoints = [];
+    this.measureGroup.clear();
+    this.requestRender();
+  }
+
+  addMeasurePoint(p) {
+    if (this.measurePoints.length >= 2) this.clearMeasure();
+    this.measurePoints.push(p);
+    const dot = new THREE.Mesh(new THREE.SphereGeometry(this.size / 150, 12, 8), new THREE.MeshBasicMaterial({ color: 0x111111, depthTest: false }));
+    dot.position.copy(p);
+    dot.renderOrder = 2;
+    this.measureGroup.add(dot);
+    if (this.measurePoints.length === 2) {
+      const [a, b] = this.measurePoints;
+      const g = new THREE.BufferGeometry().setFromPoints([a, b]);
+      const line = new THREE.Line(g, new THREE.LineBasicMaterial({ color: 0x111111, depthTest: false }));
+      line.renderOrder = 2;
+      this.measureGroup.add(line);
+      const d = b.clone().sub(a);
+      const text = `Distance ${num(d.length(), 4)} mm (ΔX ${num(d.x, 4)}, ΔY ${num(d.y, 4)}, ΔZ ${num(d.z, 4)} mm)`;
+      this.measureText.textContent = text;
+      this.onMeasure?.(d.length(), d);
+    } else {
+      this.measureText.textContent = `First point (${num(p.x, 4)}, ${num(p.y, 4)}, ${num(p.z, 4)}) mm; click the second.`;
+    }
+    this.requestRender();
+  }
+}
