@@ -3,8 +3,8 @@
 // Identifies Ktc, Krc, Kac, Kte, Kre, Kae from the steady mean forces of straight dynamometer tests
 // and saves them as the run spec's `material` object (docs/compare_calibrate.md).
 #include "commands.hpp"
-#include "force_model/calibrate.hpp"
-#include "force_model/measurement.hpp"
+#include "app/calibrate.hpp"
+#include "app/inputs.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -22,13 +22,8 @@ struct CalibrateArgs {
     double feed_deg = 0;
 };
 
-struct TestArg {
-    std::string file;
-    force_model::CutTest test;
-};
-
 // FILE:RPM:FEED:AXIAL:RADIAL:MODE, split from the right so the file name may hold colons.
-TestArg parse_test(const std::string& text, double feed_deg) {
+app::CalibrationTest parse_test(const std::string& text, double feed_deg) {
     std::vector<std::string> parts;
     std::string rest = text;
     for (int i = 0; i < 5; ++i) {
@@ -39,7 +34,7 @@ TestArg parse_test(const std::string& text, double feed_deg) {
         parts.insert(parts.begin(), rest.substr(colon + 1));
         rest.resize(colon);
     }
-    TestArg t;
+    app::CalibrationTest t;
     t.file = rest;
     static const char* fields[4] = {"SPINDLE_RPM", "FEED_MM_MIN", "AXIAL_MM", "RADIAL_MM"};
     double v[4];
@@ -65,28 +60,6 @@ TestArg parse_test(const std::string& text, double feed_deg) {
     return t;
 }
 
-// TOOL.json holds the run spec's `tool` object, or a whole RUN.json whose `tool` is used.
-force_model::ToolSpec load_tool(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw UsageError(path + ": cannot open the tool file");
-    nlohmann::json j;
-    try {
-        j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
-        throw UsageError(path + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
-    const nlohmann::json tool = j.is_object() && j.contains("tool") ? j["tool"] : j;
-    nlohmann::json spec = {
-        {"tool", tool},
-        {"material", {{"Ktc_N_mm2", 1}, {"Krc_N_mm2", 0}, {"Kac_N_mm2", 0}, {"Kte_N_mm", 0}, {"Kre_N_mm", 0}, {"Kae_N_mm", 0}}},
-        {"stock", {{"box_mm", {{"min", {0, 0, 0}}, {"max", {1, 1, 1}}}}}}};
-    try {
-        return force_model::parse_run_spec(spec).tool;
-    } catch (const force_model::SpecError& e) {
-        throw UsageError(path + ": " + e.what());
-    }
-}
-
 void warn_out_of_spec(const force_model::Material& m) {
     const auto k = force_model::coefficients_of(m);
     const bool bad[6] = {!(k[0] > 0), k[1] < 0, false, k[3] < 0, k[4] < 0, false};
@@ -98,37 +71,36 @@ void warn_out_of_spec(const force_model::Material& m) {
 }
 
 void run_calibrate(const CalibrateArgs& a) {
-    const force_model::ToolSpec tool = load_tool(a.tool);
-    force_model::AxisMatrix axes = force_model::kIdentityAxes;
+    app::CalibrationInput in;
+    in.tool = app::load_tool(a.tool);   // TOOL.json: the run spec's tool object, or a whole RUN.json
     try {
-        if (!a.axes.empty()) axes = force_model::parse_axis_matrix(a.axes);
+        if (!a.axes.empty()) in.axes = force_model::parse_axis_matrix(a.axes);
     } catch (const force_model::MeasurementError& e) {
         throw UsageError(std::string("--axes: ") + e.what());
     }
-    force_model::EngineRegressorOptions engine;
-    engine.device = a.device == "opencl" ? force_model::Device::OpenCL : force_model::Device::Cpu;
-
-    std::vector<force_model::Regressors> regs;
-    std::vector<std::array<double, 3>> means;
-    std::vector<TestArg> tests;
+    in.measured_on_workpiece = a.measured_on == "workpiece";
+    in.model = a.model == "closed-form" ? app::RegressorModel::ClosedForm : app::RegressorModel::Engine;
+    in.device = a.device == "opencl" ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    in.material_name = a.name;
     for (const std::string& text : a.tests) {
-        TestArg t = parse_test(text, a.feed_deg);
+        app::CalibrationTest t = parse_test(text, a.feed_deg);
         try {
-            force_model::validate_cut_test(t.test, tool);
+            force_model::validate_cut_test(t.test, in.tool);
         } catch (const force_model::SpecError& e) {
             throw UsageError(fmt::format("--test `{}`: {}", text, e.what()));
         }
-        force_model::SteadyForce steady;
-        try {
-            force_model::Measurement m = force_model::read_measurement(t.file);
-            force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
-            steady = force_model::steady_mean_force(m, t.test.spindle_rpm);
-        } catch (const force_model::MeasurementError& e) {
-            throw UsageError(e.what());
-        }
-        regs.push_back(a.model == "closed-form" ? force_model::closed_form_regressors(tool, t.test)
-                                                : force_model::engine_regressors(tool, t.test, engine));
-        means.push_back(force_model::to_feed_frame(steady.mean_N, t.test.feed_direction_deg));
+        in.tests.push_back(t);
+    }
+    app::Calibration cal;
+    try {
+        cal = app::calibrate(in);
+    } catch (const force_model::MeasurementError& e) {
+        throw UsageError(e.what());
+    }
+    for (std::size_t i = 0; i < in.tests.size(); ++i) {
+        const app::CalibrationTest& t = in.tests[i];
+        const force_model::SteadyForce& steady = cal.tests[i].steady;
+        const auto& mean = cal.tests[i].mean_feed_frame_N;
         std::printf("%s: %s, %.6g rpm, %.6g mm/min, ap %.6g mm, ae %.6g mm: steady %.4f-%.4f s (%d rev), zero %s, "
                     "mean F (%.3f, %.3f, %.3f) N\n",
                     t.file.c_str(), force_model::immersion_name(t.test.mode), t.test.spindle_rpm, t.test.feed_mm_min,
@@ -137,17 +109,16 @@ void run_calibrate(const CalibrateArgs& a) {
                                                 steady.zero_N[1], steady.zero_N[2])
                                         .c_str()
                                   : "not removed (no idle revolutions before the cut)",
-                    means.back()[0], means.back()[1], means.back()[2]);
-        tests.push_back(t);
+                    mean[0], mean[1], mean[2]);
     }
-    const force_model::CalibrationFit fit = force_model::fit_mean_forces(regs, means, a.name);
+    const force_model::CalibrationFit& fit = cal.fit;
     const auto k = force_model::coefficients_of(fit.material);
     std::printf("fit (%s regressors, %zu equations): rms residual %.3f N (%.2f %% of the mean forces), condition "
                 "number %.3g\n",
                 a.model.c_str(), fit.equations, fit.rms_residual_N, 100 * fit.relative_rms_residual,
                 fit.condition_number);
-    for (std::size_t i = 0; i < tests.size(); ++i)
-        std::printf("  %s: residual rms %.3f N\n", tests[i].file.c_str(), fit.group_rms_residual_N[i]);
+    for (std::size_t i = 0; i < in.tests.size(); ++i)
+        std::printf("  %s: residual rms %.3f N\n", in.tests[i].file.c_str(), fit.group_rms_residual_N[i]);
     for (std::size_t i = 0; i < 6; ++i) std::printf("  %-10s %10.4f\n", force_model::kCoefficientKeys[i], k[i]);
     warn_out_of_spec(fit.material);
 

@@ -2,8 +2,7 @@
 // Aligns a dynamometer record with a prediction and prints error metrics per axis, overall and per
 // NC block (docs/compare_calibrate.md).
 #include "commands.hpp"
-#include "force_model/compare.hpp"
-#include "force_model/measurement.hpp"
+#include "app/compare.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -40,12 +39,10 @@ void print_scope(const force_model::ScopeMetrics& m) {
 void run_compare(const CompareArgs& a) {
     try {
         const force_model::PredictedTrace predicted = force_model::read_forces_csv(a.predicted);
-        force_model::Measurement m = force_model::read_measurement(a.measured);
-        const force_model::AxisMatrix axes =
-            a.axes.empty() ? force_model::kIdentityAxes : force_model::parse_axis_matrix(a.axes);
-        force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
-
-        force_model::CompareOptions opt;
+        app::CompareSettings settings;
+        if (!a.axes.empty()) settings.axes = force_model::parse_axis_matrix(a.axes);
+        settings.measured_on_workpiece = a.measured_on == "workpiece";
+        force_model::CompareOptions& opt = settings.options;
         opt.offset_s = a.offset_s;
         if (a.t_start_s) opt.t_start_s = *a.t_start_s;
         if (a.t_end_s) opt.t_end_s = *a.t_end_s;
@@ -53,7 +50,9 @@ void run_compare(const CompareArgs& a) {
         opt.averaging = averaging_of(a.average);
         opt.flutes = a.flutes;
         opt.remove_zero = !a.keep_zero;
-        const force_model::Comparison c = force_model::compare(predicted, m, opt);
+        const app::MeasurementComparison r = app::compare_measurement(predicted, a.measured, settings);
+        const force_model::Measurement& m = r.measured;
+        const force_model::Comparison& c = r.comparison;
 
         if (!a.report_csv.empty()) force_model::write_comparison_csv(c, a.report_csv);
         if (!a.trace_csv.empty()) force_model::write_comparison_trace_csv(c, predicted.block_names, a.trace_csv);

@@ -3,7 +3,7 @@
 // per-block results; prints a short summary with the flagged blocks.
 #include "commands.hpp"
 #include "predict_program.hpp"
-#include "force_model/force_model.hpp"
+#include "app/predict_run.hpp"
 
 #include <cstdio>
 #include <memory>
@@ -15,7 +15,8 @@ namespace {
 struct PredictArgs {
     std::string log, spec, out, blocks, device = "auto", start_stock, save_stock;
     bool quiet = false;
-    motion_io::ReadOptions read;
+    double step_ms = motion_io::ReadOptions{}.step_ms;
+    app::LogFormat format;
     ProgramOptions program;
 };
 
@@ -24,30 +25,33 @@ void run_predict(const PredictArgs& a) {
     for (const auto& [path, option] : {std::pair{a.out, "--out"}, {a.blocks, "--blocks"}, {a.save_stock, "--save-stock"},
                                        {a.program.compare_csv, "--compare"}, {a.program.commanded_out, "--commanded-out"}})
         if (!path.empty()) check_output_path(path, option);
-    const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
-    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
-    if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
-    const ProgramRun program = prepare_program_run(a.program, motion, spec);   // program block names
+    app::RunInput in;
+    in.spec = force_model::load_run_spec(a.spec);
+    in.log_path = a.log;
+    in.read = reader_options(a.format, a.step_ms);
+    in.program = program_source(a.program);
     force_model::StockPtr base;
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
+    in.base_stock = base.get();
+    in.device = choose_device(a.device);
 
-    force_model::PredictOptions opt;
-    opt.device = choose_device(a.device);
-    opt.base_stock = base.get();
+    app::Control control;
     int last_pct = -1;
     const bool show_progress = !a.quiet && isatty(STDERR_FILENO);
     if (show_progress)
-        opt.progress = [&last_pct](double f) {
+        control.progress = [&last_pct](app::Phase phase, double f) {
+            if (phase != app::Phase::Predict && phase != app::Phase::Commanded) return;
             const int pct = int(f * 100);
             if (pct / 10 != last_pct / 10) std::fprintf(stderr, "\rpredicting... %3d%%", pct);
             last_pct = pct;
         };
-    const force_model::Prediction p = force_model::predict(motion, spec, opt);
+    const app::RunResult r = app::predict_run(in, control);
     if (show_progress) std::fprintf(stderr, "\r                    \r");
+    const force_model::Prediction& p = r.prediction;
 
     force_model::write_forces_csv(p, a.out);
     // With a program, BLOCKS.csv also carries the comparison: finish_program_run writes it.
-    if (!a.blocks.empty() && !program.active) force_model::write_blocks_csv(p, a.blocks);
+    if (!a.blocks.empty() && !r.program) force_model::write_blocks_csv(p, a.blocks);
     if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
 
     const auto& s = p.stats;
@@ -64,7 +68,7 @@ void run_predict(const PredictArgs& a) {
     }
     std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
                 a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
-    finish_program_run(a.program, program, motion, p, spec, opt, a.blocks);
+    finish_program_run(a.program, r, a.blocks);
 }
 
 void add_predict(CLI::App& app) {
@@ -82,12 +86,12 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--start-stock", a->start_stock, "Start from a stock saved by an earlier run (--save-stock)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--save-stock", a->save_stock, "Save the final in-process stock (binary) for a later run");
-    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
+    cmd->add_option("--step-ms", a->step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
         ->check(CLI::Range(0.01, 1000.0))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_program_options(*cmd, a->program, true);
-    add_log_options(*cmd, a->read);
+    add_log_options(*cmd, a->format);
     cmd->callback([a] { run_predict(*a); });
 }
 

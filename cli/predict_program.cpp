@@ -28,19 +28,6 @@ std::pair<std::string, std::array<double, 3>> parse_work_offset(const std::strin
 
 }  // namespace
 
-force_model::Device choose_device(const std::string& name) {
-    if (name == "cpu") return force_model::Device::Cpu;
-    if (name == "opencl") return force_model::Device::OpenCL;
-    // auto: OpenCL when a device exists, else the scalar path (said on stderr).
-    try {
-        force_model::opencl_device_name();
-        return force_model::Device::OpenCL;
-    } catch (const std::runtime_error& e) {
-        std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
-        return force_model::Device::Cpu;
-    }
-}
-
 void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     auto* program = cmd.add_option("--program", o.program, "NC program (ISO 6983, FANUC dialect) the log is a dry run of")
                         ->check(CLI::ExistingFile);
@@ -67,14 +54,14 @@ void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     }
 }
 
-ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec) {
-    ProgramRun run;
+std::optional<app::ProgramSource> program_source(const ProgramOptions& o) {
     if (o.program.empty()) {
         if (!o.compare_csv.empty() || !o.commanded_out.empty()) throw UsageError("--compare and --commanded-out need --program");
-        return run;
+        return std::nullopt;
     }
-    if (motion.size() < 2) throw UsageError("the log holds fewer than two motion samples");
-    force_model::ProgramSettings settings;
+    app::ProgramSource source;
+    source.path = o.program;
+    app::ProgramSettings& settings = source.settings;
     for (const std::string& w : o.work_offsets) {
         const auto [name, v] = parse_work_offset(w);
         settings.work_offsets_mm[name] = v;
@@ -84,15 +71,10 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
     settings.rapid_mm_min = o.rapid_mm_min;
     settings.block_lead_ms = o.block_lead_ms;
     settings.map_blocks = o.map_blocks;
-    auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
-    run.run = force_model::prepare_program_run(std::move(program), settings, motion);
-    run.active = true;
-    return run;
+    return source;
 }
 
-void print_mapping(const ProgramRun& active) {
-    if (!active.active) return;
-    const force_model::ProgramRun& run = active.run;
+void print_mapping(const app::ProgramRun& run) {
     const auto& q = run.mapping.quality;
     std::printf("program: %zu blocks; log blocks %s; matched %.1f%% of samples, deviation mean %.3f / p95 %.3f / max %.3f mm, "
                 "path covered %.1f%%\n",
@@ -108,26 +90,22 @@ void print_mapping(const ProgramRun& active) {
     }
 }
 
-void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
-                        const force_model::Prediction& actual, const force_model::RunSpec& spec,
-                        const force_model::PredictOptions& opt, const std::string& blocks_csv) {
-    if (!run.active) return;
-    force_model::PredictOptions quiet = opt;
-    quiet.progress = nullptr;
-    const force_model::ProgramPrediction both = force_model::predict_program(run.run, motion, actual, spec, quiet);
-    const force_model::Prediction& commanded = both.commanded;
-    const std::vector<force_model::BlockComparison>& rows = both.blocks;
+void finish_program_run(const ProgramOptions& o, const app::RunResult& r, const std::string& blocks_csv) {
+    if (!r.program || !r.commanded) return;
+    const force_model::Prediction& commanded = r.commanded->commanded;
+    const std::vector<force_model::BlockComparison>& rows = r.commanded->blocks;
     if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
-    if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
-    print_mapping(run);
+    if (!blocks_csv.empty())
+        force_model::write_blocks_csv(r.prediction, blocks_csv, force_model::comparison_block_columns(rows));
+    print_mapping(*r.program);
     std::printf("%-8s %8s %9s %9s %8s %8s %10s %10s %9s\n", "block", "F", "dev_max", "dev_mean", "deficit", "surge",
                 "F_cmd_N", "F_act_N", "diff");
-    for (const auto& r : rows) {
-        if (r.commanded_peak_force_N <= 0 && r.actual_peak_force_N <= 0) continue;
-        std::printf("%-8s %8.0f %8.3fmm %8.3fmm %7.1f%% %7.1f%% %10.1f %10.1f %+8.1f%%\n", r.block.c_str(),
-                    r.programmed_feed_mm_min, r.max_deviation_mm, r.mean_deviation_mm, r.feed_deficit_pct, r.feed_surge_pct,
-                    r.commanded_peak_force_N, r.actual_peak_force_N, r.force_difference_pct);
+    for (const auto& b : rows) {
+        if (b.commanded_peak_force_N <= 0 && b.actual_peak_force_N <= 0) continue;
+        std::printf("%-8s %8.0f %8.3fmm %8.3fmm %7.1f%% %7.1f%% %10.1f %10.1f %+8.1f%%\n", b.block.c_str(),
+                    b.programmed_feed_mm_min, b.max_deviation_mm, b.mean_deviation_mm, b.feed_deficit_pct, b.feed_surge_pct,
+                    b.commanded_peak_force_N, b.actual_peak_force_N, b.force_difference_pct);
     }
     std::printf("commanded prediction: %.3f s simulated%s%s%s%s\n", commanded.stats.simulated_s,
                 o.commanded_out.empty() ? "" : "; forces -> ", o.commanded_out.c_str(),
