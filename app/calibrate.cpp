@@ -27,7 +27,7 @@ Calibration calibrate_steps(const CalibrationInput& in, const Control& control) 
         }
         force_model::map_to_tool_machine_axes(m, in.axes, in.measured_on_workpiece);
         CalibratedTest c;
-        c.steady = force_model::steady_mean_force(m, t.test.spindle_rpm);
+        c.steady = force_model::steady_mean_force(m, t.test.spindle_rpm, t.steady);
         c.mean_feed_frame_N = force_model::to_feed_frame(c.steady.mean_N, t.test.feed_direction_deg);
         means.push_back(c.mean_feed_frame_N);
         out.tests.push_back(c);

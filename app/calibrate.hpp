@@ -24,6 +24,7 @@ struct CalibrationTest {
     std::string file;                     // the record: read from this file unless `content` is given; names it in errors
     std::optional<std::string> content;   // the record itself (an upload)
     force_model::CutTest test;
+    force_model::SteadyOptions steady;    // how its steady segment is found (default: detected)
 };
 
 struct CalibrationInput {

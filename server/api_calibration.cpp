@@ -119,7 +119,11 @@ std::vector<app::CalibrationTest> tests_from_parts(const httplib::Request& req, 
             if (other.file == f.filename) bad_request(fmt::format("test file name '{}' is used twice", f.filename));
         if (!conditions.contains(f.filename))
             bad_request(fmt::format("part tests: no conditions for test file '{}'", f.filename));
-        tests.push_back({f.filename, f.content, cut_test_of(conditions[f.filename], f.filename, tool)});
+        app::CalibrationTest t;
+        t.file = f.filename;
+        t.content = f.content;
+        t.test = cut_test_of(conditions[f.filename], f.filename, tool);
+        tests.push_back(std::move(t));
     }
     for (const auto& [name, cond] : conditions.items())
         if (std::none_of(tests.begin(), tests.end(), [&](const app::CalibrationTest& t) { return t.file == name; }))
