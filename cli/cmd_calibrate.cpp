@@ -3,8 +3,8 @@
 // Identifies Ktc, Krc, Kac, Kte, Kre, Kae from the steady mean forces of straight dynamometer tests
 // and saves them as the run spec's `material` object (docs/compare_calibrate.md).
 #include "commands.hpp"
-#include "force_model/calibrate.hpp"
-#include "force_model/measurement.hpp"
+#include "app/calibrate.hpp"
+#include "app/inputs.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -27,13 +27,6 @@ struct CalibrateArgs {
 
 constexpr const char* kTestFields =
     "FILE:SPINDLE_RPM:FEED_MM_MIN:AXIAL_MM:RADIAL_MM:MODE[:FROM_S-TO_S[:ZERO_FX,ZERO_FY,ZERO_FZ]]";
-
-struct TestArg {
-    std::string file;
-    force_model::CutTest test;
-    std::optional<double> from_s, to_s;                 // steady window, record time
-    std::optional<std::array<double, 3>> zero_dyn_N;    // zero offset at the record's start, its channels
-};
 
 double number_field(const std::string& text, const char* field, const std::string& value) {
     try {
@@ -69,7 +62,7 @@ std::pair<double, double> parse_window(const std::string& text, const std::strin
 
 // Fields are split at colons; MODE is the last of the last three fields that names a mode, so the
 // file name may hold colons and the window and zero may follow.
-TestArg parse_test(const std::string& text, double feed_deg) {
+app::CalibrationTest parse_test(const std::string& text, double feed_deg) {
     std::vector<std::string> parts;
     for (std::size_t start = 0;;) {
         const auto colon = text.find(':', start);
@@ -86,7 +79,7 @@ TestArg parse_test(const std::string& text, double feed_deg) {
             break;
         }
     }
-    TestArg t;
+    app::CalibrationTest t;
     for (std::size_t i = 0; i + 4 < mode; ++i) t.file += (i ? ":" : "") + parts[i];
     static const char* fields[4] = {"SPINDLE_RPM", "FEED_MM_MIN", "AXIAL_MM", "RADIAL_MM"};
     double v[4];
@@ -114,28 +107,6 @@ TestArg parse_test(const std::string& text, double feed_deg) {
         }
     }
     return t;
-}
-
-// TOOL.json holds the run spec's `tool` object, or a whole RUN.json whose `tool` is used.
-force_model::ToolSpec load_tool(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw UsageError(path + ": cannot open the tool file");
-    nlohmann::json j;
-    try {
-        j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
-        throw UsageError(path + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
-    const nlohmann::json tool = j.is_object() && j.contains("tool") ? j["tool"] : j;
-    nlohmann::json spec = {
-        {"tool", tool},
-        {"material", {{"Ktc_N_mm2", 1}, {"Krc_N_mm2", 0}, {"Kac_N_mm2", 0}, {"Kte_N_mm", 0}, {"Kre_N_mm", 0}, {"Kae_N_mm", 0}}},
-        {"stock", {{"box_mm", {{"min", {0, 0, 0}}, {"max", {1, 1, 1}}}}}}};
-    try {
-        return force_model::parse_run_spec(spec).tool;
-    } catch (const force_model::SpecError& e) {
-        throw UsageError(path + ": " + e.what());
-    }
 }
 
 const char* zero_phrase(force_model::ZeroSource s) {
@@ -169,49 +140,43 @@ void warn_out_of_spec(const force_model::Material& m) {
 }
 
 void run_calibrate(const CalibrateArgs& a) {
-    const force_model::ToolSpec tool = load_tool(a.tool);
-    force_model::AxisMatrix axes = force_model::kIdentityAxes;
+    app::CalibrationInput in;
+    in.tool = app::load_tool(a.tool);   // TOOL.json: the run spec's tool object, or a whole RUN.json
     try {
-        if (!a.axes.empty()) axes = force_model::parse_axis_matrix(a.axes);
+        if (!a.axes.empty()) in.axes = force_model::parse_axis_matrix(a.axes);
     } catch (const force_model::MeasurementError& e) {
         throw UsageError(std::string("--axes: ") + e.what());
     }
-    force_model::EngineRegressorOptions engine;
-    engine.device = a.device == "opencl" ? force_model::Device::OpenCL : force_model::Device::Cpu;
-
-    std::vector<force_model::Regressors> regs;
-    std::vector<std::array<double, 3>> means;
-    std::vector<TestArg> tests;
+    in.measured_on_workpiece = a.measured_on == "workpiece";
+    in.model = a.model == "closed-form" ? app::RegressorModel::ClosedForm : app::RegressorModel::Engine;
+    in.device = a.device == "opencl" ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    in.material_name = a.name;
     for (const std::string& text : a.tests) {
-        TestArg t = parse_test(text, a.feed_deg);
+        app::CalibrationTest t = parse_test(text, a.feed_deg);
         try {
-            force_model::validate_cut_test(t.test, tool);
+            force_model::validate_cut_test(t.test, in.tool);
         } catch (const force_model::SpecError& e) {
             throw UsageError(fmt::format("--test `{}`: {}", text, e.what()));
         }
-        const bool on_workpiece = a.measured_on == "workpiece";
-        force_model::SteadyOptions sopt;
-        sopt.t_start_s = t.from_s;
-        sopt.t_end_s = t.to_s;
-        if (t.zero_dyn_N) sopt.zero_N = force_model::to_tool_machine_axes(*t.zero_dyn_N, axes, on_workpiece);
-        sopt.flutes = tool.flutes;
-        sopt.air_fraction = force_model::tooth_air_fraction(tool, t.test);
-        force_model::SteadyForce steady;
-        try {
-            force_model::Measurement m = force_model::read_measurement(t.file);
-            force_model::map_to_tool_machine_axes(m, axes, on_workpiece);
-            steady = force_model::steady_mean_force(m, t.test.spindle_rpm, sopt);
-        } catch (const force_model::SteadyError& e) {
-            throw UsageError(fmt::format(
-                "{} ({})", e.what(),
-                e.need == force_model::SteadyError::Need::Window
-                    ? "as the 7th --test field FROM_S-TO_S, in the record's time"
-                    : "as the 8th --test field ZERO_FX,ZERO_FY,ZERO_FZ: the record's reading with no load at its "
-                      "first sample, in its own channels"));
-        } catch (const force_model::MeasurementError& e) {
-            throw UsageError(e.what());
-        }
-        means.push_back(force_model::to_feed_frame(steady.mean_N, t.test.feed_direction_deg));
+        in.tests.push_back(t);
+    }
+    app::Calibration cal;
+    try {
+        cal = app::calibrate(in);
+    } catch (const force_model::SteadyError& e) {
+        throw UsageError(fmt::format(
+            "{} ({})", e.what(),
+            e.need == force_model::SteadyError::Need::Window
+                ? "as the 7th --test field FROM_S-TO_S, in the record's time"
+                : "as the 8th --test field ZERO_FX,ZERO_FY,ZERO_FZ: the record's reading with no load at its "
+                  "first sample, in its own channels"));
+    } catch (const force_model::MeasurementError& e) {
+        throw UsageError(e.what());
+    }
+    for (std::size_t i = 0; i < in.tests.size(); ++i) {
+        const app::CalibrationTest& t = in.tests[i];
+        const force_model::SteadyForce& steady = cal.tests[i].steady;
+        const auto& mean = cal.tests[i].mean_feed_frame_N;
         const auto drift = steady.drift_N();
         std::printf("%s: %s, %.6g rpm, %.6g mm/min, ap %.6g mm, ae %.6g mm: steady %.4f-%.4f s (%d rev, %s), zero "
                     "(%.3f, %.3f, %.3f) N removed (%s), drift (%.3f, %.3f, %.3f) N over the window (%s), mean F "
@@ -220,21 +185,16 @@ void run_calibrate(const CalibrateArgs& a) {
                     t.test.axial_mm, t.test.radial_mm, steady.t_start_s, steady.t_end_s, steady.revolutions,
                     steady.window_given ? "window given" : "detected", steady.zero_N[0], steady.zero_N[1],
                     steady.zero_N[2], zero_phrase(steady.zero.source), drift[0], drift[1], drift[2],
-                    drift_phrase(steady.zero.drift_source), means.back()[0], means.back()[1], means.back()[2]);
-        tests.push_back(t);
+                    drift_phrase(steady.zero.drift_source), mean[0], mean[1], mean[2]);
     }
-    // The regressors (engine time) only once every record has been read: a bad one fails at once.
-    for (const TestArg& t : tests)
-        regs.push_back(a.model == "closed-form" ? force_model::closed_form_regressors(tool, t.test)
-                                                : force_model::engine_regressors(tool, t.test, engine));
-    const force_model::CalibrationFit fit = force_model::fit_mean_forces(regs, means, a.name);
+    const force_model::CalibrationFit& fit = cal.fit;
     const auto k = force_model::coefficients_of(fit.material);
     std::printf("fit (%s regressors, %zu equations): rms residual %.3f N (%.2f %% of the mean forces), condition "
                 "number %.3g\n",
                 a.model.c_str(), fit.equations, fit.rms_residual_N, 100 * fit.relative_rms_residual,
                 fit.condition_number);
-    for (std::size_t i = 0; i < tests.size(); ++i)
-        std::printf("  %s: residual rms %.3f N\n", tests[i].file.c_str(), fit.group_rms_residual_N[i]);
+    for (std::size_t i = 0; i < in.tests.size(); ++i)
+        std::printf("  %s: residual rms %.3f N\n", in.tests[i].file.c_str(), fit.group_rms_residual_N[i]);
     for (std::size_t i = 0; i < 6; ++i) std::printf("  %-10s %10.4f\n", force_model::kCoefficientKeys[i], k[i]);
     warn_out_of_spec(fit.material);
 

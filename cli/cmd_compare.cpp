@@ -2,8 +2,7 @@
 // Aligns a dynamometer record with a prediction and prints error metrics per axis, overall and per
 // NC block (docs/compare_calibrate.md).
 #include "commands.hpp"
-#include "force_model/compare.hpp"
-#include "force_model/measurement.hpp"
+#include "app/compare.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -68,16 +67,11 @@ void print_zero(const force_model::Comparison& c, bool keep_zero) {
 void run_compare(const CompareArgs& a) {
     try {
         const force_model::PredictedTrace predicted = force_model::read_forces_csv(a.predicted);
-        force_model::Measurement m = force_model::read_measurement(a.measured);
-        const force_model::AxisMatrix axes =
-            a.axes.empty() ? force_model::kIdentityAxes : force_model::parse_axis_matrix(a.axes);
-        force_model::map_to_tool_machine_axes(m, axes, a.measured_on == "workpiece");
-        std::optional<std::array<double, 3>> zero;
-        if (!a.zero.empty())
-            zero = force_model::to_tool_machine_axes(force_model::parse_force_vector(a.zero), axes,
-                                                     a.measured_on == "workpiece");
-
-        force_model::CompareOptions opt;
+        app::CompareSettings settings;
+        if (!a.axes.empty()) settings.axes = force_model::parse_axis_matrix(a.axes);
+        settings.measured_on_workpiece = a.measured_on == "workpiece";
+        if (!a.zero.empty()) settings.zero_dyn_N = force_model::parse_force_vector(a.zero);
+        force_model::CompareOptions& opt = settings.options;
         opt.offset_s = a.offset_s;
         if (a.t_start_s) opt.t_start_s = *a.t_start_s;
         if (a.t_end_s) opt.t_end_s = *a.t_end_s;
@@ -85,8 +79,9 @@ void run_compare(const CompareArgs& a) {
         opt.averaging = averaging_of(a.average);
         opt.flutes = a.flutes;
         opt.remove_zero = !a.keep_zero;
-        opt.zero_N = zero;
-        const force_model::Comparison c = force_model::compare(predicted, m, opt);
+        const app::MeasurementComparison r = app::compare_measurement(predicted, a.measured, settings);
+        const force_model::Measurement& m = r.measured;
+        const force_model::Comparison& c = r.comparison;
 
         if (!a.report_csv.empty()) force_model::write_comparison_csv(c, a.report_csv);
         if (!a.trace_csv.empty()) force_model::write_comparison_trace_csv(c, predicted.block_names, a.trace_csv);

@@ -1,6 +1,6 @@
 // cutload inspect LOG [--format csv|shdr] [--map FILE] [--units mm|in] [--feed-units U] [--json]
 #include "commands.hpp"
-#include "motion_io/motion_io.hpp"
+#include "app/ingest.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -14,7 +14,7 @@ namespace {
 
 struct InspectArgs {
     std::string log;
-    motion_io::ReadOptions opt;
+    app::LogFormat format;
     bool json = false;
 };
 
@@ -42,10 +42,10 @@ void add_inspect(CLI::App& app) {
     auto args = std::make_shared<InspectArgs>();
     auto* sub = app.add_subcommand("inspect", "Read a dry-run log and report its sampling, sessions, blocks and warnings");
     sub->add_option("LOG", args->log, "Motion log (CSV or MTConnect SHDR)")->required();
-    add_log_options(*sub, args->opt);
+    add_log_options(*sub, args->format);
     sub->add_flag("--json", args->json, "Print one JSON object instead of text");
     sub->callback([args] {
-        const motion_io::IngestReport report = motion_io::inspect(args->log, args->opt);
+        const motion_io::IngestReport report = app::inspect_log(args->log, reader_options(args->format));
         if (args->json)
             std::cout << motion_io::report_to_json(report).dump(2) << "\n";
         else

@@ -4,7 +4,7 @@
 // words changed and shows the prediction at the new feeds.
 #include "commands.hpp"
 #include "predict_program.hpp"
-#include "force_model/feed_optimizer.hpp"
+#include "app/optimize.hpp"
 #include "textio/csv.hpp"
 
 #include <fmt/format.h>
@@ -22,7 +22,8 @@ struct OptimizeArgs {
     double target = 0.8, min_feed = 10, max_feed = 0;
     int max_predictions = 8;
     bool quiet = false;
-    motion_io::ReadOptions read;
+    double step_ms = motion_io::ReadOptions{}.step_ms;
+    app::LogFormat format;
     ProgramOptions program;
 };
 
@@ -37,49 +38,50 @@ void write_report(const force_model::FeedOptimization& r, const std::string& pat
 }
 
 void run_optimize(const OptimizeArgs& a) {
-    const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
-    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read);
-    const ProgramRun active = prepare_program_run(a.program, motion, spec);
-    print_mapping(active);
-    const force_model::ProgramRun& run = active.run;
-
-    force_model::FeedOptimizerOptions o;
+    app::OptimizeInput in;
+    in.spec = force_model::load_run_spec(a.spec);
+    in.log_path = a.log;
+    in.read = reader_options(a.format, a.step_ms);
+    in.program = program_source(a.program).value();   // --program is required
+    in.device = choose_device(a.device);
+    force_model::FeedOptimizerOptions& o = in.search;
     o.target = a.target;
     o.min_feed_mm_min = a.min_feed;
     o.max_feed_mm_min = a.max_feed;
     o.max_predictions = a.max_predictions;
     o.basis = a.basis == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
-    o.commanded = run.commanded;
-    force_model::PredictOptions popt;
-    popt.device = choose_device(a.device);
-    if (!a.quiet) std::fprintf(stderr, "optimizing feeds (a few predictions)...\n");
-    const force_model::FeedOptimization r = force_model::optimize_feeds(run.program, motion, spec, popt, o);
+    app::Control control;
+    if (!a.quiet)
+        control.progress = [noted = false](app::Phase phase, double) mutable {
+            if (phase != app::Phase::Optimize || noted) return;
+            std::fprintf(stderr, "optimizing feeds (a few predictions)...\n");
+            noted = true;
+        };
+    const app::OptimizeResult result = app::optimize_feeds(in, control);
+    print_mapping(result.program);
+    const force_model::FeedOptimization& r = result.feeds;
 
-    const std::string text = motion_io::rewrite_feeds(run.program, r.feed_mm_min);
     {
         std::ofstream out(a.out, std::ios::binary | std::ios::trunc);
         if (!out) throw UsageError("cannot write " + a.out, 1);
-        out << text;
+        out << result.program_text;
         if (!out) throw UsageError("writing " + a.out + " failed", 1);
     }
     if (!a.report.empty()) write_report(r, a.report);
 
     std::printf("%-8s %9s %9s %-8s %8s %8s\n", "block", "F_prog", "F_new", "binding", "before", "after");
-    std::size_t changed = 0;
-    for (const auto& b : r.blocks) {
-        if (b.recommended_feed_mm_min != b.programmed_feed_mm_min) ++changed;
+    for (const auto& b : r.blocks)
         std::printf("%-8s %9.0f %9.0f %-8s %7.1f%% %7.1f%%%s\n", b.block.c_str(), b.programmed_feed_mm_min,
                     b.recommended_feed_mm_min, b.binding.c_str(), 100 * b.ratio_before, 100 * b.ratio_after,
                     b.at_feed_limit ? "  (feed range)" : "");
-    }
     std::size_t in_band = 0, below = 0, over = 0;
     for (const auto& b : r.blocks) {
         if (b.ratio_after > a.target + 1e-9) ++over;
         else if (b.ratio_after >= a.target * (1 - o.tolerance) || b.at_feed_limit) ++in_band;
         else ++below;
     }
-    std::printf("%zu of %zu cutting blocks changed; %d predictions (basis: %s)\n", changed, r.blocks.size(), r.predictions,
-                a.basis.c_str());
+    std::printf("%zu of %zu cutting blocks changed; %d predictions (basis: %s)\n", result.changed_blocks, r.blocks.size(),
+                r.predictions, a.basis.c_str());
     std::printf("target %.0f%%: %zu blocks at it (or at the feed range), %zu below, %zu over; highest load after: %.1f%% of "
                 "its limit; cycle %.3f s -> %.3f s; program -> %s\n",
                 100 * a.target, in_band, below, over, 100 * r.max_ratio_after, r.before.stats.simulated_s,
@@ -114,12 +116,12 @@ void add_optimize(CLI::App& app) {
     cmd->add_option("--device", a->device, "opencl, cpu, or auto (OpenCL when a device exists)")
         ->check(CLI::IsMember({"opencl", "cpu", "auto"}))
         ->capture_default_str();
-    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms")
+    cmd->add_option("--step-ms", a->step_ms, "Resampling step of the motion model in ms")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress note");
     add_program_options(*cmd, a->program, false);
-    add_log_options(*cmd, a->read);
+    add_log_options(*cmd, a->format);
     cmd->callback([a] {
         check_output_path(a->out, "--out");
         if (!a->report.empty()) check_output_path(a->report, "--report");

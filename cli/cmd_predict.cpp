@@ -3,9 +3,10 @@
 // per-block results; prints a short summary with the flagged blocks.
 #include "commands.hpp"
 #include "predict_program.hpp"
-#include "force_model/force_model.hpp"
+#include "app/predict_run.hpp"
 
 #include <cstdio>
+#include <initializer_list>
 #include <memory>
 #include <unistd.h>
 
@@ -15,7 +16,8 @@ namespace {
 struct PredictArgs {
     std::string log, spec, out, blocks, device = "auto", start_stock, save_stock;
     bool quiet = false;
-    motion_io::ReadOptions read;
+    double step_ms = motion_io::ReadOptions{}.step_ms;
+    app::LogFormat format;
     ProgramOptions program;
 };
 
@@ -24,42 +26,40 @@ void run_predict(const PredictArgs& a) {
     for (const auto& [path, option] : {std::pair{a.out, "--out"}, {a.blocks, "--blocks"}, {a.save_stock, "--save-stock"},
                                        {a.program.compare_csv, "--compare"}, {a.program.commanded_out, "--commanded-out"}})
         if (!path.empty()) check_output_path(path, option);
-    const force_model::RunSpec spec = force_model::load_run_spec(a.spec);
-    motion_io::IngestReport report;
-    motion_io::MotionModel motion = motion_io::ingest(a.log, a.read, &report);
-    if (motion.size() < 2) throw UsageError(a.log + ": the log holds fewer than two motion samples");
-    if (a.program.commanded_from_log && !report.commanded_positions)
-        throw UsageError(a.log + ": --commanded-from-log: the log has no commanded positions (x_cmd, y_cmd, z_cmd, or "
-                         "the columns a --map names for them)");
-    // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
-    const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, spec.tool.flutes);
-    for (const std::vector<motion_io::IngestWarning>* list :
-         std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&report.warnings, &sampling.warnings})
-        for (const auto& w : *list)
-            if (w.code == "position_quantized" || w.code == "sampling_coarse")
-                std::fprintf(stderr, "cutload: warning: %s: %s\n", w.code.c_str(), w.message.c_str());
-    const ProgramRun program = prepare_program_run(a.program, motion, spec);   // program block names
+    app::RunInput in;
+    in.spec = force_model::load_run_spec(a.spec);
+    in.log_path = a.log;
+    in.read = reader_options(a.format, a.step_ms);
+    in.program = program_source(a.program);
+    in.commanded_from_log = a.program.commanded_from_log;
     force_model::StockPtr base;
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
+    in.base_stock = base.get();
+    in.device = choose_device(a.device);
 
-    force_model::PredictOptions opt;
-    opt.device = choose_device(a.device);
-    opt.base_stock = base.get();
+    app::Control control;
     int last_pct = -1;
     const bool show_progress = !a.quiet && isatty(STDERR_FILENO);
     if (show_progress)
-        opt.progress = [&last_pct](double f) {
+        control.progress = [&last_pct](app::Phase phase, double f) {
+            if (phase != app::Phase::Predict && phase != app::Phase::Commanded) return;
             const int pct = int(f * 100);
             if (pct / 10 != last_pct / 10) std::fprintf(stderr, "\rpredicting... %3d%%", pct);
             last_pct = pct;
         };
-    const force_model::Prediction p = force_model::predict(motion, spec, opt);
+    const app::RunResult r = app::predict_run(in, control);
     if (show_progress) std::fprintf(stderr, "\r                    \r");
+    for (const std::vector<motion_io::IngestWarning>* list :
+         std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&r.ingest.warnings, &r.sampling.warnings})
+        for (const auto& w : *list)
+            if (w.code == "position_quantized" || w.code == "sampling_coarse")
+                std::fprintf(stderr, "cutload: warning: %s: %s\n", w.code.c_str(), w.message.c_str());
+    for (const std::string& w : r.warnings) std::fprintf(stderr, "cutload: warning: %s\n", w.c_str());
+    const force_model::Prediction& p = r.prediction;
 
     force_model::write_forces_csv(p, a.out);
-    // With a commanded path, BLOCKS.csv also carries the comparison: finish_program_run or
-    // finish_logged_commanded writes it.
-    if (!a.blocks.empty() && !program.active && !a.program.commanded_from_log) force_model::write_blocks_csv(p, a.blocks);
+    // With a commanded path, BLOCKS.csv also carries the comparison: finish_program_run writes it.
+    if (!a.blocks.empty() && !r.commanded) force_model::write_blocks_csv(p, a.blocks);
     if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
 
     const auto& s = p.stats;
@@ -76,13 +76,12 @@ void run_predict(const PredictArgs& a) {
     }
     std::printf("%zu of %zu blocks flagged; forces -> %s%s%s\n", flagged, p.blocks.size(), a.out.c_str(),
                 a.blocks.empty() ? "" : ", blocks -> ", a.blocks.c_str());
-    if (sampling.coarse())
+    if (r.sampling.coarse())
         std::printf("data: COARSE (%s%s%s): the log cannot fully carry this prediction; see the warnings\n",
-                    sampling.position_quantized ? "position_quantized" : "",
-                    sampling.position_quantized && sampling.sampling_coarse ? ", " : "",
-                    sampling.sampling_coarse ? "sampling_coarse" : "");
-    finish_program_run(a.program, program, motion, p, spec, opt, a.blocks);
-    finish_logged_commanded(a.program, a.log, a.read, motion, p, spec, opt, a.blocks);
+                    r.sampling.position_quantized ? "position_quantized" : "",
+                    r.sampling.position_quantized && r.sampling.sampling_coarse ? ", " : "",
+                    r.sampling.sampling_coarse ? "sampling_coarse" : "");
+    finish_program_run(a.program, r, a.blocks);
 }
 
 void add_predict(CLI::App& app) {
@@ -100,12 +99,12 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--start-stock", a->start_stock, "Start from a stock saved by an earlier run (--save-stock)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--save-stock", a->save_stock, "Save the final in-process stock (binary) for a later run");
-    cmd->add_option("--step-ms", a->read.step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
+    cmd->add_option("--step-ms", a->step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
         ->check(CLI::Range(0.01, 1000.0))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_program_options(*cmd, a->program, true);
-    add_log_options(*cmd, a->read);
+    add_log_options(*cmd, a->format);
     cmd->callback([a] { run_predict(*a); });
 }
 

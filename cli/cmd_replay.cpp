@@ -18,6 +18,7 @@ namespace {
 
 struct ReplayArgs {
     live::ReplayOptions opt;
+    app::LogFormat format;
     std::string listen = "127.0.0.1:7878";
     long heartbeat_ms = 10000;
     double max_pause_s = -1;
@@ -32,6 +33,7 @@ void run_replay(ReplayArgs& a) {
     } catch (const live::SourceError& e) {
         throw UsageError(std::string("--listen: ") + e.what());
     }
+    a.opt.read = reader_options(a.format, a.opt.read.step_ms);
     a.opt.heartbeat = std::chrono::milliseconds(a.heartbeat_ms);
     if (a.max_pause_s >= 0) a.opt.max_pause_s = a.max_pause_s;
 
@@ -99,7 +101,7 @@ void add_replay(CLI::App& app) {
     sub->add_option("--max-pause-s", a->max_pause_s, "Shorten silences in the log to this many seconds (default: keep)")
         ->check(CLI::Range(0.0, 86400.0));
     sub->add_flag("--exit-at-end", a->exit_at_end, "Exit after the last line instead of serving on");
-    add_log_options(*sub, a->opt.read);
+    add_log_options(*sub, a->format);
     sub->get_option("--map")->description("CSV logs: the keys and units to write, an SHDR key map (docs/live.md)");
     sub->callback([a] { run_replay(*a); });
 }

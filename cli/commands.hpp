@@ -2,7 +2,7 @@
 // registers itself here, so adding a command touches no shared file.
 #pragma once
 
-#include "motion_io/motion_io.hpp"
+#include "app/inputs.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -29,8 +29,14 @@ bool register_command(const char* name, AddCommandFn add);
 // folder, or a folder in its place), naming the option; checked before long computations.
 void check_output_path(const std::string& path, const char* option);
 
-// The log-format options shared by inspect, resample and predict:
+// The log-format options shared by inspect, resample, predict and optimize:
 //   --format csv|shdr|auto, --map FILE, --units mm|in, --feed-units UNIT
-void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt);
+void add_log_options(CLI::App& sub, app::LogFormat& format);
+
+// The reader's options from those and the resampling step; a bad value exits 2 naming the option.
+motion_io::ReadOptions reader_options(const app::LogFormat& format, double step_ms = motion_io::ReadOptions{}.step_ms);
+
+// The engine's device for --device opencl|cpu|auto; says on stderr when auto falls back to the CPU.
+force_model::Device choose_device(const std::string& name);
 
 }  // namespace cutload::cli

@@ -1,5 +1,5 @@
 #include "commands.hpp"
-#include "force_model/force_model.hpp"
+#include "app/inputs.hpp"
 
 #include <fmt/format.h>
 
@@ -43,23 +43,36 @@ void check_output_path(const std::string& path, const char* option) {
                          std::strerror(errno) + ")");
 }
 
-void add_log_options(CLI::App& sub, motion_io::ReadOptions& opt) {
-    static const std::map<std::string, motion_io::Format> formats{
-        {"auto", motion_io::Format::Auto}, {"csv", motion_io::Format::Csv}, {"shdr", motion_io::Format::Shdr}};
-    sub.add_option("--format", opt.format, "Log format: csv, shdr or auto (default: from the file's content)")
+void add_log_options(CLI::App& sub, app::LogFormat& format) {
+    static const std::map<std::string, std::string> formats{{"auto", "auto"}, {"csv", "csv"}, {"shdr", "shdr"}};
+    sub.add_option("--format", format.format, "Log format: csv, shdr or auto (default: from the file's content)")
         ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case))
         ->option_text("csv|shdr|auto");
     // The reader checks the map file itself so that a bad path gets the one-line error format.
-    sub.add_option("--map", opt.map_file,
+    sub.add_option("--map", format.map_file,
                    "Channel map: a JSON file, or a bundled preset (" + fmt::format("{}", fmt::join(motion_io::map_presets(), ", ")) +
                        "), naming the CSV columns or SHDR keys of each channel (docs/formats.md)");
     sub.add_option_function<std::string>(
-           "--units", [&opt](const std::string& u) { opt.length_unit = u; },
+           "--units", [&format](const std::string& u) { format.length_unit = u; },
            "Length unit of positions and feed when the log does not declare one")
         ->check(CLI::IsMember({"mm", "in"}));
     sub.add_option_function<std::string>(
-        "--feed-units", [&opt](const std::string& u) { opt.feed_unit = u; },
+        "--feed-units", [&format](const std::string& u) { format.feed_unit = u; },
         "Unit of the feed channel, overriding the log's declaration (mm/min, mm/s, in/min, in/s)");
+}
+
+motion_io::ReadOptions reader_options(const app::LogFormat& format, double step_ms) {
+    try {
+        return app::read_options(format, step_ms);
+    } catch (const app::InputError& e) {
+        throw UsageError("--" + std::string(e.what()));
+    }
+}
+
+force_model::Device choose_device(const std::string& name) {
+    const app::DeviceChoice choice = app::choose_device(name);
+    if (!choice.note.empty()) std::fprintf(stderr, "cutload: note: %s\n", choice.note.c_str());
+    return choice.device;
 }
 
 }  // namespace cutload::cli
@@ -92,6 +105,9 @@ int main(int argc, char** argv) {
     } catch (const cli::UsageError& e) {
         std::fprintf(stderr, "cutload: error: %s\n", e.what());
         return e.code();
+    } catch (const app::InputError& e) {
+        std::fprintf(stderr, "cutload: error: %s\n", e.what());
+        return 2;
     } catch (const motion_io::IngestError& e) {
         std::fprintf(stderr, "cutload: error: %s\n", e.what());
         return 2;

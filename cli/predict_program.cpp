@@ -1,7 +1,6 @@
 #include "predict_program.hpp"
 
 #include "commands.hpp"
-#include "force_model/logged_commanded.hpp"
 
 #include <fmt/format.h>
 
@@ -44,19 +43,6 @@ void print_comparison(const std::vector<force_model::BlockComparison>& rows, con
 }
 
 }  // namespace
-
-force_model::Device choose_device(const std::string& name) {
-    if (name == "cpu") return force_model::Device::Cpu;
-    if (name == "opencl") return force_model::Device::OpenCL;
-    // auto: OpenCL when a device exists, else the scalar path (said on stderr).
-    try {
-        force_model::opencl_device_name();
-        return force_model::Device::OpenCL;
-    } catch (const std::runtime_error& e) {
-        std::fprintf(stderr, "cutload: note: %s; using the CPU path\n", e.what());
-        return force_model::Device::Cpu;
-    }
-}
 
 void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     auto* program = cmd.add_option("--program", o.program, "NC program (ISO 6983, FANUC dialect) the log is a dry run of")
@@ -115,17 +101,17 @@ void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     }
 }
 
-ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec) {
-    ProgramRun run;
+std::optional<app::ProgramSource> program_source(const ProgramOptions& o) {
     if (o.commanded_from_log && !o.program.empty())
         throw UsageError("--commanded-from-log and --program both give the commanded path: choose one");
     if (o.program.empty()) {
         if ((!o.compare_csv.empty() || !o.commanded_out.empty()) && !o.commanded_from_log)
             throw UsageError("--compare and --commanded-out need --program or --commanded-from-log");
-        return run;
+        return std::nullopt;
     }
-    if (motion.size() < 2) throw UsageError("the log holds fewer than two motion samples");
-    force_model::ProgramSettings settings;
+    app::ProgramSource source;
+    source.path = o.program;
+    app::ProgramSettings& settings = source.settings;
     for (const std::string& w : o.work_offsets) {
         const auto [name, v] = parse_work_offset(w);
         settings.work_offsets_mm[name] = v;
@@ -141,23 +127,11 @@ ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& 
     settings.tool_change_on_t = o.tool_change_on_t;
     settings.block_skip = o.block_skip;
     settings.min_match = o.min_match;
-    settings.limits = o.limits;
-    settings.limits.sample_step_s = motion.step_s;
-    auto program = motion_io::read_nc_program(o.program, force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
-    if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1) {
-        std::string list;
-        for (int t : tools) list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
-        std::fprintf(stderr, "cutload: warning: the program uses tools %s; forces are predicted with the run spec's one tool for every block\n",
-                     list.c_str());
-    }
-    run.run = force_model::prepare_program_run(std::move(program), settings, motion);
-    run.active = true;
-    return run;
+    settings.limits = o.limits;   // the app sets the sample step from the log
+    return source;
 }
 
-void print_mapping(const ProgramRun& active) {
-    if (!active.active) return;
-    const force_model::ProgramRun& run = active.run;
+void print_mapping(const app::ProgramRun& run) {
     const auto& q = run.mapping.quality;
     std::printf("program: %zu blocks; log blocks %s; matched %.1f%% of samples, deviation mean %.3f / p95 %.3f / max %.3f mm, "
                 "path covered %.1f%%\n",
@@ -180,39 +154,18 @@ void print_mapping(const ProgramRun& active) {
     }
 }
 
-void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
-                        const force_model::Prediction& actual, const force_model::RunSpec& spec,
-                        const force_model::PredictOptions& opt, const std::string& blocks_csv) {
-    if (!run.active) return;
-    force_model::PredictOptions quiet = opt;
-    quiet.progress = nullptr;
-    const force_model::ProgramPrediction both = force_model::predict_program(run.run, motion, actual, spec, quiet);
-    const force_model::Prediction& commanded = both.commanded;
-    const std::vector<force_model::BlockComparison>& rows = both.blocks;
+void finish_program_run(const ProgramOptions& o, const app::RunResult& r, const std::string& blocks_csv) {
+    if (!r.commanded) return;
+    const force_model::Prediction& commanded = r.commanded->commanded;
+    const std::vector<force_model::BlockComparison>& rows = r.commanded->blocks;
     if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
-    if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
-    print_mapping(run);
-    print_comparison(rows, commanded, o);
-}
-
-void finish_logged_commanded(const ProgramOptions& o, const std::string& log, const motion_io::ReadOptions& read,
-                             const motion_io::MotionModel& motion, const force_model::Prediction& actual,
-                             const force_model::RunSpec& spec, const force_model::PredictOptions& opt,
-                             const std::string& blocks_csv) {
-    if (!o.commanded_from_log) return;
-    motion_io::ReadOptions commanded_read = read;
-    commanded_read.positions = motion_io::Positions::Commanded;
-    const motion_io::MotionModel commanded_motion = motion_io::ingest(log, commanded_read);
-    if (commanded_motion.size() < 2) throw UsageError(log + ": the log's commanded positions give fewer than two motion samples");
-    force_model::PredictOptions quiet = opt;
-    quiet.progress = nullptr;
-    const force_model::Prediction commanded = force_model::predict(commanded_motion, spec, quiet);
-    const auto rows = force_model::compare_logged_commanded(motion, commanded_motion, commanded, actual);
-    if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
-    if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
-    if (!blocks_csv.empty()) force_model::write_blocks_csv(actual, blocks_csv, force_model::comparison_block_columns(rows));
-    std::printf("commanded path: the log's commanded positions (%zu samples)\n", commanded_motion.size());
+    if (!blocks_csv.empty())
+        force_model::write_blocks_csv(r.prediction, blocks_csv, force_model::comparison_block_columns(rows));
+    if (r.program)
+        print_mapping(*r.program);
+    else
+        std::printf("commanded path: the log's commanded positions (%zu samples)\n", r.commanded_samples);
     print_comparison(rows, commanded, o);
 }
 

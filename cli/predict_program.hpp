@@ -1,10 +1,9 @@
-// NC program support shared by `cutload predict --program` and `cutload optimize`: reading the
-// program against the run spec and the log, giving the log the program's block names (its own
-// block channel, or block mapping), and the commanded-vs-actual comparison.
+// NC program options shared by `cutload predict --program` and `cutload optimize`, and how their
+// results are shown: the program's mapping onto the log and the commanded-vs-actual comparison.
+// Reading the program, mapping and predicting are the app layer's (app/predict_run.hpp).
 #pragma once
 
-#include "force_model/force_model.hpp"
-#include "force_model/program_run.hpp"
+#include "app/predict_run.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -36,36 +35,16 @@ struct ProgramOptions {
 // --program and its companions; `for_predict` adds --compare, --commanded-out and --commanded-from-log.
 void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict);
 
-// force_model's ProgramRun, absent when no --program was given.
-struct ProgramRun {
-    bool active = false;
-    force_model::ProgramRun run;
-};
-
-// Without --program: inactive, motion untouched. With it: reads the program (G54 = -setup offset
-// unless --work-offset says otherwise; start = the log's first position) and relabels `motion`'s
-// blocks with the program's names when the log has none that match (or --map-blocks).
-ProgramRun prepare_program_run(const ProgramOptions& o, motion_io::MotionModel& motion, const force_model::RunSpec& spec);
+// The program to read with the log (nullopt without --program; then --compare and
+// --commanded-out are usage errors). G54 = -setup offset unless --work-offset says otherwise.
+std::optional<app::ProgramSource> program_source(const ProgramOptions& o);
 
 // Prints the block mapping's quality (and the calibrated lead when the log had blocks).
-void print_mapping(const ProgramRun& run);
+void print_mapping(const app::ProgramRun& run);
 
-// Predicts the commanded motion, writes --commanded-out, --compare and BLOCKS.csv (`blocks_csv`,
-// unless empty) with the comparison columns, prints the cutting blocks' comparison. No-op when
-// inactive.
-void finish_program_run(const ProgramOptions& o, const ProgramRun& run, const motion_io::MotionModel& motion,
-                        const force_model::Prediction& actual, const force_model::RunSpec& spec,
-                        const force_model::PredictOptions& opt, const std::string& blocks_csv);
-
-// With --commanded-from-log: reads the log again with its commanded positions (`read` is how the
-// actual motion was read), predicts that motion, writes --commanded-out, --compare and BLOCKS.csv
-// with the comparison columns and prints the comparison. No-op without the flag.
-void finish_logged_commanded(const ProgramOptions& o, const std::string& log, const motion_io::ReadOptions& read,
-                             const motion_io::MotionModel& motion, const force_model::Prediction& actual,
-                             const force_model::RunSpec& spec, const force_model::PredictOptions& opt,
-                             const std::string& blocks_csv);
-
-// The device choice of `--device opencl|cpu|auto` (auto: OpenCL when a device exists).
-force_model::Device choose_device(const std::string& name);
+// With a commanded path (a program or --commanded-from-log): writes --commanded-out, --compare
+// and BLOCKS.csv (`blocks_csv`, unless empty) with the comparison columns, prints the mapping and
+// the cutting blocks' comparison. No-op without one.
+void finish_program_run(const ProgramOptions& o, const app::RunResult& r, const std::string& blocks_csv);
 
 }  // namespace cutload::cli

@@ -16,6 +16,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace cutload::force_model {
@@ -90,8 +91,12 @@ struct StockDeleter { void operator()(Stock*) const; };
 using StockPtr = std::unique_ptr<Stock, StockDeleter>;
 StockPtr make_stock(const StockBox& box, double grid_mm);
 StockPtr copy_stock(const Stock& s);
-void save_stock(const Stock& s, const std::string& path);   // binary, versioned
-StockPtr load_stock(const std::string& path);               // throws std::runtime_error on bad file
+// One binary, versioned format, in memory (the service keeps stocks in its database) or in a file
+// (written to PATH.tmp, then renamed). `source` names the bytes in errors, as a file's path does.
+std::string save_stock_bytes(const Stock& s);
+StockPtr load_stock_bytes(std::string_view bytes, const std::string& source);   // std::runtime_error when bad
+void save_stock(const Stock& s, const std::string& path);
+StockPtr load_stock(const std::string& path);                                  // std::runtime_error when bad
 double stock_volume_mm3(const Stock& s);
 
 // The stock seen from above, for display (the web page's 3-D view): the top of the material over

@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 #include <new>
+#include <sstream>
+#include <streambuf>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -118,7 +120,10 @@ double stock_volume_mm3(const Stock& s) {
     return len * s.grid.cell_mm * s.grid.cell_mm;
 }
 
-void save_stock(const Stock& s, const std::string& path) {
+namespace {
+
+// The format, written to any stream; false when the stream failed.
+bool write_stock(const Stock& s, std::ostream& out) {
     Header h{};
     std::memcpy(h.magic, kMagic, sizeof kMagic);
     h.version = kVersion;
@@ -132,53 +137,46 @@ void save_stock(const Stock& s, const std::string& path) {
         h.box_min[k] = s.box.min_mm[k];
         h.box_max[k] = s.box.max_mm[k];
     }
-    // The file holds plain (decoded) rays, so it does not depend on the in-memory encoding.
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw std::runtime_error("cannot write stock file " + tmp);
-        out.write(reinterpret_cast<const char*>(&h), sizeof h);
-        std::uint64_t sum = fnv1a(&h, sizeof h);
-        for (std::size_t r = 0; r < s.rays(); ++r) {
-            const kernels::Ray ray = s.ray(r);
-            out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
-            sum = fnv1a(ray.data(), sizeof ray, sum);
-        }
-        const kernels::DexelView v = s.view();
-        for (int slot = 0; slot < kernels::kWallSlots; ++slot) {
-            std::vector<WallEntry> walls;
-            for (std::size_t r = 0; r < s.rays(); ++r) {
-                const kernels::Wall w = v.wall(r, slot);
-                if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
-            }
-            const std::uint64_t n_walls = walls.size();
-            out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
-            sum = fnv1a(&n_walls, sizeof n_walls, sum);
-            out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
-            sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
-        }
-        out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
-        if (!out) throw std::runtime_error("writing stock file " + tmp + " failed");
+    // The format holds plain (decoded) rays, so it does not depend on the in-memory encoding.
+    out.write(reinterpret_cast<const char*>(&h), sizeof h);
+    std::uint64_t sum = fnv1a(&h, sizeof h);
+    for (std::size_t r = 0; r < s.rays(); ++r) {
+        const kernels::Ray ray = s.ray(r);
+        out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
+        sum = fnv1a(ray.data(), sizeof ray, sum);
     }
-    std::filesystem::rename(tmp, path);
+    const kernels::DexelView v = s.view();
+    for (int slot = 0; slot < kernels::kWallSlots; ++slot) {
+        std::vector<WallEntry> walls;
+        for (std::size_t r = 0; r < s.rays(); ++r) {
+            const kernels::Wall w = v.wall(r, slot);
+            if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
+        }
+        const std::uint64_t n_walls = walls.size();
+        out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
+        sum = fnv1a(&n_walls, sizeof n_walls, sum);
+        out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
+        sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
+    }
+    out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
+    return bool(out);
 }
 
-StockPtr load_stock(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw std::runtime_error("cannot open stock file " + path);
+// The format, read from any stream; errors start with `source` (a file's path, or what the bytes are).
+StockPtr read_stock(std::istream& in, const std::string& source) {
     Header h{};
     in.read(reinterpret_cast<char*>(&h), sizeof h);
     if (!in || std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
-        throw std::runtime_error(path + ": not a cutload stock file (bad magic)");
+        throw std::runtime_error(source + ": not a cutload stock file (bad magic)");
     if (h.version < 1 || h.version > kVersion)
-        throw std::runtime_error(path + ": stock file version " + std::to_string(h.version) + ", this build reads 1 to " +
+        throw std::runtime_error(source + ": stock file version " + std::to_string(h.version) + ", this build reads 1 to " +
                                  std::to_string(kVersion));
     if (h.intervals != std::uint32_t(kernels::kDexelIntervals))
-        throw std::runtime_error(path + ": stock file has " + std::to_string(h.intervals) +
+        throw std::runtime_error(source + ": stock file has " + std::to_string(h.intervals) +
                                  " intervals per ray, this build uses " + std::to_string(kernels::kDexelIntervals));
     if (h.nx <= 0 || h.ny <= 0 || std::int64_t(h.nx) * h.ny > 400'000'000 || !(h.cell_mm > 0) ||
         !std::isfinite(h.x0_mm) || !std::isfinite(h.y0_mm))
-        throw std::runtime_error(path + ": stock file header is corrupt (grid size or cell)");
+        throw std::runtime_error(source + ": stock file header is corrupt (grid size or cell)");
     StockPtr s(new Stock());
     s->grid = {h.x0_mm, h.y0_mm, h.cell_mm, h.nx, h.ny};
     for (int k = 0; k < 3; ++k) {
@@ -203,23 +201,63 @@ StockPtr load_stock(const std::string& path) {
         std::uint64_t n_walls = 0;
         in.read(reinterpret_cast<char*>(&n_walls), sizeof n_walls);
         sum = fnv1a(&n_walls, sizeof n_walls, sum);
-        if (in && n_walls > s->rays()) throw std::runtime_error(path + ": stock file is corrupt (wall count)");
+        if (in && n_walls > s->rays()) throw std::runtime_error(source + ": stock file is corrupt (wall count)");
         const kernels::DexelView v = s->view();
         for (std::uint64_t k = 0; k < n_walls && in; ++k) {
             WallEntry e{};
             in.read(reinterpret_cast<char*>(&e), sizeof e);
             if (!in) break;
             sum = fnv1a(&e, sizeof e, sum);
-            if (e.ray >= s->rays()) throw std::runtime_error(path + ": stock file is corrupt (wall ray index)");
+            if (e.ray >= s->rays()) throw std::runtime_error(source + ": stock file is corrupt (wall ray index)");
             v.store_wall(e.ray, {e.wall[0], e.wall[1], e.wall[2], e.wall[3]}, slot);
         }
     }
     std::uint64_t stored = 0;
     in.read(reinterpret_cast<char*>(&stored), sizeof stored);
-    if (!in) throw std::runtime_error(path + ": stock file is truncated");
-    if (in.peek() != std::char_traits<char>::eof()) throw std::runtime_error(path + ": stock file has trailing bytes");
-    if (sum != stored) throw std::runtime_error(path + ": stock file checksum mismatch (corrupt)");
+    if (!in) throw std::runtime_error(source + ": stock file is truncated");
+    if (in.peek() != std::char_traits<char>::eof()) throw std::runtime_error(source + ": stock file has trailing bytes");
+    if (sum != stored) throw std::runtime_error(source + ": stock file checksum mismatch (corrupt)");
     return s;
+}
+
+// Reads bytes in place: a stock can be hundreds of MB, so no copy into a string stream.
+class ViewBuffer : public std::streambuf {
+public:
+    explicit ViewBuffer(std::string_view bytes) {
+        // The get area is only read (no putback into it), so the const_cast never writes.
+        char* p = const_cast<char*>(bytes.data());
+        setg(p, p, p + bytes.size());
+    }
+};
+
+}  // namespace
+
+std::string save_stock_bytes(const Stock& s) {
+    std::ostringstream out(std::ios::binary);
+    if (!write_stock(s, out)) throw std::runtime_error("writing the stock into memory failed");
+    return std::move(out).str();
+}
+
+StockPtr load_stock_bytes(std::string_view bytes, const std::string& source) {
+    ViewBuffer buffer(bytes);
+    std::istream in(&buffer);
+    return read_stock(in, source);
+}
+
+void save_stock(const Stock& s, const std::string& path) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) throw std::runtime_error("cannot write stock file " + tmp);
+        if (!write_stock(s, out)) throw std::runtime_error("writing stock file " + tmp + " failed");
+    }
+    std::filesystem::rename(tmp, path);
+}
+
+StockPtr load_stock(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open stock file " + path);
+    return read_stock(in, path);
 }
 
 }  // namespace cutload::force_model

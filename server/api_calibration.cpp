@@ -4,8 +4,8 @@
 //
 // Synchronous: each test costs about 0.3 s of engine time (six short predictions), so the number of
 // tests is capped; the body size is capped by the server as for every route (413).
-#include "force_model/calibrate.hpp"
-#include "force_model/measurement.hpp"
+#include "app/calibrate.hpp"
+#include "app/inputs.hpp"
 #include "core.hpp"
 #include "library.hpp"
 
@@ -15,20 +15,11 @@
 #include <array>
 #include <cmath>
 #include <optional>
-#include <sstream>
 
 namespace cutload::server {
 namespace {
 
 constexpr std::size_t kMaxTests = 20;
-
-struct UploadedTest {
-    std::string file;
-    std::string content;
-    force_model::CutTest test;
-    std::optional<double> from_s, to_s;                 // steady window, record time
-    std::optional<std::array<double, 3>> zero_dyn_N;    // zero offset at the record's start, its channels
-};
 
 std::optional<std::string> part(const httplib::Request& req, const char* name) {
     if (!req.has_file(name)) return std::nullopt;
@@ -67,10 +58,8 @@ force_model::ToolSpec tool_from_parts(Core& core, const httplib::Request& req) {
         if (!stored) not_found(fmt::format("tool {} does not exist", id));
         tool = stored->at("tool");
     }
-    json spec = probe_spec();
-    spec["tool"] = tool;
     try {
-        return force_model::parse_run_spec(spec).tool;
+        return app::parse_tool(tool);
     } catch (const force_model::SpecError& e) {
         throw ApiError(400, "bad_spec", e.what());
     }
@@ -114,7 +103,7 @@ force_model::CutTest cut_test_of(const json& cond, const std::string& file, cons
     return t;
 }
 
-std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const force_model::ToolSpec& tool) {
+std::vector<app::CalibrationTest> tests_from_parts(const httplib::Request& req, const force_model::ToolSpec& tool) {
     const auto range = req.files.equal_range("test");
     const auto count = static_cast<std::size_t>(std::distance(range.first, range.second));
     if (count == 0) bad_request("part 'test' is missing: upload one dynamometer record per test (DynoWare or plain CSV)");
@@ -126,7 +115,7 @@ std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const fo
     const json conditions = json_part("tests", *conditions_text);
     if (!conditions.is_object()) bad_request("part tests: must be a JSON object keyed by test file name");
 
-    std::vector<UploadedTest> tests;
+    std::vector<app::CalibrationTest> tests;
     for (auto it = range.first; it != range.second; ++it) {
         const auto& f = it->second;
         if (f.filename.empty()) bad_request("a 'test' part has no file name: conditions are matched by file name");
@@ -137,7 +126,10 @@ std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const fo
         if (!conditions.contains(filename))
             bad_request(fmt::format("part tests: no conditions for test file '{}'", filename));
         const json& cond = conditions[filename];
-        UploadedTest t{filename, f.content, cut_test_of(cond, filename, tool), std::nullopt, std::nullopt, std::nullopt};
+        app::CalibrationTest t;
+        t.file = filename;
+        t.content = f.content;
+        t.test = cut_test_of(cond, filename, tool);
         if (cond.contains("from_s")) t.from_s = number_field(cond, filename, "from_s");
         if (cond.contains("to_s")) t.to_s = number_field(cond, filename, "to_s");
         if (t.from_s && t.to_s && !(*t.to_s > *t.from_s))
@@ -154,7 +146,7 @@ std::vector<UploadedTest> tests_from_parts(const httplib::Request& req, const fo
         tests.push_back(std::move(t));
     }
     for (const auto& [name, cond] : conditions.items())
-        if (std::none_of(tests.begin(), tests.end(), [&](const UploadedTest& t) { return t.file == name; }))
+        if (std::none_of(tests.begin(), tests.end(), [&](const app::CalibrationTest& t) { return t.file == name; }))
             bad_request(fmt::format("part tests: conditions for '{}' but no test file of that name", name));
     return tests;
 }
@@ -172,71 +164,52 @@ void calibrate(Core& core, Ctx& x) {
     const auto& req = x.req;
     if (!req.is_multipart_form_data())
         bad_request("POST /api/v1/calibrations takes multipart/form-data: 'tool' or 'tool_id', 'tests', one 'test' file per test");
-    const force_model::ToolSpec tool = tool_from_parts(core, req);
-    const std::vector<UploadedTest> tests = tests_from_parts(req, tool);
+    app::CalibrationInput in;
+    in.tool = tool_from_parts(core, req);
+    in.tests = tests_from_parts(req, in.tool);
 
-    force_model::AxisMatrix axes = force_model::kIdentityAxes;
     if (auto a = part(req, "axes")) {
         try {
-            axes = force_model::parse_axis_matrix(*a);
+            in.axes = force_model::parse_axis_matrix(*a);
         } catch (const force_model::MeasurementError& e) {
             throw ApiError(400, "bad_measurement", fmt::format("part axes: {}", e.what()));
         }
     }
-    bool on_workpiece = true;
     if (auto m = part(req, "measured_on")) {
         if (*m != "workpiece" && *m != "tool") bad_request(fmt::format("part measured_on: '{}' is not workpiece or tool", *m));
-        on_workpiece = *m == "workpiece";
+        in.measured_on_workpiece = *m == "workpiece";
     }
     const std::optional<std::string> save_as = part(req, "save_as");
     if (save_as) {
         if (save_as->empty() || save_as->size() > 200) bad_request("part save_as: a material name of 1..200 characters");
         ensure_material_name_free(core, *save_as);   // before the work; the insert checks again
     }
+    in.material_name = save_as.value_or("calibrated");
 
-    // The same steps as `cutload calibrate` with engine regressors on the CPU.
-    std::vector<force_model::Regressors> regs;
-    std::vector<std::array<double, 3>> means;
-    std::vector<force_model::SteadyForce> steady;
-    for (const auto& t : tests) {
-        try {
-            std::istringstream in(t.content);
-            force_model::Measurement m = force_model::read_measurement(in, t.file);
-            force_model::map_to_tool_machine_axes(m, axes, on_workpiece);
-            force_model::SteadyOptions sopt;
-            sopt.t_start_s = t.from_s;
-            sopt.t_end_s = t.to_s;
-            if (t.zero_dyn_N) sopt.zero_N = force_model::to_tool_machine_axes(*t.zero_dyn_N, axes, on_workpiece);
-            sopt.flutes = tool.flutes;
-            sopt.air_fraction = force_model::tooth_air_fraction(tool, t.test);
-            steady.push_back(force_model::steady_mean_force(m, t.test.spindle_rpm, sopt));
-        } catch (const force_model::SteadyError& e) {
-            throw ApiError(400, "bad_measurement",
-                           fmt::format("{} ({})", e.what(),
-                                       e.need == force_model::SteadyError::Need::Window
-                                           ? fmt::format("from_s and to_s in the conditions of '{}', record time", t.file)
-                                           : fmt::format("zero_N in the conditions of '{}': the record's reading with "
-                                                         "no load at its first sample, in its own channels",
-                                                         t.file)));
-        } catch (const force_model::MeasurementError& e) {
-            throw ApiError(400, "bad_measurement", e.what());
-        }
-        regs.push_back(force_model::engine_regressors(tool, t.test));
-        means.push_back(force_model::to_feed_frame(steady.back().mean_N, t.test.feed_direction_deg));
-    }
-    force_model::CalibrationFit fit;
+    // The same use case as `cutload calibrate`, with engine regressors on the CPU.
+    app::Calibration cal;
     try {
-        fit = force_model::fit_mean_forces(regs, means, save_as.value_or("calibrated"));
+        cal = app::calibrate(in);
+    } catch (const force_model::SteadyError& e) {
+        throw ApiError(400, "bad_measurement",
+                       fmt::format("{} ({})", e.what(),
+                                   e.need == force_model::SteadyError::Need::Window
+                                       ? "give from_s and to_s in that record's conditions, record time"
+                                       : "give zero_N in that record's conditions: its reading with no load at its first "
+                                         "sample, in its own channels"));
+    } catch (const force_model::MeasurementError& e) {
+        throw ApiError(400, "bad_measurement", e.what());
     } catch (const force_model::SpecError& e) {
         throw ApiError(400, "bad_tests", e.what());
     }
+    const force_model::CalibrationFit& fit = cal.fit;
     const json material = force_model::material_json(fit.material);
 
     json per_test = json::array();
-    for (std::size_t i = 0; i < tests.size(); ++i) {
-        const auto& t = tests[i].test;
-        const auto& s = steady[i];
-        per_test.push_back({{"file", tests[i].file},
+    for (std::size_t i = 0; i < in.tests.size(); ++i) {
+        const auto& t = in.tests[i].test;
+        const auto& s = cal.tests[i].steady;
+        per_test.push_back({{"file", in.tests[i].file},
                             {"mode", force_model::immersion_name(t.mode)},
                             {"spindle_rpm", t.spindle_rpm},
                             {"feed_mm_min", t.feed_mm_min},
@@ -252,7 +225,7 @@ void calibrate(Core& core, Ctx& x) {
                             {"drift_source", force_model::drift_source_name(s.zero.drift_source)},
                             {"drift_N_per_s", vec3(s.zero.drift_N_per_s)},
                             {"drift_N", vec3(s.drift_N())},
-                            {"mean_force_feed_frame_N", vec3(means[i])},
+                            {"mean_force_feed_frame_N", vec3(cal.tests[i].mean_feed_frame_N)},
                             {"residual_rms_N", fit.group_rms_residual_N[i]}});
     }
     json out{{"material", material},
@@ -266,10 +239,8 @@ void calibrate(Core& core, Ctx& x) {
     if (!save_as) return x.reply(200, out);
 
     // Stored only if the engine accepts it, as POST /api/v1/materials would.
-    json spec = probe_spec();
-    spec["material"] = material;
     try {
-        force_model::parse_run_spec(spec);
+        app::parse_material(material);
     } catch (const force_model::SpecError& e) {
         throw ApiError(400, "bad_tests",
                        fmt::format("the identified coefficients are not a valid material ({}); nothing was saved", e.what()));

@@ -1,5 +1,5 @@
 // Routes: /api/v1/machines, /api/v1/tools, /api/v1/materials (full CRUD, names unique).
-#include "force_model/force_model.hpp"
+#include "app/inputs.hpp"
 #include "core.hpp"
 #include "library.hpp"
 
@@ -41,7 +41,7 @@ json validate_machine(const json& b) {
 json validate_tool(const json& b) {
     only_keys(b, {"name", "tool", "limits"});
     if (!b.contains("tool") || !b["tool"].is_object()) throw ApiError(400, "bad_spec", "tool: required object");
-    json spec = probe_spec();
+    json spec = app::probe_spec();
     spec["tool"] = b["tool"];
     if (b.contains("limits")) spec["limits"] = b["limits"];
     force_model::parse_run_spec(spec);
@@ -49,10 +49,8 @@ json validate_tool(const json& b) {
 }
 
 json validate_material(const json& b) {
-    json spec = probe_spec();
-    spec["material"] = b;
     try {
-        force_model::parse_run_spec(spec);
+        app::parse_material(b);
     } catch (const force_model::SpecError& e) {
         // The engine names keys under "material."; the body is the material itself.
         std::string msg = e.what();
@@ -172,16 +170,6 @@ void add_kind(Core& core, const Kind& k) {
 }
 
 }  // namespace
-
-json probe_spec() {
-    return json::parse(R"({
-      "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
-               "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 32, "length_mm": 40}},
-      "material": {"name": "probe", "Ktc_N_mm2": 800, "Krc_N_mm2": 300, "Kac_N_mm2": 100,
-                   "Kte_N_mm": 20, "Kre_N_mm": 20, "Kae_N_mm": 5},
-      "stock": {"box_mm": {"min": [0, 0, 0], "max": [10, 10, 10]}}
-    })");
-}
 
 std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id) {
     auto st = c.prepare(fmt::format("SELECT name, body FROM {} WHERE id = ?", table));

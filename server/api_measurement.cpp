@@ -4,8 +4,7 @@
 // The record and its settings live in the run's upload directory (measurement.csv and
 // measurement.json), written and validated (a full comparison) before the answer; the comparison is
 // recomputed on GET, so a changed force engine never serves a stale report.
-#include "force_model/compare.hpp"
-#include "force_model/measurement.hpp"
+#include "app/compare.hpp"
 #include "core.hpp"
 #include "durable_file.hpp"
 #include "series.hpp"
@@ -73,18 +72,15 @@ force_model::PredictedTrace stored_trace(Core& core, db::Connection& c, const Ru
     return t;
 }
 
-struct Settings {
-    force_model::AxisMatrix axes = force_model::kIdentityAxes;
-    bool on_workpiece = true;
-    std::optional<std::array<double, 3>> zero_dyn_N;   // given zero offset, the record's channels at its start
-    force_model::CompareOptions opt;                   // opt.zero_N is set from zero_dyn_N when comparing
-};
+using Settings = app::CompareSettings;
 
 json settings_json(const Settings& s) {
-    json j{{"axes", s.axes}, {"measured_on", s.on_workpiece ? "workpiece" : "tool"}, {"cutoff_Hz", s.opt.cutoff_Hz}};
-    j["offset_s"] = s.opt.offset_s ? json(*s.opt.offset_s) : json(nullptr);
-    j["from_s"] = s.opt.t_start_s > -1e299 ? json(s.opt.t_start_s) : json(nullptr);
-    j["to_s"] = s.opt.t_end_s < 1e299 ? json(s.opt.t_end_s) : json(nullptr);
+    json j{{"axes", s.axes},
+           {"measured_on", s.measured_on_workpiece ? "workpiece" : "tool"},
+           {"cutoff_Hz", s.options.cutoff_Hz}};
+    j["offset_s"] = s.options.offset_s ? json(*s.options.offset_s) : json(nullptr);
+    j["from_s"] = s.options.t_start_s > -1e299 ? json(s.options.t_start_s) : json(nullptr);
+    j["to_s"] = s.options.t_end_s < 1e299 ? json(s.options.t_end_s) : json(nullptr);
     j["zero_N"] = s.zero_dyn_N ? json(*s.zero_dyn_N) : json(nullptr);
     return j;
 }
@@ -92,11 +88,11 @@ json settings_json(const Settings& s) {
 Settings settings_from(const json& j) {
     Settings s;
     s.axes = j.at("axes").get<force_model::AxisMatrix>();
-    s.on_workpiece = j.at("measured_on") == "workpiece";
-    s.opt.cutoff_Hz = j.at("cutoff_Hz").get<double>();
-    if (!j.at("offset_s").is_null()) s.opt.offset_s = j["offset_s"].get<double>();
-    if (!j.at("from_s").is_null()) s.opt.t_start_s = j["from_s"].get<double>();
-    if (!j.at("to_s").is_null()) s.opt.t_end_s = j["to_s"].get<double>();
+    s.measured_on_workpiece = j.at("measured_on") == "workpiece";
+    s.options.cutoff_Hz = j.at("cutoff_Hz").get<double>();
+    if (!j.at("offset_s").is_null()) s.options.offset_s = j["offset_s"].get<double>();
+    if (!j.at("from_s").is_null()) s.options.t_start_s = j["from_s"].get<double>();
+    if (!j.at("to_s").is_null()) s.options.t_end_s = j["to_s"].get<double>();
     // Absent in settings stored before the zero offset could be given.
     if (j.contains("zero_N") && !j["zero_N"].is_null()) s.zero_dyn_N = j["zero_N"].get<std::array<double, 3>>();
     return s;
@@ -133,7 +129,7 @@ Settings settings_from_parts(const httplib::Request& req) {
     if (auto m = part(req, "measured_on")) {
         if (*m != "workpiece" && *m != "tool")
             bad_request(fmt::format("part measured_on: '{}' is not workpiece or tool", *m));
-        s.on_workpiece = *m == "workpiece";
+        s.measured_on_workpiece = *m == "workpiece";
     }
     if (auto z = part(req, "zero_N")) {
         try {
@@ -142,13 +138,13 @@ Settings settings_from_parts(const httplib::Request& req) {
             bad_request(fmt::format("part zero_N: {}", e.what()));
         }
     }
-    s.opt.offset_s = number_part(req, "offset_s");
-    if (auto v = number_part(req, "from_s")) s.opt.t_start_s = *v;
-    if (auto v = number_part(req, "to_s")) s.opt.t_end_s = *v;
-    if (s.opt.t_end_s < s.opt.t_start_s) bad_request("part to_s: before from_s");
+    s.options.offset_s = number_part(req, "offset_s");
+    if (auto v = number_part(req, "from_s")) s.options.t_start_s = *v;
+    if (auto v = number_part(req, "to_s")) s.options.t_end_s = *v;
+    if (s.options.t_end_s < s.options.t_start_s) bad_request("part to_s: before from_s");
     if (auto v = number_part(req, "cutoff_Hz")) {
         if (*v < 0) bad_request("part cutoff_Hz: must be 0 (no filter) or positive");
-        s.opt.cutoff_Hz = *v;
+        s.options.cutoff_Hz = *v;
     }
     return s;
 }
@@ -158,33 +154,25 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
     return s;
 }
 
-struct Compared {
-    force_model::Measurement m;
-    force_model::Comparison c;
-};
+using Compared = app::MeasurementComparison;
 
 // Reads, maps and compares; a MeasurementError becomes 400 naming `shown_name`, not the disk path.
 Compared compare_file(const force_model::PredictedTrace& trace, const fs::path& file, const std::string& shown_name,
                       const Settings& s) {
     try {
-        Compared r{force_model::read_measurement(file.string()), {}};
-        force_model::map_to_tool_machine_axes(r.m, s.axes, s.on_workpiece);
-        force_model::CompareOptions opt = s.opt;
-        if (s.zero_dyn_N) opt.zero_N = force_model::to_tool_machine_axes(*s.zero_dyn_N, s.axes, s.on_workpiece);
-        r.c = force_model::compare(trace, r.m, opt);
-        return r;
+        return app::compare_measurement(trace, file.string(), s);
     } catch (const force_model::MeasurementError& e) {
         throw ApiError(400, "bad_measurement", replace_all(e.what(), file.string(), shown_name));
     }
 }
 
 json report_json(const Compared& r, const json& stored) {
-    json j = force_model::to_json(r.c);
+    json j = force_model::to_json(r.comparison);
     j["measured"] = {{"file", stored.value("filename", "")},
-                     {"format", r.m.format},
-                     {"rate_Hz", r.m.rate_Hz},
-                     {"samples", r.m.size()},
-                     {"ignored_channels", r.m.ignored_channels}};
+                     {"format", r.measured.format},
+                     {"rate_Hz", r.measured.rate_Hz},
+                     {"samples", r.measured.size()},
+                     {"ignored_channels", r.measured.ignored_channels}};
     j["settings"] = stored.at("settings");
     return j;
 }
@@ -193,12 +181,12 @@ json report_json(const Compared& r, const json& stored) {
 // and less the zero offset (and drift) the comparison removed, in [from_s, to_s]: raw when it fits max_points,
 // else the min / max of each of max_points equal buckets, the shape of /forces answers.
 json measured_series(const Compared& r, double from_s, double to_s, std::size_t max_points) {
-    const force_model::Measurement& m = r.m;
-    const double shift_s = r.c.offset_s;
+    const force_model::Measurement& m = r.measured;
+    const double shift_s = r.comparison.offset_s;
     auto t_of = [&](std::size_t i) { return m.t_s(i) + shift_s; };
     const std::vector<float>* ch[3] = {&m.fx_N, &m.fy_N, &m.fz_N};
     auto value = [&](int a, std::size_t i) {
-        return (*ch[a])[i] - static_cast<float>(r.c.zero_removed ? r.c.zero.at(t_of(i))[static_cast<std::size_t>(a)] : 0.0);
+        return (*ch[a])[i] - static_cast<float>(r.comparison.zero_removed ? r.comparison.zero.at(t_of(i))[static_cast<std::size_t>(a)] : 0.0);
     };
     auto index_at = [&](double t) {
         const double k = std::ceil((t - shift_s - m.t0_s) * m.rate_Hz - 1e-6);
@@ -312,7 +300,8 @@ void get_comparison(Core& core, Ctx& x) {
     const json stored = json::parse(in);
     const auto trace = stored_trace(core, *c, run.ref);
     const Compared r = compare_file(trace, run.upload_dir / kDataFile, stored.at("filename"), settings_from(stored.at("settings")));
-    const double t0 = r.c.t_s.empty() ? 0 : r.c.t_s.front(), t1 = r.c.t_s.empty() ? 0 : r.c.t_s.back();
+    const auto& t_s = r.comparison.t_s;
+    const double t0 = t_s.empty() ? 0 : t_s.front(), t1 = t_s.empty() ? 0 : t_s.back();
     const double from_s = x.param_double("from_s").value_or(t0), to_s = x.param_double("to_s").value_or(t1);
     if (to_s < from_s) bad_request(fmt::format("to_s ({}) is before from_s ({})", to_s, from_s));
     x.reply(200, {{"run_id", id},

@@ -1,7 +1,7 @@
 // Routes: /api/v1/runs (upload + queue, list, get, delete, cancel) and the result queries
 // (blocks, forces, motion) with window decimation and CSV.
-#include "force_model/force_model.hpp"
-#include "motion_io/motion_io.hpp"
+#include "app/ingest.hpp"
+#include "app/program_source.hpp"
 #include "core.hpp"
 #include "durable_file.hpp"
 #include "gzip.hpp"
@@ -220,11 +220,14 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
             throw ApiError(400, "bad_request", fmt::format("part nc_options is not valid JSON: byte {}: {}", e.byte, e.what()));
         }
     }
-    const force_model::ProgramSettings settings = program_settings(options);
+    app::ProgramSource source;
+    source.settings = program_settings(options);
+    source.name = name;
+    source.text = text;
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
     try {
         // From where the log starts, as the job will read it (the inspect report's first sample).
-        const auto program = motion_io::parse_nc_program(text, name, force_model::program_read_options(settings, spec, start_mm));
+        const auto program = app::read_program(source, spec, start_mm);
         if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
             throw ApiError(400, "bad_program", fmt::format("{}: the program has no motion block", name));
     } catch (const motion_io::NcProgramError& e) {
@@ -267,15 +270,19 @@ void create_run(Core& core, Ctx& x) {
     Resolved r = resolve_spec(*c, std::move(spec_json), req);
 
     json log{{"filename", log_part.filename}, {"bytes", log_part.content.size()}};
-    const std::string format = part(req, "format").value_or("auto");
-    if (format != "auto" && format != "csv" && format != "shdr")
-        bad_request(fmt::format("part format: '{}' is not auto, csv or shdr", format));
-    log["format"] = format;
-    if (auto u = part(req, "units")) {
-        if (*u != "mm" && *u != "in") bad_request(fmt::format("part units: '{}' is not mm or in", *u));
-        log["units"] = *u;
+    app::LogFormat format;
+    format.format = part(req, "format").value_or("auto");
+    format.length_unit = part(req, "units");
+    format.feed_unit = part(req, "feed_units");
+    motion_io::ReadOptions ro;
+    try {
+        ro = app::read_options(format);
+    } catch (const app::InputError& e) {
+        bad_request(fmt::format("part {}", e.what()));
     }
-    if (auto u = part(req, "feed_units")) log["feed_units"] = *u;
+    log["format"] = format.format;
+    if (format.length_unit) log["units"] = *format.length_unit;
+    if (format.feed_unit) log["feed_units"] = *format.feed_unit;
 
     std::optional<std::int64_t> base_run;
     if (auto b = part(req, "base_run")) {
@@ -300,8 +307,6 @@ void create_run(Core& core, Ctx& x) {
     write_durable(tmp / stored_as, log_part.content);
     log["stored_as"] = stored_as;
     log["sha256"] = sha256_hex(log_part.content);
-    motion_io::ReadOptions ro;
-    ro.format = format == "csv" ? motion_io::Format::Csv : format == "shdr" ? motion_io::Format::Shdr : motion_io::Format::Auto;
     if (auto m = part(req, "mapping")) {
         // The name of a bundled preset, or a map of one's own (JSON).
         const auto presets = motion_io::map_presets();
@@ -314,12 +319,10 @@ void create_run(Core& core, Ctx& x) {
             ro.map_file = (tmp / "mapping.json").string();
         }
     }
-    if (log.contains("units")) ro.length_unit = log["units"].get<std::string>();
-    if (log.contains("feed_units")) ro.feed_unit = log["feed_units"].get<std::string>();
 
     motion_io::IngestReport report;
     try {
-        report = motion_io::inspect((tmp / stored_as).string(), ro);
+        report = app::inspect_log((tmp / stored_as).string(), ro);
     } catch (const motion_io::IngestError& e) {
         // Name the uploaded file, not the server's temporary path.
         std::string msg = replace_all(e.what(), (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename);

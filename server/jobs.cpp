@@ -7,44 +7,36 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
-#include <fstream>
-#include <sstream>
+#include <string_view>
 
 namespace cutload::server {
 namespace fs = std::filesystem;
 
 namespace {
 
-motion_io::ReadOptions read_options(const json& log, const fs::path& dir) {
-    motion_io::ReadOptions o;
-    const std::string fmt_name = log.value("format", "auto");
-    o.format = fmt_name == "csv" ? motion_io::Format::Csv
-             : fmt_name == "shdr" ? motion_io::Format::Shdr
-                                  : motion_io::Format::Auto;
-    if (log.contains("mapping") && log["mapping"].is_string()) o.map_file = (dir / log["mapping"].get<std::string>()).string();
-    if (log.contains("mapping_preset") && log["mapping_preset"].is_string()) o.map_file = log["mapping_preset"].get<std::string>();
-    if (log.contains("units") && log["units"].is_string()) o.length_unit = log["units"].get<std::string>();
-    if (log.contains("feed_units") && log["feed_units"].is_string()) o.feed_unit = log["feed_units"].get<std::string>();
-    return o;
-}
-
-std::string read_file(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
 const char* table_of(Jobs::Kind kind) { return kind == Jobs::Kind::Run ? "runs" : "optimizations"; }
 
 }  // namespace
 
-motion_io::MotionModel ingest_run_log(const json& inputs, const fs::path& upload_dir) {
+app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use_opencl) {
     const json& log = inputs.at("log");
-    return motion_io::ingest((upload_dir / log.at("stored_as").get<std::string>()).string(), read_options(log, upload_dir));
+    app::LogFormat format;
+    format.format = log.value("format", "auto");
+    if (log.contains("mapping") && log["mapping"].is_string())
+        format.map_file = (upload_dir / log["mapping"].get<std::string>()).string();
+    if (log.contains("mapping_preset") && log["mapping_preset"].is_string()) format.map_file = log["mapping_preset"].get<std::string>();
+    if (log.contains("units") && log["units"].is_string()) format.length_unit = log["units"].get<std::string>();
+    if (log.contains("feed_units") && log["feed_units"].is_string()) format.feed_unit = log["feed_units"].get<std::string>();
+    app::RunInput in;
+    in.log_path = (upload_dir / log.at("stored_as").get<std::string>()).string();
+    in.read = app::read_options(format);
+    in.spec = force_model::parse_run_spec(inputs.at("spec"));
+    if (inputs.contains("nc_program")) in.program = program_source(inputs.at("nc_program"), upload_dir);
+    in.device = app::choose_device(use_opencl ? "opencl" : "cpu").device;
+    return in;
 }
 
-force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run, const fs::path& scratch_dir) {
+force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run) {
     if (!base_run) return nullptr;
     auto c = pool.get();
     auto st = c->prepare("SELECT data FROM run_stock WHERE run_id = ?");
@@ -52,11 +44,9 @@ force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> 
     if (!st.step()) throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
     std::size_t bytes = 0;
     const void* p = st.blob(0, &bytes);
-    const fs::path tmp = scratch_dir / fmt::format("base-{}.stock", std::hash<std::thread::id>{}(std::this_thread::get_id()));
-    std::ofstream(tmp, std::ios::binary).write(static_cast<const char*>(p), static_cast<std::streamsize>(bytes));
-    auto stock = force_model::load_stock(tmp.string());
-    fs::remove(tmp);
-    return stock;
+    // Read in place: the blob stays valid until the statement steps again.
+    return force_model::load_stock_bytes(std::string_view(static_cast<const char*>(p), bytes),
+                                         fmt::format("base_run {} stock", *base_run));
 }
 
 Jobs::Jobs(DbPool& pool, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
@@ -202,60 +192,32 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             inputs = json::parse(st.text(1));
             base_run = st.opt_i64(2);
         }
-        auto motion = ingest_run_log(inputs, dir);
-        // Ingest itself cannot be interrupted; honour a cancel that arrived meanwhile.
-        if (cancel) throw force_model::Cancelled();
-        auto spec = force_model::parse_run_spec(inputs.at("spec"));
-        // Before predicting: a log without block numbers takes the program's blocks by mapping.
-        std::optional<force_model::ProgramRun> program;
-        if (inputs.contains("nc_program")) program = load_program_run(inputs, dir, spec, motion);
-        const force_model::StockPtr base = load_base_stock(pool_, base_run, dir);
+        app::RunInput in = run_input(inputs, dir, opt_.use_opencl);
+        const force_model::StockPtr base = load_base_stock(pool_, base_run);
+        in.base_stock = base.get();
 
-        force_model::PredictOptions po;
-        po.device = opt_.use_opencl ? force_model::Device::OpenCL : force_model::Device::Cpu;
-        po.base_stock = base.get();
-        po.cancel = &cancel;
-        // With a program, the commanded prediction follows the actual one; share the bar by duration.
-        double share = 1, offset = 0;
-        if (program) {
-            const auto commanded_s = motion_io::commanded_durations_s(program->program, program->commanded);
-            double total_s = 0;
-            for (double d : commanded_s) total_s += d;
-            const double actual_s = motion.t_s.back() - motion.t_s.front();
-            share = actual_s / std::max(1e-9, actual_s + total_s);
-        }
+        app::Control control;
+        control.cancel = &cancel;
         auto last_write = std::chrono::steady_clock::now() - std::chrono::seconds(1);
-        po.progress = [&](double f) {
+        control.progress = [&](app::Phase, double f) {
             // At most a few writes per second: progress is for people polling, not an audit trail.
             auto now = std::chrono::steady_clock::now();
             if (now - last_write < std::chrono::milliseconds(250)) return;
             last_write = now;
             auto c = pool_.get();
-            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'")
-                .bind(1, offset + share * f)
-                .bind(2, id)
-                .run();
+            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
         };
-        auto prediction = force_model::predict(motion, spec, po);
-        std::optional<force_model::ProgramPrediction> commanded;
-        if (program) {
-            offset = share;
-            share = 1 - share;
-            commanded = force_model::predict_program(*program, motion, prediction, spec, po);
-        }
-
-        fs::path stock_file = dir / "final.stock";
-        force_model::save_stock(*prediction.final_stock, stock_file.string());
-        std::string stock_bytes = read_file(stock_file);
-        fs::remove(stock_file);
+        const app::RunResult r = app::predict_run(in, control);
+        const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
 
         if (cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
         int alerts = 0;
         {
             auto c = pool_.get();
             std::optional<ProgramResult> program_result;
-            if (program) program_result.emplace(ProgramResult{*program, *commanded, inputs["nc_program"].value("filename", "")});
-            alerts = store_result(*c, id, motion, prediction, stock_bytes, program_result ? &*program_result : nullptr,
+            if (r.program)
+                program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
+            alerts = store_result(*c, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
                                   opt_.limit_alerts);
         }
         metrics_.job_finished("done", elapsed_s());
@@ -263,8 +225,8 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             metrics_.alerts_raised(alerts);
             on_alerts_();
         }
-        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts{})", id, elapsed_s(), prediction.samples.size(), alerts,
-                     program ? ", with the commanded prediction" : "");
+        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts{})", id, elapsed_s(), r.prediction.samples.size(), alerts,
+                     r.program ? ", with the commanded prediction" : "");
     } catch (const force_model::Cancelled&) {
         const bool requeue = requeue_on_cancel_.load();
         finish(Kind::Run, id, requeue ? "queued" : "cancelled", "");

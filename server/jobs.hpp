@@ -5,8 +5,7 @@
 // 'queued' or 'running' with no results; start() re-queues 'running'.
 #pragma once
 
-#include "force_model/force_model.hpp"
-#include "motion_io/motion_io.hpp"
+#include "app/predict_run.hpp"
 #include "common.hpp"
 #include "metrics.hpp"
 
@@ -16,12 +15,12 @@
 
 namespace cutload::server {
 
-// The run's stored log, read and repaired with the options it was uploaded with.
-motion_io::MotionModel ingest_run_log(const json& inputs, const std::filesystem::path& upload_dir);
+// A run's stored inputs (the log and program in its upload folder, the spec) as the use case's
+// input; an nc_options object that is no longer valid is ApiError 400 naming the key.
+app::RunInput run_input(const json& inputs, const std::filesystem::path& upload_dir, bool use_opencl);
 
-// The final stock of base_run (null without one); `scratch_dir` holds a temporary file meanwhile.
-force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run,
-                                      const std::filesystem::path& scratch_dir);
+// The final stock of base_run, from its bytes in the database (null without a base run).
+force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run);
 
 class Jobs {
 public:

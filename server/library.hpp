@@ -9,8 +9,4 @@ namespace cutload::server {
 // table: "machines", "tools" or "materials".
 std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id);
 
-// A complete, valid run spec used to validate one part (tool, material, limits) in isolation, so
-// the engine's own error message names the key.
-json probe_spec();
-
 }  // namespace cutload::server

@@ -7,10 +7,9 @@
 
 #include <fmt/format.h>
 
-#include <fstream>
-#include <map>
+#include <algorithm>
+#include <iterator>
 #include <regex>
-#include <sstream>
 
 namespace cutload::server {
 namespace fs = std::filesystem;
@@ -43,15 +42,7 @@ bool boolean(const json& o, const char* key) {
     return o[key].get<bool>();
 }
 
-std::string read_text(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    if (!in) throw std::runtime_error(fmt::format("{}: the uploaded NC program is gone", p.filename().string()));
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
-json mapping_json(const force_model::ProgramRun& run) {
+json mapping_json(const app::ProgramRun& run) {
     const auto& q = run.mapping.quality;
     return {{"source", run.mapped ? "mapping" : "log"},
             {"samples", q.samples},
@@ -97,9 +88,9 @@ double peak_force_of(const force_model::Prediction& p, const std::string& block)
 
 }  // namespace
 
-force_model::ProgramSettings program_settings(const json& o) {
+app::ProgramSettings program_settings(const json& o) {
     if (!o.is_object()) throw ApiError(400, "bad_request", "nc_options: must be a JSON object");
-    force_model::ProgramSettings s;
+    app::ProgramSettings s;
     static const std::regex work_system("G5[4-9]");
     for (const auto& [key, v] : o.items()) {
         if (key == "work_offsets_mm") {
@@ -152,14 +143,12 @@ force_model::ProgramSettings program_settings(const json& o) {
     return s;
 }
 
-force_model::ProgramRun load_program_run(const json& inputs, const fs::path& upload_dir, const force_model::RunSpec& spec,
-                                         motion_io::MotionModel& motion) {
-    const json& nc = inputs.at("nc_program");
-    const auto settings = program_settings(nc.value("options", json::object()));
-    const std::string name = nc.value("filename", std::string("program.nc"));
-    auto program = motion_io::parse_nc_program(read_text(upload_dir / nc.at("stored_as").get<std::string>()), name,
-                                               force_model::program_read_options(settings, spec, force_model::log_start_mm(motion)));
-    return force_model::prepare_program_run(std::move(program), settings, motion);
+app::ProgramSource program_source(const json& nc, const fs::path& upload_dir) {
+    app::ProgramSource source;
+    source.path = (upload_dir / nc.at("stored_as").get<std::string>()).string();
+    source.name = nc.value("filename", std::string("program.nc"));
+    source.settings = program_settings(nc.value("options", json::object()));
+    return source;
 }
 
 json program_body(const ProgramResult& r, const json& commanded_summary) {
@@ -265,44 +254,34 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
         dir = data_dir / st.text(2);
         base_run = st.opt_i64(3);
     }
-    const auto spec = force_model::parse_run_spec(inputs.at("spec"));
-    auto motion = ingest_run_log(inputs, dir);
-    if (cancel) throw force_model::Cancelled();
-    const force_model::ProgramRun run = load_program_run(inputs, dir, spec, motion);
-    const force_model::StockPtr base = load_base_stock(pool, base_run, dir);
+    app::RunInput run = run_input(inputs, dir, use_opencl);
+    app::OptimizeInput in;
+    in.log_path = run.log_path;
+    in.read = run.read;
+    in.spec = run.spec;
+    in.program = program_source(inputs.at("nc_program"), dir);
+    in.device = run.device;
+    const force_model::StockPtr base = load_base_stock(pool, base_run);
+    in.base_stock = base.get();
+    in.search.target = params["target"].get<double>();
+    in.search.min_feed_mm_min = params["min_feed_mm_min"].get<double>();
+    in.search.max_feed_mm_min = params["max_feed_mm_min"].is_null() ? 0.0 : params["max_feed_mm_min"].get<double>();
+    in.search.max_predictions = params["max_predictions"].get<int>();
+    in.search.basis = params["basis"] == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
 
-    force_model::FeedOptimizerOptions o;
-    o.target = params["target"].get<double>();
-    o.min_feed_mm_min = params["min_feed_mm_min"].get<double>();
-    o.max_feed_mm_min = params["max_feed_mm_min"].is_null() ? 0.0 : params["max_feed_mm_min"].get<double>();
-    o.max_predictions = params["max_predictions"].get<int>();
-    o.basis = params["basis"] == "commanded" ? force_model::FeedBasis::Commanded : force_model::FeedBasis::Actual;
     // Optimizations stored before these options existed ran without them.
-    o.only_flagged = params.value("only_flagged", false);
-    o.never_raise = params.value("never_raise", false);
-    o.feed_step_mm_min = params.value("feed_step_mm_min", 0.0);
-    o.commanded = run.commanded;
+    in.search.only_flagged = params.value("only_flagged", false);
+    in.search.never_raise = params.value("never_raise", false);
+    in.search.feed_step_mm_min = params.value("feed_step_mm_min", 0.0);
 
-    // Each prediction reports 0..1; the search runs at most max_predictions + 3 of them.
-    const double total = o.max_predictions + 3;
-    int finished = 0;
-    double last = 0;
-    force_model::PredictOptions po;
-    po.device = use_opencl ? force_model::Device::OpenCL : force_model::Device::Cpu;
-    po.base_stock = base.get();
-    po.cancel = &cancel;
-    po.progress = [&](double f) {
-        if (f < last) ++finished;
-        last = f;
-        progress(std::min(1.0, (finished + f) / total));
-    };
-    const force_model::FeedOptimization r = force_model::optimize_feeds(run.program, motion, spec, po, o);
-    const std::string text = motion_io::rewrite_feeds(run.program, r.feed_mm_min);
+    app::Control control;
+    control.cancel = &cancel;
+    control.progress = [&](app::Phase, double f) { progress(f); };
+    const app::OptimizeResult o = app::optimize_feeds(in, control);
+    const force_model::FeedOptimization& r = o.feeds;
 
     json blocks = json::array();
-    std::size_t changed = 0;
     for (const auto& b : r.blocks) {
-        if (b.recommended_feed_mm_min != b.programmed_feed_mm_min) ++changed;
         std::vector<std::string> cleared;
         std::set_difference(b.flags_before.begin(), b.flags_before.end(), b.flags_after.begin(), b.flags_after.end(),
                             std::back_inserter(cleared));
@@ -325,7 +304,7 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
                       {"max_ratio_after", r.max_ratio_after},
                       {"max_ratio_block", r.max_ratio_block},
                       {"exceeds_limit", r.max_ratio_after > 1},
-                      {"changed_blocks", changed},
+                      {"changed_blocks", o.changed_blocks},
                       {"cycle_before_s", r.before.stats.simulated_s},
                       {"cycle_after_s", r.after.stats.simulated_s}};
     if (cancel) throw force_model::Cancelled();
@@ -334,7 +313,7 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
          "UPDATE optimizations SET state = 'done', progress = 1, result = ?, program = ?, finished_at = ? "
          "WHERE id = ? AND state = 'running'")
         .bind(1, result.dump())
-        .bind(2, text)
+        .bind(2, o.program_text)
         .bind(3, db::now_iso())
         .bind(4, id)
         .run();

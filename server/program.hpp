@@ -2,8 +2,8 @@
 // commanded prediction, and the optimization jobs that recommend feeds.
 #pragma once
 
-#include "force_model/feed_optimizer.hpp"
-#include "force_model/program_run.hpp"
+#include "app/optimize.hpp"
+#include "app/predict_run.hpp"
 #include "common.hpp"
 
 #include <atomic>
@@ -13,15 +13,14 @@
 namespace cutload::server {
 
 // nc_options (JSON object) as program settings; ApiError 400 `bad_request` naming the key.
-force_model::ProgramSettings program_settings(const json& options);
+app::ProgramSettings program_settings(const json& options);
 
-// The NC program of a run's inputs, read against the spec and the log; relabels `motion`'s blocks.
-force_model::ProgramRun load_program_run(const json& inputs, const std::filesystem::path& upload_dir,
-                                         const force_model::RunSpec& spec, motion_io::MotionModel& motion);
+// The NC program of a run's inputs (`nc_program`: the stored file, its name as uploaded, options).
+app::ProgramSource program_source(const json& nc_program, const std::filesystem::path& upload_dir);
 
 struct ProgramResult {
-    const force_model::ProgramRun& run;
-    const force_model::ProgramPrediction& prediction;
+    const app::ProgramRun& run;
+    const app::ProgramPrediction& prediction;
     std::string filename;
 };
 

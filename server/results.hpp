@@ -2,8 +2,7 @@
 // evaluating thresholds into alerts and webhook deliveries, all inside the caller's transaction.
 #pragma once
 
-#include "force_model/force_model.hpp"
-#include "motion_io/motion_io.hpp"
+#include "app/predict_run.hpp"
 #include "common.hpp"
 
 namespace cutload::server {

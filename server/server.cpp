@@ -1,7 +1,6 @@
 #include "server/server.hpp"
 
-#include "force_model/force_model.hpp"
-#include "motion_io/motion_io.hpp"
+#include "app/inputs.hpp"
 #include "auth.hpp"
 #include "core.hpp"
 #include "gzip.hpp"
@@ -180,6 +179,9 @@ void Core::route(const std::string& method, const std::string& path, std::option
         } catch (const motion_io::IngestError& e) {
             res.status = 400;
             res.set_content(body_text(error_body("bad_log", e.what())), "application/json");
+        } catch (const app::InputError& e) {
+            res.status = 400;
+            res.set_content(body_text(error_body("bad_request", e.what())), "application/json");
         } catch (const db::Error& e) {
             const bool conflict = e.is_constraint();
             res.status = conflict ? 409 : 500;

@@ -4,7 +4,7 @@
 #pragma once
 
 #include "force_model/force_model.hpp"
-#include "force_model/program_run.hpp"
+#include "app/program_run.hpp"
 #include "motion_io/block_mapping.hpp"
 #include "motion_io/nc_program.hpp"
 #include "motion_io/synth.hpp"

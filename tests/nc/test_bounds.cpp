@@ -101,12 +101,12 @@ TEST_CASE("bounds: a log step far finer than the reader assumed is caught before
     b.feed_mm_min = 6000;
     spec.program.push_back(b);
     motion_io::MotionModel log = dry_run_motion(spec, "bounds_fine", 0.01);
-    force_model::ProgramSettings settings;
+    app::ProgramSettings settings;
     settings.work_offsets_mm["G54"] = {0, 0, 0};
     settings.limits.max_samples = 1e6;
     force_model::RunSpec run;
-    motion_io::NcReadOptions ro = force_model::program_read_options(settings, run, force_model::log_start_mm(log));
+    motion_io::NcReadOptions ro = app::program_read_options(settings, run, app::log_start_mm(log));
     motion_io::NcProgram program = motion_io::parse_nc_program("N1 G90 G01 X10. Y0 Z0 F6000\nN2 X100. F100\n", "fine.nc", ro);
-    CHECK_THROWS_WITH(force_model::prepare_program_run(std::move(program), settings, log),
+    CHECK_THROWS_WITH(app::prepare_program_run(std::move(program), settings, log),
                       Catch::StartsWith("fine.nc: the commanded motion would take 5.41e+06 samples at the log's 0.01 ms step, above the limit of 1e+06"));
 }

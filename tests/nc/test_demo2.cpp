@@ -45,8 +45,8 @@ std::string without_block_column(const std::string& text) {
 nlohmann::json demo2_run() { return nlohmann::json::parse(read_text(source_path("data/demo2_run.json"))); }
 
 // The settings a user passes for demo2: --program-units in --arc-centers absolute.
-force_model::ProgramSettings demo2_settings() {
-    force_model::ProgramSettings s;
+app::ProgramSettings demo2_settings() {
+    app::ProgramSettings s;
     s.program_units = motion_io::ProgramUnits::Inch;
     s.arc_centers = motion_io::ArcCenters::Absolute;
     return s;
@@ -143,10 +143,10 @@ TEST_CASE("demo2: mapping the log without its block column recovers the logged b
         if (order.empty() || order.back() != t) order.push_back(t);
     CHECK(order == std::vector<int>{1, 2, 3});
 
-    const force_model::ProgramSettings settings = demo2_settings();
+    const app::ProgramSettings settings = demo2_settings();
     const force_model::RunSpec spec = demo2_spec_without_tools();
     const motion_io::NcProgram prog = motion_io::read_nc_program(
-        source_path("data/demo2_program.nc"), force_model::program_read_options(settings, spec, force_model::log_start_mm(without)));
+        source_path("data/demo2_program.nc"), app::program_read_options(settings, spec, app::log_start_mm(without)));
     motion_io::BlockMappingOptions mo;
     mo.lead_s = calibrated_lead_s();   // on another program's log from the same machine
     const motion_io::BlockMapping m = motion_io::map_blocks(without, prog, mo);
@@ -168,11 +168,11 @@ TEST_CASE("demo2: mapping the log without its block column recovers the logged b
 
     // Through the program run the CLI and the service use: accepted, blocks from the mapping.
     motion_io::MotionModel relabelled = without;
-    force_model::ProgramSettings s = settings;
+    app::ProgramSettings s = settings;
     s.block_lead_ms = mo.lead_s * 1e3;
-    const force_model::ProgramRun run = force_model::prepare_program_run(
+    const app::ProgramRun run = app::prepare_program_run(
         motion_io::read_nc_program(source_path("data/demo2_program.nc"),
-                                   force_model::program_read_options(s, spec, force_model::log_start_mm(relabelled))),
+                                   app::program_read_options(s, spec, app::log_start_mm(relabelled))),
         s, relabelled);
     CHECK(run.mapped);
     CHECK(motion_io::block_agreement(with_blocks, relabelled.block, relabelled.block_names) == Approx(agreement));

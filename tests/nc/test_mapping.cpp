@@ -95,15 +95,15 @@ TEST_CASE("mapping: samples at rest and rapids away from the cuts do not count a
     append_stretch(m, 1000, {500, 500, 500}, {0, 0, 0}, 0);
     append_stretch(m, 500, {0, 100, 0}, {1, 0, 0}, 20000);
     append_stretch(m, 500, {0, 200, 0}, {1, 0, 0}, 1200);
-    force_model::ProgramSettings settings;
+    app::ProgramSettings settings;
     settings.work_offsets_mm["G54"] = {0, 0, 0};
     force_model::RunSpec run;
     const std::string text = "N1 G90 G01 X0 Y0 Z0 F1200\nN2 X20.\n";
     auto read = [&] {
-        return motion_io::parse_nc_program(text, "line.nc", force_model::program_read_options(settings, run, force_model::log_start_mm(m)));
+        return motion_io::parse_nc_program(text, "line.nc", app::program_read_options(settings, run, app::log_start_mm(m)));
     };
     motion_io::MotionModel copy = m;
-    const force_model::ProgramRun r = force_model::prepare_program_run(read(), settings, copy);
+    const app::ProgramRun r = app::prepare_program_run(read(), settings, copy);
     const auto& q = r.mapping.quality;
     CHECK(q.matched == 1000);
     CHECK(q.matched_fraction == Approx(1.0 / 3));
@@ -116,7 +116,7 @@ TEST_CASE("mapping: samples at rest and rapids away from the cuts do not count a
     // The threshold is an option; a refused program names the fractions.
     settings.min_match = 0.7;
     copy = m;
-    CHECK_THROWS_WITH(force_model::prepare_program_run(read(), settings, copy),
+    CHECK_THROWS_WITH(app::prepare_program_run(read(), settings, copy),
                       Catch::StartsWith("line.nc: only 66.7 % of the log's counted samples lie within 5 mm of the program's path "
                                         "(at least 70 % must; 33.3 % of all samples matched, 50.0 % not counted: 33.3 % at rest, "
                                         "16.7 % rapids away from the cutting moves, 0.0 % tool changes;"));

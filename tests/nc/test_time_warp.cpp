@@ -1,7 +1,7 @@
 // Commanded time onto actual time: each block's commanded span stretched onto the span the
 // machine took for it, so the two predictions line up block by block in one plot.
 #include "force_model/feed_optimizer.hpp"
-#include "force_model/program_run.hpp"
+#include "app/program_run.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -28,10 +28,10 @@ TEST_CASE("time warp: a block the machine took twice as long for is stretched on
     motion_io::MotionModel actual = force_model::retime_motion(commanded, scale, programmed);
     REQUIRE(actual.t_s.back() == Approx(4.0).margin(0.003));
 
-    force_model::ProgramSettings settings;
-    const force_model::ProgramRun run = force_model::prepare_program_run(program, settings, actual);
+    app::ProgramSettings settings;
+    const app::ProgramRun run = app::prepare_program_run(program, settings, actual);
     REQUIRE_FALSE(run.mapped);   // the motion names the program's blocks
-    const force_model::TimeWarp warp = force_model::commanded_to_actual_time(run, actual);
+    const app::TimeWarp warp = app::commanded_to_actual_time(run, actual);
     REQUIRE(warp.commanded_s.size() >= 3);
     for (std::size_t k = 1; k < warp.commanded_s.size(); ++k) {
         CHECK(warp.commanded_s[k] > warp.commanded_s[k - 1]);

@@ -1,4 +1,4 @@
-#include "force_model/program_run.hpp"
+#include "app/program_run.hpp"
 
 #include <fmt/format.h>
 
@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <set>
 
-namespace cutload::force_model {
+namespace cutload::app {
 namespace {
 
 // The log names blocks, and (nearly) all of them are the program's.
@@ -130,10 +130,10 @@ TimeWarp commanded_to_actual_time(const ProgramRun& run, const motion_io::Motion
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
                                   const RunSpec& spec, const PredictOptions& options) {
     ProgramPrediction out;
-    out.commanded = predict(motion_io::commanded_motion(run.program, run.commanded), spec, options);
-    out.blocks = compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
+    out.commanded = force_model::predict(motion_io::commanded_motion(run.program, run.commanded), spec, options);
+    out.blocks = force_model::compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
     out.to_actual_time = commanded_to_actual_time(run, motion);
     return out;
 }
 
-}  // namespace cutload::force_model
+}  // namespace cutload::app

@@ -1,7 +1,7 @@
 // A dry run read together with the NC program it runs: the program interpreted in the log's
 // machine coordinates, the log's samples attributed to program blocks (its own block channel, or
 // block mapping when it has none), and the commanded-vs-actual prediction and comparison.
-// Shared by `cutload predict --program`, `cutload optimize` and the service's run jobs.
+// The steps of app::predict_run and app::optimize_feeds (app/predict_run.hpp, app/optimize.hpp).
 #pragma once
 
 #include "force_model/force_model.hpp"
@@ -16,7 +16,12 @@
 #include <string>
 #include <vector>
 
-namespace cutload::force_model {
+namespace cutload::app {
+
+using force_model::BlockComparison;
+using force_model::Prediction;
+using force_model::PredictOptions;
+using force_model::RunSpec;
 
 struct ProgramSettings {
     // Machine position of G54..G59's tool-tip zero, mm; G54 defaults to -setup offset of the spec.
@@ -82,4 +87,4 @@ struct ProgramPrediction {
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
                                   const RunSpec& spec, const PredictOptions& options);
 
-}  // namespace cutload::force_model
+}  // namespace cutload::app

@@ -1,0 +1,96 @@
+#include "app/predict_run.hpp"
+
+#include "tracker.hpp"
+
+#include "force_model/logged_commanded.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace cutload::app {
+namespace {
+
+RunResult predict_steps(const RunInput& in, const Control& control) {
+    Tracker track(control);
+    RunResult r;
+    track.begin(Phase::Ingest, 0, 0);
+    if (in.program && in.commanded_from_log)
+        throw InputError("commanded_from_log", "the program and the log's commanded positions both give the commanded path: "
+                                               "choose one");
+    r.motion = motion_io::ingest(in.log_path, in.read, &r.ingest);
+    if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
+    // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
+    r.sampling = motion_io::check_sampling(r.ingest, in.spec.tool.flutes);
+
+    // Before predicting: a log without the program's block names takes them by mapping.
+    if (in.program) {
+        track.begin(Phase::Program, 0, 0);
+        ProgramSource source = *in.program;
+        source.settings.limits.sample_step_s = r.motion.step_s;   // the commanded samples it may imply
+        motion_io::NcProgram program = read_program(source, in.spec, log_start_mm(r.motion));
+        if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1) {
+            std::string list;
+            for (int t : tools) list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
+            r.warnings.push_back(fmt::format("the program uses tools {}; forces are predicted with the run spec's one tool "
+                                             "for every block",
+                                             list));
+        }
+        track.begin(Phase::Mapping, 0, 0);
+        r.program = prepare_program_run(std::move(program), source.settings, r.motion);
+    }
+    motion_io::MotionModel logged_commanded;
+    if (in.commanded_from_log) {
+        if (!r.ingest.commanded_positions)
+            throw motion_io::IngestError(in.log_path + ": the log has no commanded positions (x_cmd, y_cmd, z_cmd, or the "
+                                                       "columns a channel map names for them)");
+        motion_io::ReadOptions commanded_read = in.read;
+        commanded_read.positions = motion_io::Positions::Commanded;
+        logged_commanded = motion_io::ingest(in.log_path, commanded_read);
+        if (logged_commanded.size() < 2)
+            throw motion_io::IngestError(in.log_path + ": the log's commanded positions give fewer than two motion samples");
+    }
+
+    // The commanded prediction follows the actual one; they share the progress by duration.
+    double actual_share = 1;
+    const double actual_s = r.motion.t_s.back() - r.motion.t_s.front();
+    if (r.program) {
+        double commanded_s = 0;
+        for (double d : motion_io::commanded_durations_s(r.program->program, r.program->commanded)) commanded_s += d;
+        actual_share = actual_s / std::max(1e-9, actual_s + commanded_s);
+    } else if (in.commanded_from_log) {
+        actual_share = 0.5;   // the same log twice
+    }
+    force_model::PredictOptions po;
+    po.device = in.device;
+    po.base_stock = in.base_stock;
+    po.cancel = control.cancel;
+    track.begin(Phase::Predict, 0, actual_share);
+    po.progress = track.engine_progress();
+    r.prediction = force_model::predict(r.motion, in.spec, po);
+    if (r.program) {
+        track.begin(Phase::Commanded, actual_share, 1);
+        po.progress = track.engine_progress();
+        r.commanded = predict_program(*r.program, r.motion, r.prediction, in.spec, po);
+    } else if (in.commanded_from_log) {
+        track.begin(Phase::Commanded, actual_share, 1);
+        po.progress = track.engine_progress();
+        ProgramPrediction p;
+        p.commanded = force_model::predict(logged_commanded, in.spec, po);
+        p.blocks = force_model::compare_logged_commanded(r.motion, logged_commanded, p.commanded, r.prediction);
+        // Both read from one log: one time axis.
+        p.to_actual_time.commanded_s = p.to_actual_time.actual_s = {r.motion.t_s.front(), r.motion.t_s.back()};
+        r.commanded_samples = logged_commanded.size();
+        r.commanded = std::move(p);
+    }
+    track.done();
+    return r;
+}
+
+}  // namespace
+
+RunResult predict_run(const RunInput& in, const Control& control) {
+    return cancellable(control, [&] { return predict_steps(in, control); });
+}
+
+}  // namespace cutload::app

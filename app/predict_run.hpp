@@ -1,0 +1,52 @@
+// Use case: predict a run. A dry-run log and its run spec, optionally the NC program the log runs
+// and the stock an earlier run left, give the forces of the actual motion, the block summaries
+// with their flags, the final stock, and with a program the forces of the commanded motion
+// compared block by block with the actual ones.
+#pragma once
+
+#include "app/control.hpp"
+#include "app/inputs.hpp"
+#include "app/program_run.hpp"
+#include "app/program_source.hpp"
+#include "force_model/force_model.hpp"
+#include "force_model/program_compare.hpp"
+#include "motion_io/motion_io.hpp"
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cutload::app {
+
+struct RunInput {
+    std::string log_path;
+    motion_io::ReadOptions read;                      // read_options(): format, units, resampling step
+    force_model::RunSpec spec;
+    std::optional<ProgramSource> program;             // the NC program the log is a dry run of
+    bool commanded_from_log = false;                  // or the log's own commanded positions as the commanded path
+    const force_model::Stock* base_stock = nullptr;   // start from it (load_stock, load_stock_bytes)
+    force_model::Device device = force_model::Device::Cpu;
+};
+
+struct RunResult {
+    motion_io::MotionModel motion;               // the repaired log; blocks named after the program's when mapped
+    motion_io::IngestReport ingest;
+    force_model::Prediction prediction;          // forces, block summaries and flags, final stock, stats
+    motion_io::SamplingCheck sampling;           // coarse data (position_quantized, sampling_coarse), said out loud
+    std::vector<std::string> warnings;           // for the user: e.g. a program with more than one tool
+    std::optional<ProgramRun> program;           // with a program: it, and its mapping onto the log
+    std::optional<ProgramPrediction> commanded;  // with a program or commanded_from_log: commanded forces,
+                                                 // comparison, time warp (identity for the log's own)
+    std::size_t commanded_samples = 0;           // commanded_from_log: samples of the commanded motion
+};
+
+// Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path
+// Commanded, Done. The two predictions share the progress by their simulated durations. Throws
+// InputError when both a program and commanded_from_log are given, motion_io::IngestError (a bad
+// log, one of fewer than two samples, or commanded_from_log on a log without commanded
+// positions), motion_io::NcProgramError (a bad program, or one the log does not run),
+// force_model::SpecError, force_model::Cancelled.
+RunResult predict_run(const RunInput& input, const Control& control = {});
+
+}  // namespace cutload::app

@@ -1,0 +1,191 @@
+// app::predict_run on the bundled demo: what `cutload predict --program` and the service's run
+// jobs asserted before they called it (tests/cli/test_program_cli.cpp, tests/server/test_program.cpp,
+// tests/server/test_runs.cpp), the same forces as the engine called directly, progress that only
+// goes forward and ends at 1, and a cancel honoured in every phase.
+#include "app_fixtures.hpp"
+
+#include "app/predict_run.hpp"
+
+#include <algorithm>
+#include <map>
+#include <set>
+
+using namespace cutload;
+using namespace cutload::apptest;
+
+TEST_CASE("predict_run: the demo with its program gives the results the CLI and the service gave", "[app][predict]") {
+    Recorder rec;
+    const app::RunResult r = app::predict_run(demo_input(true), rec.control());
+
+    // Progress: every phase in order, never back, ending at (Done, 1).
+    rec.require_monotonic();
+    CHECK(rec.phases() == std::vector<app::Phase>{app::Phase::Ingest, app::Phase::Program, app::Phase::Mapping,
+                                                  app::Phase::Predict, app::Phase::Commanded, app::Phase::Done});
+    REQUIRE(!rec.calls.empty());
+    CHECK(rec.calls.back() == std::pair{app::Phase::Done, 1.0});
+    // The two predictions share the bar by duration: the actual one ends where the commanded one starts.
+    REQUIRE(rec.started(app::Phase::Commanded));
+    CHECK(*rec.reached(app::Phase::Predict) == Approx(*rec.started(app::Phase::Commanded)));
+    CHECK(*rec.started(app::Phase::Commanded) > 0.3);
+    CHECK(*rec.started(app::Phase::Commanded) < 0.7);
+
+    // The service's expectations: the demo log names its blocks, the mapping agrees with them.
+    REQUIRE(r.program);
+    REQUIRE(r.commanded);
+    CHECK_FALSE(r.program->mapped);
+    REQUIRE(r.program->mapping.quality.agreement);
+    CHECK(*r.program->mapping.quality.agreement > 0.95);
+    CHECK(r.program->mapping.quality.matched_fraction > 0.99);
+    const force_model::Prediction& cmd = r.commanded->commanded;
+    double commanded_peak_N = 0;
+    for (const auto& b : cmd.blocks) commanded_peak_N = std::max(commanded_peak_N, b.peak_force_N);
+    CHECK(commanded_peak_N > 100);
+    std::size_t cutting = 0;
+    double worst_deviation_mm = 0, worst_deficit_pct = 0;
+    for (const auto& b : r.commanded->blocks) {
+        if (b.actual_peak_force_N < 50) continue;
+        ++cutting;
+        CHECK(b.commanded_peak_force_N > 0);
+        CHECK(b.force_difference_N == Approx(b.actual_peak_force_N - b.commanded_peak_force_N).margin(1e-6));
+        worst_deviation_mm = std::max(worst_deviation_mm, b.max_deviation_mm);
+        worst_deficit_pct = std::max(worst_deficit_pct, b.feed_deficit_pct);
+    }
+    CHECK(cutting > 30);
+    CHECK(worst_deviation_mm > 0.2);
+    CHECK(worst_deficit_pct > 20);
+    CHECK(std::count(cmd.block_names.begin(), cmd.block_names.end(), "N70") == 1);
+
+    // The CLI's expectations: BLOCKS.csv's actual peaks are the comparison's, blocks over 100 N
+    // are many, and the commanded forces end earlier (no acceleration) but not by much once warped.
+    std::map<std::string, const force_model::BlockComparison*> by_name;
+    for (const auto& c : r.commanded->blocks) by_name[c.block] = &c;
+    std::size_t over_100_N = 0;
+    for (const auto& b : r.prediction.blocks) {
+        INFO(b.block);
+        const auto it = by_name.find(b.block);
+        REQUIRE(it != by_name.end());
+        CHECK(b.peak_force_N == Approx(it->second->actual_peak_force_N).margin(0.002));
+        if (b.peak_force_N > 100) ++over_100_N;
+    }
+    CHECK(over_100_N > 30);
+    REQUIRE(cmd.samples.size() > 1000);
+    CHECK(cmd.samples.back().t_s < r.prediction.samples.back().t_s);
+    const double warped_end_s = r.commanded->to_actual_time(cmd.samples.back().t_s);
+    CHECK(warped_end_s <= r.motion.t_s.back() + 1e-6);
+    CHECK(warped_end_s > r.prediction.samples.back().t_s - 0.5);
+
+    // The service's demo run: blocks, removed material, a final stock.
+    CHECK(r.prediction.blocks.size() > 3);
+    double removed_mm3 = 0;
+    for (const auto& b : r.prediction.blocks) removed_mm3 += b.removed_mm3;
+    CHECK(removed_mm3 > 0);
+    REQUIRE(r.prediction.final_stock);
+    CHECK(force_model::stock_volume_mm3(*r.prediction.final_stock) == Approx(105.0 * 90 * 30 - removed_mm3).epsilon(0.01));
+
+    // The same forces as the engine called directly on the log, as the front ends did before.
+    motion_io::ReadOptions ro;
+    const motion_io::MotionModel motion = motion_io::ingest(source_path("data/demo_dryrun.csv"), ro);
+    REQUIRE(motion.t_s == r.motion.t_s);
+    REQUIRE(motion.block == r.motion.block);
+    force_model::PredictOptions po;
+    po.device = force_model::Device::Cpu;
+    const force_model::Prediction direct =
+        force_model::predict(motion, force_model::load_run_spec(source_path("data/demo_run.json")), po);
+    REQUIRE(direct.samples.size() == r.prediction.samples.size());
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < direct.samples.size(); ++i)
+        differing += same_sample(direct.samples[i], r.prediction.samples[i]) ? 0 : 1;
+    CHECK(differing == 0);
+}
+
+TEST_CASE("predict_run: a cancel is honoured in every phase, and nothing after it runs", "[app][predict][cancel]") {
+    using app::Phase;
+    for (const Phase phase : {Phase::Ingest, Phase::Program, Phase::Mapping, Phase::Predict, Phase::Commanded}) {
+        DYNAMIC_SECTION("cancelled in " << app::phase_name(phase)) {
+            Recorder rec;
+            rec.cancel_at = phase;
+            CHECK_THROWS_AS(app::predict_run(demo_input(true), rec.control()), force_model::Cancelled);
+            rec.require_monotonic();
+            REQUIRE(!rec.phases().empty());
+            CHECK(rec.phases().back() == phase);   // no later phase started
+            // Inside a prediction the engine stops at its next check: the phase made no progress.
+            CHECK(*rec.reached(phase) == *rec.started(phase));
+        }
+    }
+}
+
+TEST_CASE("predict_run: a cancel set before the start computes nothing", "[app][predict][cancel]") {
+    Recorder rec;
+    rec.cancel = true;
+    CHECK_THROWS_AS(app::predict_run(demo_input(false), rec.control()), force_model::Cancelled);
+    CHECK(rec.calls.empty());
+}
+
+TEST_CASE("predict_run: a step that fails after a cancel ends in the cancel", "[app][predict][cancel]") {
+    // The service deletes a run's files right after cancelling the job that reads them.
+    app::RunInput in = demo_input(true);
+    in.log_path += ".deleted";
+    CHECK_THROWS_AS(app::predict_run(in), motion_io::IngestError);
+    Recorder rec;
+    rec.cancel_at = app::Phase::Ingest;
+    CHECK_THROWS_AS(app::predict_run(in, rec.control()), force_model::Cancelled);
+}
+
+TEST_CASE("predict_run: without a program, Predict is the whole bar; a log of one sample is refused naming it",
+          "[app][predict]") {
+    const Scratch dir("predict_slot");
+    write_slot(dir);
+    app::RunInput in;
+    in.log_path = (dir / "slot.csv").string();
+    in.spec = force_model::load_run_spec((dir / "slot.json").string());
+    Recorder rec;
+    const app::RunResult r = app::predict_run(in, rec.control());
+    rec.require_monotonic();
+    CHECK(rec.phases() == std::vector<app::Phase>{app::Phase::Ingest, app::Phase::Predict, app::Phase::Done});
+    CHECK(*rec.reached(app::Phase::Predict) == Approx(1.0));
+    CHECK_FALSE(r.program);
+    CHECK_FALSE(r.commanded);
+    // The slot's peak passes its 400 N limit (the CLI test's optimizer raises the feed towards it).
+    CHECK(r.prediction.samples.size() > 1000);
+
+    write_text(dir / "one.csv", "t,x,y,z,feed,spindle\n0,-6,5,-2,1200,10000\n");
+    in.log_path = (dir / "one.csv").string();
+    CHECK_THROWS_AS(app::predict_run(in), motion_io::IngestError);
+}
+
+TEST_CASE("predict_run: a base stock passed as bytes is the one loaded from a file", "[app][predict][stock]") {
+    // The slot twice, as the service's base_run test does: the second pass on the first one's
+    // stock cuts (almost) only air, whether the stock came from a file or from bytes.
+    const Scratch dir("predict_stock");
+    write_slot(dir);
+    app::RunInput in;
+    in.log_path = (dir / "slot.csv").string();
+    in.spec = force_model::load_run_spec((dir / "slot.json").string());
+    const app::RunResult first = app::predict_run(in);
+    const std::string path = (dir / "final.stock").string();
+    force_model::save_stock(*first.prediction.final_stock, path);
+    const std::string bytes = force_model::save_stock_bytes(*first.prediction.final_stock);
+    CHECK(bytes == read_text(path));
+
+    const force_model::StockPtr from_file = force_model::load_stock(path);
+    const force_model::StockPtr from_bytes = force_model::load_stock_bytes(bytes, "run 1 stock");
+    in.base_stock = from_file.get();
+    const app::RunResult on_file = app::predict_run(in);
+    in.base_stock = from_bytes.get();
+    const app::RunResult on_bytes = app::predict_run(in);
+
+    auto removed = [](const force_model::Prediction& p) {
+        double v = 0;
+        for (const auto& b : p.blocks) v += b.removed_mm3;
+        return v;
+    };
+    CHECK(removed(first.prediction) > 100);
+    CHECK(removed(on_file.prediction) < 0.05 * removed(first.prediction));
+    REQUIRE(on_bytes.prediction.samples.size() == on_file.prediction.samples.size());
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < on_file.prediction.samples.size(); ++i)
+        differing += same_sample(on_file.prediction.samples[i], on_bytes.prediction.samples[i]) ? 0 : 1;
+    CHECK(differing == 0);
+    CHECK(force_model::save_stock_bytes(*on_bytes.prediction.final_stock) ==
+          force_model::save_stock_bytes(*on_file.prediction.final_stock));
+}
