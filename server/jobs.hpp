@@ -8,10 +8,13 @@
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
 #include "common.hpp"
+#include "db/jobs.hpp"
 #include "metrics.hpp"
 
 #include <filesystem>
+#include <condition_variable>
 #include <map>
+#include <mutex>
 #include <thread>
 
 namespace cutload::server {
@@ -20,12 +23,12 @@ namespace cutload::server {
 motion_io::MotionModel ingest_run_log(const json& inputs, const std::filesystem::path& upload_dir);
 
 // The final stock of base_run (null without one); `scratch_dir` holds a temporary file meanwhile.
-force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run,
+force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run,
                                       const std::filesystem::path& scratch_dir);
 
 class Jobs {
 public:
-    Jobs(DbPool& pool, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
+    Jobs(db::Store& store, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
          std::function<void()> on_alerts);
     ~Jobs();
 
@@ -46,9 +49,9 @@ private:
     std::optional<Job> claim();
     void execute(std::int64_t id, const std::atomic<bool>& cancel);
     void optimize(std::int64_t id, const std::atomic<bool>& cancel);
-    void finish(Kind kind, std::int64_t id, const std::string& state, const std::string& error);
+    void finish(Kind kind, std::int64_t id, db::JobState state, const std::string& error);
 
-    DbPool& pool_;
+    db::Store& store_;
     const ServerOptions& opt_;
     std::filesystem::path data_dir_;
     Metrics& metrics_;

@@ -2,12 +2,12 @@
 #pragma once
 
 #include "common.hpp"
+#include "db/library.hpp"
 
 namespace cutload::server {
 
-// The stored body of a library item, or nullopt when the id does not exist.
-// table: "machines", "tools" or "materials".
-std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id);
+// The stored body of a library item with its name, or nullopt when the id does not exist.
+std::optional<json> library_body(db::Session& s, db::LibraryKind kind, std::int64_t id);
 
 // A complete, valid run spec used to validate one part (tool, material, limits) in isolation, so
 // the engine's own error message names the key.

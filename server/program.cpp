@@ -2,6 +2,8 @@
 
 #include "jobs.hpp"
 #include "results.hpp"
+#include "db/optimizations.hpp"
+#include "db/runs.hpp"
 
 #include <fmt/format.h>
 
@@ -198,28 +200,26 @@ json optimization_params(const json& body) {
     return p;
 }
 
-bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, std::int64_t id,
+bool run_optimization(db::Store& store, const fs::path& data_dir, bool use_opencl, std::int64_t id,
                       const std::atomic<bool>& cancel, const std::function<void(double)>& progress) {
     json params, inputs;
     fs::path dir;
     std::optional<std::int64_t> base_run;
     {
-        auto c = pool.get();
-        auto st = c->prepare(
-            "SELECT o.params, r.inputs, r.upload_dir, r.base_run FROM optimizations o JOIN runs r ON r.id = o.run_id "
-            "WHERE o.id = ?");
-        st.bind(1, id);
-        if (!st.step()) return false;   // deleted meanwhile
-        params = json::parse(st.text(0));
-        inputs = json::parse(st.text(1));
-        dir = data_dir / st.text(2);
-        base_run = st.opt_i64(3);
+        auto s = store.session();
+        const auto o = s->optimizations().get(id);
+        const auto run = o ? s->runs().get(o->run_id) : std::nullopt;
+        if (!run) return false;   // deleted meanwhile
+        params = json::parse(o->params_json);
+        inputs = json::parse(run->inputs_json);
+        dir = data_dir / run->upload_dir;
+        base_run = run->base_run;
     }
     const auto spec = force_model::parse_run_spec(inputs.at("spec"));
     auto motion = ingest_run_log(inputs, dir);
     if (cancel) throw force_model::Cancelled();
     const force_model::ProgramRun run = load_program_run(inputs, dir, spec, motion);
-    const force_model::StockPtr base = load_base_stock(pool, base_run, dir);
+    const force_model::StockPtr base = load_base_stock(store, base_run, dir);
 
     force_model::FeedOptimizerOptions o;
     o.target = params["target"].get<double>();
@@ -269,16 +269,7 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
                       {"cycle_before_s", r.before.stats.simulated_s},
                       {"cycle_after_s", r.after.stats.simulated_s}};
     if (cancel) throw force_model::Cancelled();
-    auto c = pool.get();
-    c->prepare(
-         "UPDATE optimizations SET state = 'done', progress = 1, result = ?, program = ?, finished_at = ? "
-         "WHERE id = ? AND state = 'running'")
-        .bind(1, result.dump())
-        .bind(2, text)
-        .bind(3, db::now_iso())
-        .bind(4, id)
-        .run();
-    return c->changes() > 0;
+    return store.session()->optimizations().mark_done(id, result.dump(), text, db::now_iso());
 }
 
 }  // namespace cutload::server
