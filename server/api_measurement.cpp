@@ -319,7 +319,9 @@ void add_measurement_routes(Core& core) {
     core.route({"GET", "/api/v1/runs/{id}/measurement", Role::Read,
                 {path_id(), query_number("from_s", "series window start (default: first compared sample)"),
                  query_number("to_s", "series window end (default: last compared sample)"),
-                 query_int("max_points", "most rows/buckets in the series").range(2, core.opt.max_points).or_else(2000)}},
+                 query_int("max_points", "most rows/buckets in the series (at most cutload serve --max-points)")
+                     .range(2, core.opt.max_points)
+                     .or_else(2000)}},
                [&core](Ctx& x) { get_comparison(core, x); });
     core.route({"DELETE", "/api/v1/runs/{id}/measurement", Role::Write, {path_id()}}, [&core](Ctx& x) { detach(core, x); });
 }

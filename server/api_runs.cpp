@@ -668,7 +668,8 @@ std::vector<Param> series_params(const Core& core) {
     return {path_id(),
             query_number("from_s", "window start (default: first sample)"),
             query_number("to_s", "window end (default: last sample)"),
-            query_int("max_points", "most rows/buckets returned; wider windows are min/max-envelope decimated")
+            query_int("max_points", "most rows/buckets returned (at most cutload serve --max-points); wider windows are "
+                                    "min/max-envelope decimated")
                 .range(2, core.opt.max_points)
                 .or_else(2000),
             query_string("channels", "comma-separated channels to return (default: all)"),
@@ -716,7 +717,7 @@ void add_run_routes(Core& core) {
     core.route({"GET", "/api/v1/runs/{id}/forces", Role::Read, forces},
                [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
     std::vector<Param> motion = series_params(core);
-    motion.push_back(query_string("source", "actual only: the commanded prediction is of forces")
+    motion.push_back(query_string("source", "actual only (the logged motion): only /forces has a commanded counterpart")
                          .one_of({"actual"})
                          .refused_as("actual (only /forces has a commanded counterpart; /motion is the log's)")
                          .or_else("actual"));

@@ -35,9 +35,6 @@ Param declared(std::string name, ParamType type, std::string description) {
     return p;
 }
 
-// A bound as written in messages: 1000, not 1000.000000.
-std::string bound_text(double v) { return v == std::floor(v) && std::abs(v) < 1e15 ? fmt::format("{}", static_cast<long long>(v)) : fmt::format("{}", v); }
-
 [[noreturn]] void refuse(const Param& p, const std::string& why) {
     bad_request(fmt::format("{} parameter {}: {}", where(p.in), p.name, why));
 }
@@ -45,9 +42,10 @@ std::string bound_text(double v) { return v == std::floor(v) && std::abs(v) < 1e
 void check_range(const Param& p, double v, const std::string& text) {
     const bool low = p.minimum && v < *p.minimum, high = p.maximum && v > *p.maximum;
     if (!low && !high) return;
-    if (p.minimum && p.maximum) refuse(p, fmt::format("{} is outside {}..{}", text, bound_text(*p.minimum), bound_text(*p.maximum)));
-    if (low) refuse(p, fmt::format("{} is below {}", text, bound_text(*p.minimum)));
-    refuse(p, fmt::format("{} is above {}", text, bound_text(*p.maximum)));
+    // fmt writes a whole bound without a decimal point: "outside 1..1000".
+    if (p.minimum && p.maximum) refuse(p, fmt::format("{} is outside {}..{}", text, *p.minimum, *p.maximum));
+    if (low) refuse(p, fmt::format("{} is below {}", text, *p.minimum));
+    refuse(p, fmt::format("{} is above {}", text, *p.maximum));
 }
 
 ParamValue parse_value(const Param& p, const std::string& s) {
@@ -112,10 +110,18 @@ Param path_id(std::string name) {
     return p;
 }
 
-Param query_int(std::string name, std::string description) { return declared(std::move(name), ParamType::Integer, std::move(description)); }
-Param query_number(std::string name, std::string description) { return declared(std::move(name), ParamType::Number, std::move(description)); }
-Param query_bool(std::string name, std::string description) { return declared(std::move(name), ParamType::Boolean, std::move(description)); }
-Param query_string(std::string name, std::string description) { return declared(std::move(name), ParamType::String, std::move(description)); }
+Param query_int(std::string name, std::string description) {
+    return declared(std::move(name), ParamType::Integer, std::move(description));
+}
+Param query_number(std::string name, std::string description) {
+    return declared(std::move(name), ParamType::Number, std::move(description));
+}
+Param query_bool(std::string name, std::string description) {
+    return declared(std::move(name), ParamType::Boolean, std::move(description));
+}
+Param query_string(std::string name, std::string description) {
+    return declared(std::move(name), ParamType::String, std::move(description));
+}
 
 std::vector<ParamValue> read_params(const RouteSpec& spec, const std::vector<std::string>& path_values,
                                     const std::function<std::optional<std::string>(const std::string&)>& query) {
@@ -162,9 +168,10 @@ std::string route_pattern(const RouteSpec& spec) {
 json openapi_parameters(const RouteSpec& spec) {
     json out = json::array();
     for (const Param& p : spec.params) {
+        auto bound = [&](double v) { return p.type == ParamType::Integer ? json(static_cast<std::int64_t>(v)) : json(v); };
         json schema{{"type", type_name(p.type)}};
-        if (p.minimum) schema["minimum"] = p.type == ParamType::Integer ? json(static_cast<std::int64_t>(*p.minimum)) : json(*p.minimum);
-        if (p.maximum) schema["maximum"] = p.type == ParamType::Integer ? json(static_cast<std::int64_t>(*p.maximum)) : json(*p.maximum);
+        if (p.minimum) schema["minimum"] = bound(*p.minimum);
+        if (p.maximum) schema["maximum"] = bound(*p.maximum);
         if (!p.allowed.empty()) schema["enum"] = p.allowed;
         if (!p.pattern.empty()) schema["pattern"] = p.pattern;
         if (p.fallback) schema["default"] = *p.fallback;
