@@ -53,8 +53,7 @@ force_model::ToolSpec tool_from_parts(Core& core, const httplib::Request& req) {
         } catch (const std::exception&) {
             bad_request(fmt::format("part tool_id: '{}' is not an integer", *id_text));
         }
-        auto c = core.pool.get();
-        const auto stored = library_body(*c, "tools", id);
+        const auto stored = library_body(*core.session(), db::LibraryKind::Tool, id);
         if (!stored) not_found(fmt::format("tool {} does not exist", id));
         tool = stored->at("tool");
     }
@@ -153,17 +152,16 @@ std::vector<app::CalibrationTest> tests_from_parts(const httplib::Request& req, 
 
 json vec3(const std::array<double, 3>& v) { return json::array({v[0], v[1], v[2]}); }
 
+[[noreturn]] void material_name_taken(const std::string& name) {
+    throw ApiError(409, "name_taken", fmt::format("a material named '{}' already exists", name));
+}
+
 void ensure_material_name_free(Core& core, const std::string& name) {
-    auto c = core.pool.get();
-    auto st = c->prepare("SELECT id FROM materials WHERE name = ?");
-    st.bind(1, name);
-    if (st.step()) throw ApiError(409, "name_taken", fmt::format("a material named '{}' already exists", name));
+    if (core.session()->library().find_by_name(db::LibraryKind::Material, name)) material_name_taken(name);
 }
 
 void calibrate(Core& core, Ctx& x) {
     const auto& req = x.req;
-    if (!req.is_multipart_form_data())
-        bad_request("POST /api/v1/calibrations takes multipart/form-data: 'tool' or 'tool_id', 'tests', one 'test' file per test");
     app::CalibrationInput in;
     in.tool = tool_from_parts(core, req);
     in.tests = tests_from_parts(req, in.tool);
@@ -247,20 +245,9 @@ void calibrate(Core& core, Ctx& x) {
     }
     json stored = material;
     stored.erase("name");
-    auto c = core.pool.get();
-    const std::string now = db::now_iso();
-    try {
-        c->prepare("INSERT INTO materials(name, body, created_at, updated_at) VALUES (?,?,?,?)")
-            .bind(1, *save_as)
-            .bind(2, stored.dump())
-            .bind(3, now)
-            .bind(4, now)
-            .run();
-    } catch (const db::Error& e) {
-        if (e.is_constraint()) throw ApiError(409, "name_taken", fmt::format("a material named '{}' already exists", *save_as));
-        throw;
-    }
-    const auto id = c->last_insert_id();
+    const auto saved = core.session()->library().create(db::LibraryKind::Material, *save_as, stored.dump(), db::now_iso());
+    if (!saved) material_name_taken(*save_as);
+    const std::int64_t id = *saved;
     x.res.set_header("Location", fmt::format("/api/v1/materials/{}", id));
     out["saved"] = {{"id", id}, {"name", *save_as}};
     x.reply(201, out);
@@ -269,7 +256,9 @@ void calibrate(Core& core, Ctx& x) {
 }  // namespace
 
 void add_calibration_routes(Core& core) {
-    core.route("POST", "/api/v1/calibrations", Role::Write, [&core](Ctx& x) { calibrate(core, x); });
+    core.route({"POST", "/api/v1/calibrations", Role::Write, {}, Body::Multipart,
+                ": 'tool' or 'tool_id', 'tests', one 'test' file per test"},
+               [&core](Ctx& x) { calibrate(core, x); });
 }
 
 }  // namespace cutload::server

@@ -9,7 +9,8 @@ namespace cutload::server {
 namespace {
 
 struct Kind {
-    const char* table;      // also the URL segment
+    db::LibraryKind kind;
+    const char* plural;     // the URL segment
     const char* singular;
     // Validates a request body and returns what is stored (without name and timestamps).
     json (*validate)(const json& body);
@@ -63,9 +64,9 @@ json validate_material(const json& b) {
 }
 
 const Kind kKinds[] = {
-    {"machines", "machine", &validate_machine},
-    {"tools", "tool", &validate_tool},
-    {"materials", "material", &validate_material},
+    {db::LibraryKind::Machine, "machines", "machine", &validate_machine},
+    {db::LibraryKind::Tool, "tools", "tool", &validate_tool},
+    {db::LibraryKind::Material, "materials", "material", &validate_material},
 };
 
 std::string body_name(const json& b) {
@@ -77,20 +78,19 @@ std::string body_name(const json& b) {
     return n;
 }
 
-json row_json(const db::Stmt& st) {
-    json j = json::parse(st.text(2));
-    j["id"] = st.i64(0);
-    j["name"] = st.text(1);
-    j["created_at"] = st.text(3);
-    j["updated_at"] = st.text(4);
+json item_json(const db::LibraryItem& item) {
+    json j = json::parse(item.body_json);
+    j["id"] = item.id;
+    j["name"] = item.name;
+    j["created_at"] = item.created_at;
+    j["updated_at"] = item.updated_at;
     return j;
 }
 
-json get_one(db::Connection& c, const Kind& k, std::int64_t id) {
-    auto st = c.prepare(fmt::format("SELECT id, name, body, created_at, updated_at FROM {} WHERE id = ?", k.table));
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("{} {} does not exist", k.singular, id));
-    return row_json(st);
+json get_one(db::Session& s, const Kind& k, std::int64_t id) {
+    auto item = s.library().get(k.kind, id);
+    if (!item) not_found(fmt::format("{} {} does not exist", k.singular, id));
+    return item_json(*item);
 }
 
 [[noreturn]] void name_taken(const Kind& k, const std::string& name) {
@@ -98,85 +98,64 @@ json get_one(db::Connection& c, const Kind& k, std::int64_t id) {
 }
 
 void add_kind(Core& core, const Kind& k) {
-    const std::string base = std::string("/api/v1/") + k.table;
-    core.route("GET", base, Role::Read, [&core, &k](Ctx& x) {
-        const auto limit = x.param_int("limit").value_or(100);
-        if (limit < 1 || limit > 1000) bad_request("query parameter limit: must be 1..1000");
-        const auto cursor = x.param_int("cursor").value_or(0);
-        auto c = core.pool.get();
-        auto st = c->prepare(fmt::format(
-            "SELECT id, name, body, created_at, updated_at FROM {} WHERE id > ? AND (? IS NULL OR name = ?) "
-            "ORDER BY id LIMIT ?",
-            k.table));
-        st.bind(1, cursor).bind(2, x.param("name")).bind(3, x.param("name")).bind(4, limit + 1);
-        json items = json::array();
-        while (st.step()) items.push_back(row_json(st));
-        json next = nullptr;
-        if (static_cast<std::int64_t>(items.size()) > limit) {
-            items.erase(items.end() - 1);
-            next = std::to_string(items.back()["id"].get<std::int64_t>());
-        }
-        x.reply(200, {{"items", items}, {"next_cursor", next}});
-    });
-    core.route("POST", base, Role::Write, [&core, &k](Ctx& x) {
-        const json b = parse_json_body(x.req.body);
+    const std::string base = std::string("/api/v1/") + k.plural;
+    core.route({"GET", base, Role::Read,
+                {query_int("cursor", "next_cursor of the previous page").or_else(0),
+                 query_int("limit", "page size").range(1, 1000).or_else(100),
+                 query_string("name", "exact name")}},
+               [&core, &k](Ctx& x) {
+                   const auto limit = *x.param_int("limit");
+                   auto s = core.session();
+                   json items = json::array();
+                   for (const auto& item : s->library().list(k.kind, *x.param_int("cursor"), x.param("name"), limit + 1))
+                       items.push_back(item_json(item));
+                   json next = nullptr;
+                   if (static_cast<std::int64_t>(items.size()) > limit) {
+                       items.erase(items.end() - 1);
+                       next = std::to_string(items.back()["id"].get<std::int64_t>());
+                   }
+                   x.reply(200, {{"items", items}, {"next_cursor", next}});
+               });
+    core.route({"POST", base, Role::Write, {}, Body::Json}, [&core, &k](Ctx& x) {
+        const json b = *x.json_body();
         const std::string name = body_name(b);
         const json stored = k.validate(b);
-        auto c = core.pool.get();
-        const std::string now = db::now_iso();
-        try {
-            c->prepare(fmt::format("INSERT INTO {}(name, body, created_at, updated_at) VALUES (?,?,?,?)", k.table))
-                .bind(1, name)
-                .bind(2, stored.dump())
-                .bind(3, now)
-                .bind(4, now)
-                .run();
-        } catch (const db::Error& e) {
-            if (e.is_constraint()) name_taken(k, name);
-            throw;
-        }
-        x.res.set_header("Location", fmt::format("/api/v1/{}/{}", k.table, c->last_insert_id()));
-        x.reply(201, get_one(*c, k, c->last_insert_id()));
+        auto s = core.session();
+        const auto id = s->library().create(k.kind, name, stored.dump(), db::now_iso());
+        if (!id) name_taken(k, name);
+        x.res.set_header("Location", fmt::format("/api/v1/{}/{}", k.plural, *id));
+        x.reply(201, get_one(*s, k, *id));
     });
-    core.route("GET", base + "/{id}", Role::Read, [&core, &k](Ctx& x) {
-        auto c = core.pool.get();
-        x.reply(200, get_one(*c, k, x.id()));
+    core.route({"GET", base + "/{id}", Role::Read, {path_id()}}, [&core, &k](Ctx& x) {
+        auto s = core.session();
+        x.reply(200, get_one(*s, k, x.id()));
     });
-    core.route("PUT", base + "/{id}", Role::Write, [&core, &k](Ctx& x) {
-        const json b = parse_json_body(x.req.body);
+    core.route({"PUT", base + "/{id}", Role::Write, {path_id()}, Body::Json}, [&core, &k](Ctx& x) {
+        const json b = *x.json_body();
         const std::string name = body_name(b);
         const json stored = k.validate(b);
-        auto c = core.pool.get();
-        try {
-            c->prepare(fmt::format("UPDATE {} SET name = ?, body = ?, updated_at = ? WHERE id = ?", k.table))
-                .bind(1, name)
-                .bind(2, stored.dump())
-                .bind(3, db::now_iso())
-                .bind(4, x.id())
-                .run();
-        } catch (const db::Error& e) {
-            if (e.is_constraint()) name_taken(k, name);
-            throw;
+        auto s = core.session();
+        switch (s->library().update(k.kind, x.id(), name, stored.dump(), db::now_iso())) {
+            case db::LibraryWrite::NameTaken: name_taken(k, name);
+            case db::LibraryWrite::NotFound: not_found(fmt::format("{} {} does not exist", k.singular, x.id()));
+            case db::LibraryWrite::Done: break;
         }
-        if (c->changes() == 0) not_found(fmt::format("{} {} does not exist", k.singular, x.id()));
-        x.reply(200, get_one(*c, k, x.id()));
+        x.reply(200, get_one(*s, k, x.id()));
     });
-    core.route("DELETE", base + "/{id}", Role::Write, [&core, &k](Ctx& x) {
-        auto c = core.pool.get();
-        c->prepare(fmt::format("DELETE FROM {} WHERE id = ?", k.table)).bind(1, x.id()).run();
-        if (c->changes() == 0) not_found(fmt::format("{} {} does not exist", k.singular, x.id()));
+    core.route({"DELETE", base + "/{id}", Role::Write, {path_id()}}, [&core, &k](Ctx& x) {
+        auto s = core.session();
+        if (!s->library().remove(k.kind, x.id())) not_found(fmt::format("{} {} does not exist", k.singular, x.id()));
         x.res.status = 204;
     });
 }
 
 }  // namespace
 
-std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id) {
-    auto st = c.prepare(fmt::format("SELECT name, body FROM {} WHERE id = ?", table));
-    st.bind(1, id);
-    if (!st.step()) return std::nullopt;
-    json j = json::parse(st.text(1));
-    j["name"] = st.text(0);
+std::optional<json> library_body(db::Session& s, db::LibraryKind kind, std::int64_t id) {
+    const auto item = s.library().get(kind, id);
+    if (!item) return std::nullopt;
+    json j = json::parse(item->body_json);
+    j["name"] = item->name;
     return j;
 }
 

@@ -6,6 +6,7 @@
 // recomputed on GET, so a changed force engine never serves a stale report.
 #include "app/compare.hpp"
 #include "core.hpp"
+#include "db/runs.hpp"
 #include "durable_file.hpp"
 #include "series.hpp"
 
@@ -33,18 +34,18 @@ struct DoneRun {
     fs::path upload_dir;
 };
 
-DoneRun require_done_run(db::Connection& c, const fs::path& data_dir, std::int64_t id) {
-    auto st = c.prepare("SELECT state, finished_at, upload_dir FROM runs WHERE id = ?");
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
-    if (st.text(0) != "done")
-        throw ApiError(409, "not_done", fmt::format("run {} is {}: a measurement is compared once it is done", id, st.text(0)));
-    return DoneRun{RunRef{id, st.opt_text(1).value_or("")}, data_dir / st.text(2)};
+DoneRun require_done_run(db::Session& s, const fs::path& data_dir, std::int64_t id) {
+    const auto run = s.runs().status(id);
+    if (!run) not_found(fmt::format("run {} does not exist", id));
+    if (run->state != db::JobState::Done)
+        throw ApiError(409, "not_done",
+                       fmt::format("run {} is {}: a measurement is compared once it is done", id, db::to_text(run->state)));
+    return DoneRun{RunRef{id, run->finished_at.value_or("")}, data_dir / run->upload_dir};
 }
 
 
 // The run's predicted forces at full rate, from the stored series.
-force_model::PredictedTrace stored_trace(Core& core, db::Connection& c, const RunRef& run) {
+force_model::PredictedTrace stored_trace(Core& core, db::Session& c, const RunRef& run) {
     force_model::PredictedTrace t;
     double t0 = 0, t1 = 0;
     if (!series_extent(c, core.series_cache, run, SeriesId::Forces, &t0, &t1)) return t;
@@ -65,10 +66,8 @@ force_model::PredictedTrace stored_trace(Core& core, db::Connection& c, const Ru
         s.fy_N = w.lo[cy][i];
         s.fz_N = w.lo[cz][i];
     }
-    auto st = c.prepare("SELECT block_names FROM runs WHERE id = ?");
-    st.bind(1, run.id);
-    if (st.step() && !st.is_null(0))
-        for (const auto& n : json::parse(st.text(0))) t.block_names.push_back(n.get<std::string>());
+    if (const auto names = c.runs().block_names(run.id))
+        for (const auto& n : json::parse(*names)) t.block_names.push_back(n.get<std::string>());
     return t;
 }
 
@@ -244,14 +243,12 @@ json measured_series(const Compared& r, double from_s, double to_s, std::size_t 
 void attach(Core& core, Ctx& x) {
     const auto id = x.id();
     const auto& req = x.req;
-    if (!req.is_multipart_form_data())
-        bad_request("POST /api/v1/runs/{id}/measurement takes multipart/form-data with part 'file' (the dynamometer record)");
     if (!req.has_file("file")) bad_request("part 'file' is missing: attach the dynamometer record (DynoWare or plain CSV)");
     const auto file = req.get_file_value("file");
     if (file.content.empty()) throw ApiError(400, "bad_measurement", "part 'file' is empty");
     const Settings s = settings_from_parts(req);
 
-    auto c = core.pool.get();
+    auto c = core.session();
     const DoneRun run = require_done_run(*c, core.data_dir, id);
     const auto trace = stored_trace(core, *c, run.ref);
     if (trace.samples.empty()) throw ApiError(409, "conflict", fmt::format("run {} has no predicted forces", id));
@@ -290,10 +287,8 @@ void attach(Core& core, Ctx& x) {
 
 void get_comparison(Core& core, Ctx& x) {
     const auto id = x.id();
-    const auto max_points = x.param_int("max_points").value_or(2000);
-    if (max_points < 2 || max_points > core.opt.max_points)
-        bad_request(fmt::format("query parameter max_points: {} is outside 2..{}", max_points, core.opt.max_points));
-    auto c = core.pool.get();
+    const auto max_points = *x.param_int("max_points");
+    auto c = core.session();
     const DoneRun run = require_done_run(*c, core.data_dir, id);
     std::ifstream in(run.upload_dir / kSettingsFile);
     if (!in) not_found(fmt::format("run {} has no measurement attached (POST /api/v1/runs/{}/measurement)", id, id));
@@ -311,11 +306,9 @@ void get_comparison(Core& core, Ctx& x) {
 
 void detach(Core& core, Ctx& x) {
     const auto id = x.id();
-    auto c = core.pool.get();
-    auto st = c->prepare("SELECT upload_dir FROM runs WHERE id = ?");
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
-    const fs::path dir = core.data_dir / st.text(0);
+    const auto run = core.session()->runs().status(id);
+    if (!run) not_found(fmt::format("run {} does not exist", id));
+    const fs::path dir = core.data_dir / run->upload_dir;
     std::error_code ec;
     if (!fs::remove(dir / kSettingsFile, ec)) not_found(fmt::format("run {} has no measurement attached", id));
     fs::remove(dir / kDataFile, ec);
@@ -325,9 +318,17 @@ void detach(Core& core, Ctx& x) {
 }  // namespace
 
 void add_measurement_routes(Core& core) {
-    core.route("POST", "/api/v1/runs/{id}/measurement", Role::Write, [&core](Ctx& x) { attach(core, x); });
-    core.route("GET", "/api/v1/runs/{id}/measurement", Role::Read, [&core](Ctx& x) { get_comparison(core, x); });
-    core.route("DELETE", "/api/v1/runs/{id}/measurement", Role::Write, [&core](Ctx& x) { detach(core, x); });
+    core.route({"POST", "/api/v1/runs/{id}/measurement", Role::Write, {path_id()}, Body::Multipart,
+                " with part 'file' (the dynamometer record)"},
+               [&core](Ctx& x) { attach(core, x); });
+    core.route({"GET", "/api/v1/runs/{id}/measurement", Role::Read,
+                {path_id(), query_number("from_s", "series window start (default: first compared sample)"),
+                 query_number("to_s", "series window end (default: last compared sample)"),
+                 query_int("max_points", "most rows/buckets in the series (at most cutload serve --max-points)")
+                     .range(2, core.opt.max_points)
+                     .or_else(2000)}},
+               [&core](Ctx& x) { get_comparison(core, x); });
+    core.route({"DELETE", "/api/v1/runs/{id}/measurement", Role::Write, {path_id()}}, [&core](Ctx& x) { detach(core, x); });
 }
 
 }  // namespace cutload::server

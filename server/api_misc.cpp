@@ -1,5 +1,7 @@
 // Routes: /healthz, /metrics, /api/v1/openapi.json.
 #include "core.hpp"
+#include "db/alerts.hpp"
+#include "db/jobs.hpp"
 #include "jobs.hpp"
 
 #include <fmt/format.h>
@@ -25,34 +27,29 @@ std::string series_cache_metrics(const SeriesCache::Stats& st) {
 }  // namespace
 
 void add_misc_routes(Core& core) {
-    core.route("GET", "/healthz", std::nullopt, [&core](Ctx& x) {
-        auto c = core.pool.get();
-        auto st = c->prepare("SELECT count(*) FROM runs WHERE state = 'queued'");
-        st.step();
+    core.route({"GET", "/healthz", std::nullopt}, [&core](Ctx& x) {
+        const std::int64_t queued = core.session()->jobs().count(db::kRunQueue, {db::JobState::Queued});
         x.reply(200, {{"status", "ok"},
                       {"version", "0.1.0"},
                       {"schema_version", db::schema_version()},
-                      {"queued", st.i64(0)},
+                      {"queued", queued},
                       {"running", core.jobs->running()},
                       {"workers", core.opt.workers}});
     });
-    core.route("GET", "/metrics", Role::Read, [&core](Ctx& x) {
-        auto c = core.pool.get();
-        auto q = c->prepare("SELECT count(*) FROM runs WHERE state = 'queued'");
-        q.step();
-        auto d = c->prepare("SELECT count(*) FROM webhook_deliveries WHERE state = 'pending'");
-        d.step();
-        auto o = c->prepare("SELECT count(*) FROM optimizations WHERE state = 'queued'");
-        o.step();
-        std::string text = core.metrics.render(static_cast<long>(q.i64(0)), core.jobs->running(), static_cast<long>(d.i64(0)),
-                                               static_cast<long>(o.i64(0)));
+    core.route({"GET", "/metrics", Role::Read}, [&core](Ctx& x) {
+        auto s = core.session();
+        const auto queued = s->jobs().count(db::kRunQueue, {db::JobState::Queued});
+        const auto pending = s->webhooks().pending_count();
+        const auto optimizations = s->jobs().count(db::kOptimizationQueue, {db::JobState::Queued});
+        std::string text = core.metrics.render(static_cast<long>(queued), core.jobs->running(), static_cast<long>(pending),
+                                               static_cast<long>(optimizations));
         text += series_cache_metrics(core.series_cache.stats());
         x.res.status = 200;
         x.res.set_content(text, "text/plain; version=0.0.4");
     });
-    core.route("GET", "/api/v1/openapi.json", std::nullopt, [](Ctx& x) {
+    core.route({"GET", "/api/v1/openapi.json", std::nullopt}, [&core](Ctx& x) {
         x.res.status = 200;
-        x.res.set_content(openapi_json(), "application/json");
+        x.res.set_content(core.openapi, "application/json");
     });
 }
 

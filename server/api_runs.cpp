@@ -3,6 +3,8 @@
 #include "app/ingest.hpp"
 #include "app/program_source.hpp"
 #include "core.hpp"
+#include "db/optimizations.hpp"
+#include "db/runs.hpp"
 #include "durable_file.hpp"
 #include "gzip.hpp"
 #include "jobs.hpp"
@@ -30,39 +32,30 @@ namespace cutload::server {
 namespace fs = std::filesystem;
 namespace {
 
-constexpr const char* kRunColumns =
-    "id, name, program, machine_id, tool_id, material_id, base_run, state, progress, error, attempts, inputs, "
-    "summary, flagged, created_at, started_at, finished_at";
-
-json opt_json(const db::Stmt& st, int col, bool integer) {
-    if (st.is_null(col)) return nullptr;
-    return integer ? json(st.i64(col)) : json(st.text(col));
-}
-
-json run_json(const db::Stmt& st) {
-    const std::int64_t id = st.i64(0);
+json run_json(const db::RunRecord& r) {
+    const std::int64_t id = r.id;
     json run{{"id", id},
-            {"name", opt_json(st, 1, false)},
-            {"program", opt_json(st, 2, false)},
-            {"machine_id", opt_json(st, 3, true)},
-            {"tool_id", opt_json(st, 4, true)},
-            {"material_id", opt_json(st, 5, true)},
-            {"base_run", opt_json(st, 6, true)},
-            {"state", st.text(7)},
-            {"progress", st.real(8)},
-            {"error", opt_json(st, 9, false)},
-            {"attempts", st.i64(10)},
-            {"inputs", column_json(st, 11)},
-            {"summary", column_json(st, 12)},
-            {"flagged", st.i64(13) != 0},
-            {"created_at", st.text(14)},
-            {"started_at", opt_json(st, 15, false)},
-            {"finished_at", opt_json(st, 16, false)},
-            {"links",
-             {{"self", fmt::format("/api/v1/runs/{}", id)},
-              {"blocks", fmt::format("/api/v1/runs/{}/blocks", id)},
-              {"forces", fmt::format("/api/v1/runs/{}/forces", id)},
-              {"motion", fmt::format("/api/v1/runs/{}/motion", id)}}}};
+             {"name", or_null(r.name)},
+             {"program", or_null(r.program)},
+             {"machine_id", or_null(r.machine_id)},
+             {"tool_id", or_null(r.tool_id)},
+             {"material_id", or_null(r.material_id)},
+             {"base_run", or_null(r.base_run)},
+             {"state", db::to_text(r.state)},
+             {"progress", r.progress},
+             {"error", or_null(r.error)},
+             {"attempts", r.attempts},
+             {"inputs", json::parse(r.inputs_json)},
+             {"summary", stored_json(r.summary_json)},
+             {"flagged", r.flagged},
+             {"created_at", r.created_at},
+             {"started_at", or_null(r.started_at)},
+             {"finished_at", or_null(r.finished_at)},
+             {"links",
+              {{"self", fmt::format("/api/v1/runs/{}", id)},
+               {"blocks", fmt::format("/api/v1/runs/{}/blocks", id)},
+               {"forces", fmt::format("/api/v1/runs/{}/forces", id)},
+               {"motion", fmt::format("/api/v1/runs/{}/motion", id)}}}};
     if (run["inputs"].is_object() && run["inputs"].contains("nc_program")) {
         run["links"]["program"] = fmt::format("/api/v1/runs/{}/program", id);
         run["links"]["optimizations"] = fmt::format("/api/v1/runs/{}/optimizations", id);
@@ -70,11 +63,10 @@ json run_json(const db::Stmt& st) {
     return run;
 }
 
-json load_run(db::Connection& c, std::int64_t id) {
-    auto st = c.prepare(fmt::format("SELECT {} FROM runs WHERE id = ?", kRunColumns));
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
-    return run_json(st);
+json load_run(db::Session& s, std::int64_t id) {
+    const auto run = s.runs().get(id);
+    if (!run) not_found(fmt::format("run {} does not exist", id));
+    return run_json(*run);
 }
 
 std::string random_hex(std::size_t bytes) {
@@ -142,7 +134,7 @@ struct Resolved {
 
 // Inlines library references (tool_id, material_id) and fills limits the spec leaves at 0 from
 // the tool's limits, then the machine's spindle power and torque.
-Resolved resolve_spec(db::Connection& c, json spec, const httplib::Request& req) {
+Resolved resolve_spec(db::Session& s, json spec, const httplib::Request& req) {
     if (!spec.is_object()) throw ApiError(400, "bad_spec", "spec: must be a JSON object");
     Resolved r;
     r.machine_id = id_from(spec, req, "machine_id");
@@ -153,7 +145,7 @@ Resolved resolve_spec(db::Connection& c, json spec, const httplib::Request& req)
     json tool_limits = json::object();
     if (r.tool_id) {
         if (spec.contains("tool")) throw ApiError(400, "bad_spec", "tool_id: give either tool or tool_id, not both");
-        auto t = library_body(c, "tools", *r.tool_id);
+        auto t = library_body(s, db::LibraryKind::Tool, *r.tool_id);
         if (!t) throw ApiError(404, "not_found", fmt::format("tool_id {}: no such tool", *r.tool_id));
         spec["tool"] = (*t)["tool"];
         tool_limits = (*t).value("limits", json::object());
@@ -161,13 +153,13 @@ Resolved resolve_spec(db::Connection& c, json spec, const httplib::Request& req)
     if (r.material_id) {
         if (spec.contains("material"))
             throw ApiError(400, "bad_spec", "material_id: give either material or material_id, not both");
-        auto m = library_body(c, "materials", *r.material_id);
+        auto m = library_body(s, db::LibraryKind::Material, *r.material_id);
         if (!m) throw ApiError(404, "not_found", fmt::format("material_id {}: no such material", *r.material_id));
         spec["material"] = *m;
     }
     json machine_limits = json::object();
     if (r.machine_id) {
-        auto m = library_body(c, "machines", *r.machine_id);
+        auto m = library_body(s, db::LibraryKind::Machine, *r.machine_id);
         if (!m) throw ApiError(404, "not_found", fmt::format("machine_id {}: no such machine", *r.machine_id));
         machine_limits = {{"power_kW", (*m)["spindle_power_kW"]}, {"torque_Nm", (*m)["spindle_torque_Nm"]}};
     }
@@ -240,8 +232,6 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
 
 void create_run(Core& core, Ctx& x) {
     const auto& req = x.req;
-    if (!req.is_multipart_form_data())
-        bad_request("POST /api/v1/runs takes multipart/form-data with parts 'log' (the dry-run log) and 'spec' (JSON)");
     if (!req.has_file("log")) bad_request("part 'log' is missing: attach the dry-run log (CSV or SHDR)");
     auto spec_text = part(req, "spec");
     if (!spec_text) bad_request("part 'spec' is missing: attach the run spec (JSON)");
@@ -249,16 +239,13 @@ void create_run(Core& core, Ctx& x) {
     if (log_part.content.empty()) throw ApiError(400, "bad_log", "part 'log' is empty");
     log_part.filename = client_text(log_part.filename, "file name of part 'log'");
 
-    auto c = core.pool.get();
-    {
-        auto st = c->prepare("SELECT count(*) FROM runs WHERE state IN ('queued','running')");
-        st.step();
-        if (st.i64(0) >= core.opt.max_pending_jobs) {
-            x.res.set_header("Retry-After", "30");
-            throw ApiError(429, "too_many_jobs",
-                           fmt::format("{} runs are queued or running (limit {}): retry when some finish", st.i64(0),
-                                       core.opt.max_pending_jobs));
-        }
+    auto s = core.session();
+    if (const auto pending = s->jobs().count(db::kRunQueue, {db::JobState::Queued, db::JobState::Running});
+        pending >= core.opt.max_pending_jobs) {
+        x.res.set_header("Retry-After", "30");
+        throw ApiError(429, "too_many_jobs",
+                       fmt::format("{} runs are queued or running (limit {}): retry when some finish", pending,
+                                   core.opt.max_pending_jobs));
     }
 
     json spec_json;
@@ -267,7 +254,7 @@ void create_run(Core& core, Ctx& x) {
     } catch (const json::parse_error& e) {
         throw ApiError(400, "bad_spec", fmt::format("spec is not valid JSON: byte {}: {}", e.byte, e.what()));
     }
-    Resolved r = resolve_spec(*c, std::move(spec_json), req);
+    Resolved r = resolve_spec(*s, std::move(spec_json), req);
 
     json log{{"filename", log_part.filename}, {"bytes", log_part.content.size()}};
     app::LogFormat format;
@@ -291,12 +278,11 @@ void create_run(Core& core, Ctx& x) {
         } catch (const std::exception&) {
             bad_request(fmt::format("part base_run: '{}' is not a run id", *b));
         }
-        auto st = c->prepare("SELECT r.state, s.run_id IS NOT NULL FROM runs r LEFT JOIN run_stock s ON s.run_id = r.id WHERE r.id = ?");
-        st.bind(1, *base_run);
-        if (!st.step()) not_found(fmt::format("base_run {}: no such run", *base_run));
-        if (st.text(0) != "done" || st.i64(1) == 0)
+        const auto base = s->runs().status(*base_run);
+        if (!base) not_found(fmt::format("base_run {}: no such run", *base_run));
+        if (base->state != db::JobState::Done || !s->runs().has_final_stock(*base_run))
             throw ApiError(409, "conflict", fmt::format("base_run {}: run is {}, its final stock exists once it is done",
-                                                        *base_run, st.text(0)));
+                                                        *base_run, db::to_text(base->state)));
     }
 
     // Store the upload, then validate the stored file; any failure removes the directory.
@@ -363,15 +349,11 @@ void create_run(Core& core, Ctx& x) {
 
     const auto name = part(req, "name");
     const auto program = part(req, "program");
-    db::Transaction tx(*c);
-    auto ins = c->prepare(
-        "INSERT INTO runs(name, program, machine_id, tool_id, material_id, base_run, state, upload_dir, inputs, created_at) "
-        "VALUES (?,?,?,?,?,?,'queued','',?,?)");
-    ins.bind(1, name).bind(2, program).bind(3, r.machine_id).bind(4, r.tool_id).bind(5, r.material_id).bind(6, base_run);
-    ins.bind(7, inputs.dump()).bind(8, db::now_iso()).run();
-    const std::int64_t id = c->last_insert_id();
+    db::Transaction tx(*s);
+    const std::int64_t id =
+        s->runs().create({name, program, r.machine_id, r.tool_id, r.material_id, base_run, inputs.dump(), db::now_iso()});
     const std::string rel = fmt::format("uploads/{}", id);
-    c->prepare("UPDATE runs SET upload_dir = ? WHERE id = ?").bind(1, rel).bind(2, id).run();
+    s->runs().set_upload_dir(id, rel);
     fs::rename(tmp, core.data_dir / rel);
     guard.retarget(core.data_dir / rel);
     fsync_dir(core.data_dir / "uploads");
@@ -380,35 +362,24 @@ void create_run(Core& core, Ctx& x) {
     core.jobs->notify();
 
     x.res.set_header("Location", fmt::format("/api/v1/runs/{}", id));
-    x.reply(202, load_run(*c, id));
+    x.reply(202, load_run(*s, id));
 }
 
 void list_runs(Core& core, Ctx& x) {
-    const auto limit = x.param_int("limit").value_or(50);
-    if (limit < 1 || limit > 500) bad_request("query parameter limit: must be 1..500");
-    const auto state = x.param("state");
-    if (state && *state != "queued" && *state != "running" && *state != "done" && *state != "failed" &&
-        *state != "cancelled")
-        bad_request(fmt::format("query parameter state: '{}' is not queued, running, done, failed or cancelled", *state));
-    static const std::regex iso(R"(\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2}(\.\d{1,3})?)?Z?)?)");
-    for (const char* p : {"created_since", "created_until"})
-        if (auto v = x.param(p); v && !std::regex_match(*v, iso))
-            bad_request(fmt::format("query parameter {}: '{}' is not an ISO 8601 UTC time (2024-05-01T08:00:00Z)", p, *v));
-    const auto flagged = x.param_bool("flagged");
-    auto c = core.pool.get();
-    auto st = c->prepare(fmt::format(
-        "SELECT {} FROM runs WHERE (?1 IS NULL OR id < ?1) AND (?2 IS NULL OR machine_id = ?2) "
-        "AND (?3 IS NULL OR program = ?3) AND (?4 IS NULL OR state = ?4) AND (?5 IS NULL OR flagged = ?5) "
-        "AND (?6 IS NULL OR created_at >= ?6) AND (?7 IS NULL OR created_at <= ?7) ORDER BY id DESC LIMIT ?8",
-        kRunColumns));
-    st.bind(1, x.param_int("cursor")).bind(2, x.param_int("machine_id")).bind(3, x.param("program")).bind(4, state);
-    if (flagged)
-        st.bind(5, *flagged ? 1 : 0);
-    else
-        st.bind_null(5);
-    st.bind(6, x.param("created_since")).bind(7, x.param("created_until")).bind(8, limit + 1);
+    db::RunFilter f;
+    f.limit = *x.param_int("limit");
+    f.before_id = x.param_int("cursor");
+    f.machine_id = x.param_int("machine_id");
+    f.program = x.param("program");
+    if (const auto state = x.param("state")) f.state = db::job_state_from_text(*state);
+    f.flagged = x.param_bool("flagged");
+    f.created_since = x.param("created_since");
+    f.created_until = x.param("created_until");
+    const std::int64_t limit = f.limit;
+    f.limit = limit + 1;   // one more than a page: there is a next page
+    auto s = core.session();
     json items = json::array();
-    while (st.step()) items.push_back(run_json(st));
+    for (const auto& run : s->runs().list(f)) items.push_back(run_json(run));
     json next = nullptr;
     if (static_cast<std::int64_t>(items.size()) > limit) {
         items.erase(items.end() - 1);
@@ -419,21 +390,17 @@ void list_runs(Core& core, Ctx& x) {
 
 void delete_run(Core& core, Ctx& x) {
     const auto id = x.id();
-    auto c = core.pool.get();
-    db::Transaction tx(*c);
-    auto st = c->prepare("SELECT state, upload_dir FROM runs WHERE id = ?");
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
-    if (st.text(0) == "running")
+    auto s = core.session();
+    db::Transaction tx(*s);
+    const auto run = s->runs().status(id);
+    if (!run) not_found(fmt::format("run {} does not exist", id));
+    if (run->state == db::JobState::Running)
         throw ApiError(409, "conflict", fmt::format("run {} is running: cancel it first (POST /api/v1/runs/{}/cancel)", id, id));
-    const fs::path dir = core.data_dir / st.text(1);
+    const fs::path dir = core.data_dir / run->upload_dir;
     // Its optimizations go with it; one being computed is stopped rather than left to run on
     // (after the commit: a worker claiming a job holds the job lock while it writes).
-    std::vector<std::int64_t> optimizing;
-    auto running = c->prepare("SELECT id FROM optimizations WHERE run_id = ? AND state = 'running'");
-    running.bind(1, id);
-    while (running.step()) optimizing.push_back(running.i64(0));
-    c->prepare("DELETE FROM runs WHERE id = ?").bind(1, id).run();
+    const std::vector<std::int64_t> optimizing = s->optimizations().ids_of_run(id, db::JobState::Running);
+    s->runs().remove(id);
     tx.commit();
     for (const std::int64_t oid : optimizing) core.jobs->cancel_running(Jobs::Kind::Optimization, oid);
     core.series_cache.forget_run(id);
@@ -444,69 +411,54 @@ void delete_run(Core& core, Ctx& x) {
 
 void cancel_run(Core& core, Ctx& x) {
     const auto id = x.id();
-    auto c = core.pool.get();
-    c->prepare("UPDATE runs SET state = 'cancelled', finished_at = ? WHERE id = ? AND state = 'queued'")
-        .bind(1, db::now_iso())
-        .bind(2, id)
-        .run();
-    if (c->changes() == 0) {
-        auto run = load_run(*c, id);
-        if (run["state"] != "running" || !core.jobs->cancel_running(Jobs::Kind::Run, id))
+    auto s = core.session();
+    if (!s->jobs().cancel_queued(db::kRunQueue, id, db::now_iso())) {
+        const auto run = s->runs().status(id);
+        if (!run) not_found(fmt::format("run {} does not exist", id));
+        if (run->state != db::JobState::Running || !core.jobs->cancel_running(Jobs::Kind::Run, id))
             throw ApiError(409, "conflict", fmt::format("run {} is {}: only queued or running runs can be cancelled", id,
-                                                        run["state"].get<std::string>()));
+                                                        db::to_text(run->state)));
     }
-    x.reply(202, load_run(*c, id));
+    x.reply(202, load_run(*s, id));
 }
 
 }  // namespace
 
 // Results exist only for finished runs; anything else is a conflict, not an empty answer.
-RunRef require_done(db::Connection& c, std::int64_t id) {
-    auto st = c.prepare("SELECT state, finished_at FROM runs WHERE id = ?");
-    st.bind(1, id);
-    if (!st.step()) not_found(fmt::format("run {} does not exist", id));
-    if (st.text(0) != "done")
-        throw ApiError(409, "not_done", fmt::format("run {} is {}: results exist once it is done", id, st.text(0)));
-    return RunRef{id, st.opt_text(1).value_or("")};
+RunRef require_done(db::Session& s, std::int64_t id) {
+    const auto run = s.runs().status(id);
+    if (!run) not_found(fmt::format("run {} does not exist", id));
+    if (run->state != db::JobState::Done)
+        throw ApiError(409, "not_done", fmt::format("run {} is {}: results exist once it is done", id, db::to_text(run->state)));
+    return RunRef{id, run->finished_at.value_or("")};
 }
 
-json require_program(db::Connection& c, std::int64_t id) {
-    auto st = c.prepare("SELECT body FROM run_program WHERE run_id = ?");
-    st.bind(1, id);
-    if (!st.step())
+json require_program(db::Session& s, std::int64_t id) {
+    const auto body = s.runs().program_body(id);
+    if (!body)
         throw ApiError(404, "no_program",
                        fmt::format("run {} was uploaded without an NC program (multipart part nc_program)", id));
-    return json::parse(st.text(0));
+    return json::parse(*body);
 }
 
 namespace {
 
 void list_blocks(Core& core, Ctx& x) {
     const auto id = x.id();
-    const auto limit = x.param_int("limit").value_or(1000);
-    if (limit < 1 || limit > 10000) bad_request("query parameter limit: must be 1..10000");
-    const auto flagged = x.param_bool("flagged");
-    auto c = core.pool.get();
-    require_done(*c, id);
-    auto st = c->prepare(
-        "SELECT idx, body FROM run_blocks WHERE run_id = ?1 AND idx >= ?2 AND (?3 IS NULL OR flagged = ?3) "
-        "ORDER BY idx LIMIT ?4");
-    st.bind(1, id).bind(2, x.param_int("cursor").value_or(0));
-    if (flagged)
-        st.bind(3, *flagged ? 1 : 0);
-    else
-        st.bind_null(3);
-    st.bind(4, limit + 1);
+    const auto limit = *x.param_int("limit");
+    auto s = core.session();
+    require_done(*s, id);
+    const auto rows = s->runs().blocks(id, *x.param_int("cursor"), x.param_bool("flagged"), limit + 1);
     // The stored bodies are JSON written by store_result: joined as they are, not parsed again.
     std::string out = fmt::format(R"({{"run_id":{},"items":[)", id);
-    std::int64_t rows = 0, last = -1;
-    while (st.step()) {
-        if (++rows > limit) break;   // one more than a page: there is a next page
-        last = st.i64(0);
-        if (rows > 1) out += ',';
-        out += st.text(1);
+    std::int64_t count = 0, last = -1;
+    for (const auto& row : rows) {
+        if (++count > limit) break;   // one more than a page: there is a next page
+        last = row.idx;
+        if (count > 1) out += ',';
+        out += row.body_json;
     }
-    out += rows > limit ? fmt::format(R"(],"next_cursor":"{}"}})", last + 1) : std::string(R"(],"next_cursor":null})");
+    out += count > limit ? fmt::format(R"(],"next_cursor":"{}"}})", last + 1) : std::string(R"(],"next_cursor":null})");
     x.res.status = 200;
     x.res.body = std::move(out);
     x.res.set_header("Content-Type", "application/json");
@@ -518,15 +470,13 @@ struct BlockNames {
     std::vector<std::string> csv, json;
 };
 
-std::shared_ptr<const BlockNames> block_names(db::Connection& c, SeriesCache& cache, const RunRef& run) {
+std::shared_ptr<const BlockNames> block_names(db::Session& s, SeriesCache& cache, const RunRef& run) {
     const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::BlockNames, 0, 0, 0};
     return cache.get<BlockNames>(key, [&] {
-        auto st = c.prepare("SELECT block_names FROM runs WHERE id = ?");
-        st.bind(1, run.id);
         auto names = std::make_shared<BlockNames>();
         std::size_t bytes = sizeof(BlockNames);
-        if (st.step() && !st.is_null(0)) {
-            for (const auto& n : json::parse(st.text(0))) {
+        if (const auto text = s.runs().block_names(run.id)) {
+            for (const auto& n : json::parse(*text)) {
                 names->csv.push_back(textio::csv_field(n.get<std::string>()));
                 names->json.push_back(body_text(n));
                 bytes += 2 * (sizeof(std::string) + names->csv.back().size());
@@ -696,26 +646,17 @@ std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t
 
 void series_route(Core& core, Ctx& x, SeriesId s) {
     const auto id = x.id();
-    if (s == SeriesId::Forces) {
-        const std::string source = x.param("source").value_or("actual");
-        if (source != "actual" && source != "commanded")
-            bad_request(fmt::format("query parameter source: '{}' is not actual or commanded", source));
-        if (source == "commanded") s = SeriesId::CommandedForces;
-    } else if (x.param("source")) {
-        bad_request("query parameter source: only /forces has a commanded counterpart; /motion is the log's");
-    }
-    const auto max_points = x.param_int("max_points").value_or(2000);
-    if (max_points < 2 || max_points > core.opt.max_points)
-        throw ApiError(400, "bad_request",
-                       fmt::format("query parameter max_points: {} is outside 2..{}", max_points, core.opt.max_points));
+    if (s == SeriesId::Forces && x.param("source") == "commanded") s = SeriesId::CommandedForces;
+    const auto max_points = *x.param_int("max_points");
     const auto& ch = series_channels(s);
     std::vector<bool> wanted = wanted_channels(x, ch);
-    auto c = core.pool.get();
-    const RunRef run = require_done(*c, id);
-    if (s == SeriesId::CommandedForces) require_program(*c, id);
+    auto session = core.session();
+    db::Session& c = *session;
+    const RunRef run = require_done(c, id);
+    if (s == SeriesId::CommandedForces) require_program(c, id);
     const bool csv = x.wants_csv();
     const bool gzip = accepts_gzip(x.req);
-    const bool whole_run = !x.param("from_s") && !x.param("to_s");
+    const bool whole_run = !x.given("from_s") && !x.given("to_s");
     std::int64_t mask = 0;
     for (std::size_t j = 0; j < ch.size(); ++j)
         if (wanted[j]) mask |= std::int64_t{1} << j;
@@ -723,7 +664,7 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
                                       static_cast<int>(max_points), (mask << 2) | (csv ? 2 : 0) | (gzip ? 1 : 0)};
     auto answer = [&]() -> std::string {
         double t0 = 0, t1 = 0;
-        if (!series_extent(*c, core.series_cache, run, s, &t0, &t1)) t0 = t1 = 0;
+        if (!series_extent(c, core.series_cache, run, s, &t0, &t1)) t0 = t1 = 0;
         const double from_s = x.param_double("from_s").value_or(t0);
         const double to_s = x.param_double("to_s").value_or(t1);
         if (to_s < from_s) bad_request(fmt::format("to_s ({}) is before from_s ({})", to_s, from_s));
@@ -733,8 +674,8 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
         std::vector<bool> read = wanted;
         read[block_col] = true;
         const Window w =
-            query_window(*c, core.series_cache, run, s, from_s, to_s, static_cast<std::size_t>(max_points), read);
-        const auto names = block_names(*c, core.series_cache, run);
+            query_window(c, core.series_cache, run, s, from_s, to_s, static_cast<std::size_t>(max_points), read);
+        const auto names = block_names(c, core.series_cache, run);
         std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
                                : series_json(id, from_s, to_s, static_cast<std::size_t>(max_points), w, ch, wanted,
                                              block_col, *names);
@@ -754,20 +695,66 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
     x.res.set_header("Content-Type", csv ? "text/csv" : "application/json");
 }
 
+// The window and shape parameters /forces and /motion share.
+std::vector<Param> series_params(const Core& core) {
+    return {path_id(),
+            query_number("from_s", "window start (default: first sample)"),
+            query_number("to_s", "window end (default: last sample)"),
+            query_int("max_points", "most rows/buckets returned (at most cutload serve --max-points); wider windows are "
+                                    "min/max-envelope decimated")
+                .range(2, core.opt.max_points)
+                .or_else(2000),
+            query_string("channels", "comma-separated channels to return (default: all)"),
+            query_string("format", "csv: same as Accept: text/csv").one_of({"json", "csv"})};
+}
+
 }  // namespace
 
 void add_run_routes(Core& core) {
-    core.route("POST", "/api/v1/runs", Role::Write, [&core](Ctx& x) { create_run(core, x); });
-    core.route("GET", "/api/v1/runs", Role::Read, [&core](Ctx& x) { list_runs(core, x); });
-    core.route("GET", "/api/v1/runs/{id}", Role::Read, [&core](Ctx& x) {
-        auto c = core.pool.get();
-        x.reply(200, load_run(*c, x.id()));
+    std::vector<std::string> states;
+    for (const db::JobState st : db::job_states()) states.emplace_back(db::to_text(st));
+    static const std::string iso_time = R"(\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2}(\.\d{1,3})?)?Z?)?)";
+    static const std::string iso_says = "an ISO 8601 UTC time (2024-05-01T08:00:00Z)";
+
+    core.route({"POST", "/api/v1/runs", Role::Write, {}, Body::Multipart,
+                " with parts 'log' (the dry-run log) and 'spec' (JSON)"},
+               [&core](Ctx& x) { create_run(core, x); });
+    core.route({"GET", "/api/v1/runs", Role::Read,
+                {query_int("cursor", "next_cursor of the previous page"),
+                 query_int("limit", "page size").range(1, 500).or_else(50),
+                 query_int("machine_id", "machine"),
+                 query_string("program", "exact program name"),
+                 query_string("state", "state").one_of(states),
+                 query_bool("flagged", "has flagged blocks or alerts"),
+                 query_string("created_since", "ISO 8601 UTC, inclusive").matching(iso_time, iso_says),
+                 query_string("created_until", "ISO 8601 UTC, inclusive").matching(iso_time, iso_says)}},
+               [&core](Ctx& x) { list_runs(core, x); });
+    core.route({"GET", "/api/v1/runs/{id}", Role::Read, {path_id()}}, [&core](Ctx& x) {
+        auto s = core.session();
+        x.reply(200, load_run(*s, x.id()));
     });
-    core.route("DELETE", "/api/v1/runs/{id}", Role::Write, [&core](Ctx& x) { delete_run(core, x); });
-    core.route("POST", "/api/v1/runs/{id}/cancel", Role::Write, [&core](Ctx& x) { cancel_run(core, x); });
-    core.route("GET", "/api/v1/runs/{id}/blocks", Role::Read, [&core](Ctx& x) { list_blocks(core, x); });
-    core.route("GET", "/api/v1/runs/{id}/forces", Role::Read, [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
-    core.route("GET", "/api/v1/runs/{id}/motion", Role::Read, [&core](Ctx& x) { series_route(core, x, SeriesId::Motion); });
+    core.route({"DELETE", "/api/v1/runs/{id}", Role::Write, {path_id()}}, [&core](Ctx& x) { delete_run(core, x); });
+    core.route({"POST", "/api/v1/runs/{id}/cancel", Role::Write, {path_id()}}, [&core](Ctx& x) { cancel_run(core, x); });
+    core.route({"GET", "/api/v1/runs/{id}/blocks", Role::Read,
+                {path_id(), query_int("cursor", "next_cursor of the previous page").or_else(0),
+                 query_int("limit", "page size").range(1, 10000).or_else(1000),
+                 query_bool("flagged", "only blocks with flags")}},
+               [&core](Ctx& x) { list_blocks(core, x); });
+    std::vector<Param> forces = series_params(core);
+    forces.push_back(query_string("source",
+                                  "commanded: forces predicted from the NC program's path at programmed feed (runs uploaded "
+                                  "with nc_program; 404 no_program otherwise). Same channels and block_names as actual.")
+                         .one_of({"actual", "commanded"})
+                         .or_else("actual"));
+    core.route({"GET", "/api/v1/runs/{id}/forces", Role::Read, forces},
+               [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
+    std::vector<Param> motion = series_params(core);
+    motion.push_back(query_string("source", "actual only (the logged motion): only /forces has a commanded counterpart")
+                         .one_of({"actual"})
+                         .refused_as("actual (only /forces has a commanded counterpart; /motion is the log's)")
+                         .or_else("actual"));
+    core.route({"GET", "/api/v1/runs/{id}/motion", Role::Read, motion},
+               [&core](Ctx& x) { series_route(core, x, SeriesId::Motion); });
 }
 
 }  // namespace cutload::server

@@ -3,8 +3,6 @@
 #include "core.hpp"
 #include "jobs.hpp"
 
-#include <fmt/format.h>
-
 #include <cmath>
 
 namespace cutload::server {
@@ -34,19 +32,20 @@ json height_field_json(std::int64_t run_id, const force_model::StockHeightField&
 }  // namespace
 
 void add_view_routes(Core& core) {
-    core.route("GET", "/api/v1/runs/{id}/stock", Role::Read, [&core](Ctx& x) {
-        const std::int64_t id = x.id();
-        const std::int64_t max_cells = x.param_int("max_cells").value_or(kDefaultStockCells);
-        if (max_cells < 1 || max_cells > kMaxStockCells)
-            bad_request(fmt::format("query parameter max_cells: {} is outside 1..{}", max_cells, kMaxStockCells));
-        {
-            auto c = core.pool.get();
-            require_done(*c, id);
-        }
-        // The final stock is stored as the engine's stock file (what base_run starts from).
-        const auto stock = load_base_stock(core.pool, id, core.data_dir / "tmp");
-        x.reply(200, height_field_json(id, force_model::stock_height_field(*stock, static_cast<std::size_t>(max_cells))));
-    });
+    core.route({"GET", "/api/v1/runs/{id}/stock", Role::Read,
+                {path_id(),
+                 query_int("max_cells", "at most this many cells: each is the highest material top of the k x k stock rays "
+                                        "it covers (k = rays_per_cell)")
+                     .range(1, static_cast<double>(kMaxStockCells))
+                     .or_else(kDefaultStockCells)}},
+               [&core](Ctx& x) {
+                   const std::int64_t id = x.id();
+                   const auto max_cells = static_cast<std::size_t>(*x.param_int("max_cells"));
+                   require_done(*core.session(), id);
+                   // The final stock is stored as the engine's stock bytes (what base_run starts from).
+                   const auto stock = load_base_stock(*core.store, id);
+                   x.reply(200, height_field_json(id, force_model::stock_height_field(*stock, max_cells)));
+               });
 }
 
 }  // namespace cutload::server

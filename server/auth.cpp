@@ -1,12 +1,13 @@
 #include "auth.hpp"
 
+#include "db/api_keys.hpp"
+
 #include <fmt/format.h>
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
 #include <openssl/rand.h>
 
 #include <chrono>
-#include <filesystem>
 #include <stdexcept>
 
 namespace cutload::server {
@@ -70,63 +71,48 @@ const char* role_name(Role r) {
     return "?";
 }
 
-std::string insert_api_key(db::Connection& c, Role role, const std::string& name) {
+std::string insert_api_key(db::Session& s, Role role, const std::string& name) {
     unsigned char raw[24];
     if (RAND_bytes(raw, sizeof raw) != 1) throw std::runtime_error("no randomness for a new API key (libcrypto)");
     std::string key = "clk_" + to_hex(raw, sizeof raw);
-    auto st = c.prepare("INSERT INTO api_keys(hash, prefix, role, name, created_at) VALUES (?,?,?,?,?)");
-    st.bind(1, sha256_hex(key)).bind(2, key.substr(0, 10)).bind(3, role_name(role));
-    if (name.empty())
-        st.bind_null(4);
-    else
-        st.bind(4, name);
-    st.bind(5, db::now_iso()).run();
+    s.api_keys().create(sha256_hex(key), key.substr(0, 10), role_name(role),
+                        name.empty() ? std::nullopt : std::optional<std::string>(name), db::now_iso());
     return key;
 }
 
-std::optional<KeyMatch> lookup_api_key(db::Connection& c, const std::string& key) {
-    auto st = c.prepare(
-        "SELECT role, prefix, revoked_at, last_used_at IS NULL OR "
-        "last_used_at < strftime('%Y-%m-%dT%H:%M:%fZ', 'now', '-60 seconds') FROM api_keys WHERE hash = ?");
-    st.bind(1, sha256_hex(key));
-    if (!st.step()) return std::nullopt;
-    return KeyMatch{parse_role(st.text(0)), st.text(1), st.opt_text(2), st.i64(3) != 0};
+std::optional<KeyMatch> lookup_api_key(db::Session& s, const std::string& key) {
+    const auto k = s.api_keys().find_by_hash(sha256_hex(key));
+    if (!k) return std::nullopt;
+    // Stored times are ISO text, which sorts as the times do.
+    const std::string a_minute_ago = db::iso_time(std::chrono::system_clock::now() - std::chrono::seconds(60));
+    return KeyMatch{parse_role(k->role), k->prefix, k->revoked_at, !k->last_used_at || *k->last_used_at < a_minute_ago};
 }
 
-void touch_api_key(db::Connection& c, const std::string& key) {
-    // A read request must never wait behind a job's long result transaction for this.
-    c.set_busy_timeout(0);
-    try {
-        c.prepare("UPDATE api_keys SET last_used_at = ? WHERE hash = ?").bind(1, db::now_iso()).bind(2, sha256_hex(key)).run();
-    } catch (const db::Error&) {
-        // Busy: a later request records the use.
-    }
-    c.set_busy_timeout(db::kBusyTimeoutMs);
+void touch_api_key(db::Session& s, const std::string& key) {
+    // A read request never waits for this behind a job's long result transaction: when the store
+    // is busy a later request records the use.
+    s.api_keys().touch(sha256_hex(key), db::now_iso());
 }
 
 namespace {
 
-ApiKeyInfo key_info(const db::Stmt& st) {
-    return ApiKeyInfo{st.text(0), parse_role(st.text(1)), st.opt_text(2).value_or(""), st.text(3), st.opt_text(4),
-                      st.opt_text(5)};
+ApiKeyInfo key_info(const db::ApiKeyRecord& k) {
+    return ApiKeyInfo{k.prefix, parse_role(k.role), k.name.value_or(""), k.created_at, k.last_used_at, k.revoked_at};
 }
 
-constexpr const char* kKeyColumns = "prefix, role, name, created_at, last_used_at, revoked_at";
-
 // Listing or revoking must not create a database because of a typo in its path.
-void require_database(const std::string& db_path) {
-    if (!std::filesystem::exists(db_path)) throw std::invalid_argument(fmt::format("no database at {}", db_path));
+std::unique_ptr<db::Store> existing_store(const std::string& db_path) {
+    auto store = db::Store::open(db_path, db::Store::Open::MustExist);
+    store->migrate();
+    return store;
 }
 
 }  // namespace
 
 std::vector<ApiKeyInfo> list_api_keys(const std::string& db_path) {
-    require_database(db_path);
-    db::Connection c(db_path);
-    db::migrate(c);
-    auto st = c.prepare(fmt::format("SELECT {} FROM api_keys ORDER BY id", kKeyColumns));
+    auto store = existing_store(db_path);
     std::vector<ApiKeyInfo> out;
-    while (st.step()) out.push_back(key_info(st));
+    for (const auto& k : store->session()->api_keys().list()) out.push_back(key_info(k));
     return out;
 }
 
@@ -134,39 +120,33 @@ ApiKeyInfo revoke_api_key(const std::string& db_path, const std::string& prefix_
     if (prefix_or_key.size() < 6)
         throw std::invalid_argument(fmt::format("key prefix '{}' is too short: give the prefix `cutload keys list` shows",
                                                 prefix_or_key));
-    require_database(db_path);
-    db::Connection c(db_path);
-    db::migrate(c);
-    db::Transaction tx(c);
+    auto store = existing_store(db_path);
+    auto s = store->session();
+    db::Transaction tx(*s);
     // A whole key matches by its hash; anything shorter by the stored prefix.
-    auto st = c.prepare(fmt::format("SELECT {}, id FROM api_keys WHERE hash = ?1 OR substr(prefix, 1, length(?2)) = ?2 "
-                                    "OR substr(?2, 1, length(prefix)) = prefix ORDER BY id",
-                                    kKeyColumns));
-    st.bind(1, sha256_hex(prefix_or_key)).bind(2, prefix_or_key);
-    std::vector<std::pair<ApiKeyInfo, std::int64_t>> found;
-    while (st.step()) found.emplace_back(key_info(st), st.i64(6));
+    const auto found = s->api_keys().matching(sha256_hex(prefix_or_key), prefix_or_key);
     if (found.empty()) throw std::invalid_argument(fmt::format("no API key with prefix '{}' in {}", prefix_or_key, db_path));
     if (found.size() > 1) {
         std::string which;
-        for (const auto& [k, id] : found) which += (which.empty() ? "" : ", ") + k.prefix + " (" + k.name + ")";
+        for (const auto& k : found) which += (which.empty() ? "" : ", ") + k.prefix + " (" + k.name.value_or("") + ")";
         throw std::invalid_argument(
             fmt::format("prefix '{}' matches {} keys: {}; give the whole key to revoke one", prefix_or_key,
                         found.size(), which));
     }
-    ApiKeyInfo k = found[0].first;
+    ApiKeyInfo k = key_info(found[0]);
     if (already_revoked) *already_revoked = k.revoked_at.has_value();
     if (!k.revoked_at) {
         k.revoked_at = db::now_iso();
-        c.prepare("UPDATE api_keys SET revoked_at = ? WHERE id = ?").bind(1, *k.revoked_at).bind(2, found[0].second).run();
+        s->api_keys().revoke(found[0].id, *k.revoked_at);
     }
     tx.commit();
     return k;
 }
 
 std::string create_api_key(const std::string& db_path, Role role, const std::string& name) {
-    db::Connection c(db_path);
-    db::migrate(c);
-    return insert_api_key(c, role, name);
+    auto store = db::Store::open(db_path);
+    store->migrate();
+    return insert_api_key(*store->session(), role, name);
 }
 
 }  // namespace cutload::server

@@ -6,7 +6,7 @@
 
 namespace cutload::server {
 
-std::string insert_api_key(db::Connection& c, Role role, const std::string& name);
+std::string insert_api_key(db::Session& s, Role role, const std::string& name);
 
 struct KeyMatch {
     Role role = Role::Read;
@@ -15,8 +15,8 @@ struct KeyMatch {
     bool last_use_stale = false;   // last_used_at unset or over a minute old
 };
 // The key with this SHA-256, revoked or not; nullopt when unknown.
-std::optional<KeyMatch> lookup_api_key(db::Connection& c, const std::string& key);
-// Records a use of the key now. Best effort: skipped when another writer holds the database.
-void touch_api_key(db::Connection& c, const std::string& key);
+std::optional<KeyMatch> lookup_api_key(db::Session& s, const std::string& key);
+// Records a use of the key now. Best effort: skipped when another writer holds the store.
+void touch_api_key(db::Session& s, const std::string& key);
 
 }  // namespace cutload::server

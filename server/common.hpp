@@ -1,19 +1,15 @@
-// Internal to server: the error type every handler throws, the connection pool, small helpers.
+// Internal to server: the error type every handler throws, small helpers.
 #pragma once
 
-#include "db/db.hpp"
+#include "db/store.hpp"
 #include "server/server.hpp"
 
 #include <nlohmann/json.hpp>
 
-#include <condition_variable>
 #include <cstdint>
-#include <memory>
-#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace cutload::server {
 
@@ -44,54 +40,14 @@ inline std::string body_text(const json& body) { return body.dump(-1, ' ', false
 // (valid UTF-8 as is, else Windows-1252 / Latin-1); a byte that is not text is a 400 naming `what`.
 std::string client_text(const std::string& bytes, const std::string& what);
 
-// SQLite connections, one per concurrent user; a connection is never used by two threads at once.
-class DbPool {
-public:
-    explicit DbPool(std::string path) : path_(std::move(path)) {}
-
-    class Lease {
-    public:
-        Lease(DbPool& pool, std::unique_ptr<db::Connection> c) : pool_(&pool), c_(std::move(c)) {}
-        Lease(Lease&&) = default;
-        ~Lease() {
-            if (c_) pool_->give_back(std::move(c_));
-        }
-        db::Connection& operator*() { return *c_; }
-        db::Connection* operator->() { return c_.get(); }
-
-    private:
-        DbPool* pool_;
-        std::unique_ptr<db::Connection> c_;
-    };
-
-    Lease get() {
-        {
-            std::lock_guard lk(mu_);
-            if (!idle_.empty()) {
-                auto c = std::move(idle_.back());
-                idle_.pop_back();
-                return Lease(*this, std::move(c));
-            }
-        }
-        return Lease(*this, std::make_unique<db::Connection>(path_));
-    }
-
-private:
-    void give_back(std::unique_ptr<db::Connection> c) {
-        std::lock_guard lk(mu_);
-        idle_.push_back(std::move(c));
-    }
-    std::string path_;
-    std::mutex mu_;
-    std::vector<std::unique_ptr<db::Connection>> idle_;
-};
-
 // Parses a JSON request body or throws 400 naming the position of the syntax error.
 json parse_json_body(const std::string& body, const char* what = "request body");
 
-// Reads the JSON text of a column.
-inline json column_json(const db::Stmt& st, int col) {
-    return st.is_null(col) ? json(nullptr) : json::parse(st.text(col));
+// Stored JSON text as a value; null when there is none.
+inline json stored_json(const std::optional<std::string>& text) { return text ? json::parse(*text) : json(nullptr); }
+template <class T>
+json or_null(const std::optional<T>& v) {
+    return v ? json(*v) : json(nullptr);
 }
 
 // Wall clock in seconds since the epoch (webhook scheduling).

@@ -1,9 +1,11 @@
-// Internal to server: what the route groups share (options, pool, metrics, jobs, webhooks) and
-// the route registration helper that applies auth, error mapping and metrics to every handler.
+// Internal to server: what the route groups share (options, store, metrics, jobs, webhooks) and
+// the route registration that applies auth, parameter checks, error mapping and metrics to every
+// handler.
 #pragma once
 
 #include "common.hpp"
 #include "metrics.hpp"
+#include "route.hpp"
 #include "series.hpp"
 
 #include <httplib.h>
@@ -11,6 +13,7 @@
 #include <atomic>
 #include <filesystem>
 #include <functional>
+#include <string_view>
 #include <thread>
 
 namespace cutload::server {
@@ -18,21 +21,34 @@ namespace cutload::server {
 class Jobs;
 class Webhooks;
 
+// One request to a declared route, its parameters checked (route.hpp).
 struct Ctx {
     const httplib::Request& req;
     httplib::Response& res;
+    const RouteSpec& route;
+    std::vector<ParamValue> values;   // route.params' values, defaults applied
     Role role;
     std::string actor;   // "clk_1234ab" (the key's prefix) or "anonymous"
 
-    // The n-th numeric path parameter ({id}) of the route.
-    std::int64_t id(std::size_t n = 1) const;
+    // The path parameter {id}.
+    std::int64_t id() const;
+    // A declared parameter's value (its default when not given; nullopt when neither). Asking for
+    // an undeclared name, or as another type than declared, is a programming error (logic_error).
+    std::optional<std::string> param(std::string_view name) const;
+    std::optional<double> param_double(std::string_view name) const;
+    std::optional<std::int64_t> param_int(std::string_view name) const;
+    std::optional<bool> param_bool(std::string_view name) const;
+    // Whether the request gave the parameter (a default does not count).
+    bool given(std::string_view name) const;
+    // Accept: text/csv, or format=csv on a route that declares format.
     bool wants_csv() const;
+    // The JSON body (400 bad_json when it is not JSON); nullopt for an empty body on a route whose
+    // body is optional.
+    std::optional<json> json_body() const;
     void reply(int status, const json& body);
-    // Query parameter helpers: 400 naming the parameter on a bad value.
-    std::optional<std::string> param(const char* name) const;
-    std::optional<double> param_double(const char* name) const;
-    std::optional<std::int64_t> param_int(const char* name) const;
-    std::optional<bool> param_bool(const char* name) const;
+
+private:
+    const ParamValue& value_of(std::string_view name, ParamType type) const;
 };
 
 using Handler = std::function<void(Ctx&)>;
@@ -43,26 +59,32 @@ struct Core {
 
     ServerOptions opt;
     std::filesystem::path data_dir;
-    DbPool pool;
+    std::unique_ptr<db::Store> store;   // opened by the Server (after the lock), absent otherwise
     httplib::Server http;
     Metrics metrics;
     SeriesCache series_cache;
     std::unique_ptr<Jobs> jobs;
     std::unique_ptr<Webhooks> hooks;
-    std::vector<std::pair<std::string, std::string>> route_list;
+    std::vector<RouteSpec> routes;
+    std::string openapi;   // the document served, built from `routes` once all are declared
     int lock_fd = -1;
 
-    // path is the OpenAPI template; "{name}" segments match digits. need: nullopt = no key needed.
-    void route(const std::string& method, const std::string& path, std::optional<Role> need, Handler h);
+    db::SessionLease session() { return store->session(); }
+
+    // Declares a route and binds its handler.
+    void route(RouteSpec spec, Handler h);
 
 private:
     Role authorize(const httplib::Request& req, Role need, std::string* actor);
 };
 
+// Every route group, in the order they are declared.
+void add_all_routes(Core& c);
+
 // A finished run (404 unknown, 409 `not_done` otherwise), and its stored program comparison
 // (404 `no_program` for a run uploaded without an NC program).
-RunRef require_done(db::Connection& c, std::int64_t id);
-json require_program(db::Connection& c, std::int64_t id);
+RunRef require_done(db::Session& s, std::int64_t id);
+json require_program(db::Session& s, std::int64_t id);
 
 void add_library_routes(Core& c);
 void add_run_routes(Core& c);

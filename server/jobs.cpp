@@ -2,6 +2,8 @@
 
 #include "program.hpp"
 #include "results.hpp"
+#include "db/jobs.hpp"
+#include "db/runs.hpp"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -14,7 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* table_of(Jobs::Kind kind) { return kind == Jobs::Kind::Run ? "runs" : "optimizations"; }
+const db::JobQueue& queue_of(Jobs::Kind kind) { return kind == Jobs::Kind::Run ? db::kRunQueue : db::kOptimizationQueue; }
 
 }  // namespace
 
@@ -36,34 +38,32 @@ app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use
     return in;
 }
 
-force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run) {
+force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run) {
     if (!base_run) return nullptr;
-    auto c = pool.get();
-    auto st = c->prepare("SELECT data FROM run_stock WHERE run_id = ?");
-    st.bind(1, *base_run);
-    if (!st.step()) throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
-    std::size_t bytes = 0;
-    const void* p = st.blob(0, &bytes);
-    // Read in place: the blob stays valid until the statement steps again.
-    return force_model::load_stock_bytes(std::string_view(static_cast<const char*>(p), bytes),
-                                         fmt::format("base_run {} stock", *base_run));
+    force_model::StockPtr stock;
+    // Read in place: the bytes are the store's until the call returns.
+    const bool found = store.session()->runs().read_final_stock(*base_run, [&](std::span<const unsigned char> bytes) {
+        stock = force_model::load_stock_bytes(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+                                              fmt::format("base_run {} stock", *base_run));
+    });
+    if (!found) throw std::runtime_error(fmt::format("base_run {}: its final stock is gone (run deleted?)", *base_run));
+    return stock;
 }
 
-Jobs::Jobs(DbPool& pool, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
+Jobs::Jobs(db::Store& store, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
            std::function<void()> on_alerts)
-    : pool_(pool), opt_(opt), data_dir_(std::move(data_dir)), metrics_(metrics), on_alerts_(std::move(on_alerts)) {}
+    : store_(store), opt_(opt), data_dir_(std::move(data_dir)), metrics_(metrics), on_alerts_(std::move(on_alerts)) {}
 
 Jobs::~Jobs() { stop(0); }
 
 void Jobs::start() {
     {
-        auto c = pool_.get();
+        auto s = store_.session();
         // Only one server owns the database (see the lock in Core), so 'running' here means the
         // previous process died mid-job: its results were never committed, so run it again.
-        for (const Kind kind : {Kind::Run, Kind::Optimization}) {
-            c->prepare(fmt::format("UPDATE {} SET state = 'queued', progress = 0 WHERE state = 'running'", table_of(kind))).run();
-            if (int n = c->changes()) spdlog::info("re-queued {} {} interrupted by the last shutdown", n, table_of(kind));
-        }
+        for (const Kind kind : {Kind::Run, Kind::Optimization})
+            if (int n = s->jobs().requeue_interrupted(queue_of(kind)))
+                spdlog::info("re-queued {} {} interrupted by the last shutdown", n, queue_of(kind).name);
     }
     for (int i = 0; i < std::max(1, opt_.workers); ++i) threads_.emplace_back([this] { worker(); });
 }
@@ -103,18 +103,9 @@ void Jobs::stop(double drain_s) {
 
 // Runs first: an optimization re-predicts a finished run, a queued run is someone waiting.
 std::optional<Jobs::Job> Jobs::claim() {
-    auto c = pool_.get();
-    for (const Kind kind : {Kind::Run, Kind::Optimization}) {
-        auto st = c->prepare(fmt::format(
-            "UPDATE {0} SET state = 'running', started_at = ?, progress = 0, attempts = attempts + 1 "
-            "WHERE id = (SELECT id FROM {0} WHERE state = 'queued' ORDER BY id LIMIT 1) RETURNING id",
-            table_of(kind)));
-        st.bind(1, db::now_iso());
-        if (!st.step()) continue;
-        const std::int64_t id = st.i64(0);
-        st.run();
-        return Job{kind, id};
-    }
+    auto s = store_.session();
+    for (const Kind kind : {Kind::Run, Kind::Optimization})
+        if (const auto id = s->jobs().claim_oldest(queue_of(kind), db::now_iso())) return Job{kind, *id};
     return std::nullopt;
 }
 
@@ -156,22 +147,9 @@ void Jobs::worker() {
     }
 }
 
-void Jobs::finish(Kind kind, std::int64_t id, const std::string& state, const std::string& error) {
-    auto c = pool_.get();
-    auto st = c->prepare(fmt::format(
-        "UPDATE {} SET state = ?, error = ?, finished_at = ?, progress = CASE WHEN ? = 'queued' THEN 0 ELSE progress END "
-        "WHERE id = ? AND state = 'running'",
-        table_of(kind)));
-    st.bind(1, state);
-    if (error.empty())
-        st.bind_null(2);
-    else
-        st.bind(2, error);
-    if (state == "queued")
-        st.bind_null(3);
-    else
-        st.bind(3, db::now_iso());
-    st.bind(4, state).bind(5, id).run();
+void Jobs::finish(Kind kind, std::int64_t id, db::JobState state, const std::string& error) {
+    store_.session()->jobs().finish(queue_of(kind), id, state, error.empty() ? std::nullopt : std::optional<std::string>(error),
+                                    db::now_iso());
 }
 
 void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
@@ -184,16 +162,14 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
         fs::path dir;
         std::optional<std::int64_t> base_run;
         {
-            auto c = pool_.get();
-            auto st = c->prepare("SELECT upload_dir, inputs, base_run FROM runs WHERE id = ?");
-            st.bind(1, id);
-            if (!st.step()) return;   // deleted meanwhile
-            dir = data_dir_ / st.text(0);
-            inputs = json::parse(st.text(1));
-            base_run = st.opt_i64(2);
+            const auto run = store_.session()->runs().get(id);
+            if (!run) return;   // deleted meanwhile
+            dir = data_dir_ / run->upload_dir;
+            inputs = json::parse(run->inputs_json);
+            base_run = run->base_run;
         }
         app::RunInput in = run_input(inputs, dir, opt_.use_opencl);
-        const force_model::StockPtr base = load_base_stock(pool_, base_run);
+        const force_model::StockPtr base = load_base_stock(store_, base_run);
         in.base_stock = base.get();
 
         app::Control control;
@@ -204,8 +180,7 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
             auto now = std::chrono::steady_clock::now();
             if (now - last_write < std::chrono::milliseconds(250)) return;
             last_write = now;
-            auto c = pool_.get();
-            c->prepare("UPDATE runs SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
+            store_.session()->jobs().set_progress(db::kRunQueue, id, f);
         };
         const app::RunResult r = app::predict_run(in, control);
         const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
@@ -213,11 +188,11 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
         if (cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
         int alerts = 0;
         {
-            auto c = pool_.get();
+            auto s = store_.session();
             std::optional<ProgramResult> program_result;
             if (r.program)
                 program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
-            alerts = store_result(*c, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
+            alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
                                   opt_.limit_alerts);
         }
         metrics_.job_finished("done", elapsed_s());
@@ -229,11 +204,11 @@ void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
                      r.program ? ", with the commanded prediction" : "");
     } catch (const force_model::Cancelled&) {
         const bool requeue = requeue_on_cancel_.load();
-        finish(Kind::Run, id, requeue ? "queued" : "cancelled", "");
+        finish(Kind::Run, id, requeue ? db::JobState::Queued : db::JobState::Cancelled, "");
         metrics_.job_finished(requeue ? "requeued" : "cancelled", elapsed_s());
         spdlog::info("run {} {}", id, requeue ? "interrupted by shutdown, re-queued" : "cancelled");
     } catch (const std::exception& e) {
-        finish(Kind::Run, id, "failed", e.what());
+        finish(Kind::Run, id, db::JobState::Failed, e.what());
         metrics_.job_finished("failed", elapsed_s());
         spdlog::warn("run {} failed: {}", id, e.what());
     }
@@ -246,12 +221,11 @@ void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
         auto now = std::chrono::steady_clock::now();
         if (now - last_write < std::chrono::milliseconds(250)) return;
         last_write = now;
-        auto c = pool_.get();
-        c->prepare("UPDATE optimizations SET progress = ? WHERE id = ? AND state = 'running'").bind(1, f).bind(2, id).run();
+        store_.session()->jobs().set_progress(db::kOptimizationQueue, id, f);
     };
     auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
     try {
-        if (!run_optimization(pool_, data_dir_, opt_.use_opencl, id, cancel, progress)) {
+        if (!run_optimization(store_, data_dir_, opt_.use_opencl, id, cancel, progress)) {
             spdlog::info("optimization {} was deleted while computing; nothing stored", id);
             return;
         }
@@ -259,10 +233,10 @@ void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
         spdlog::info("optimization {} done in {:.2f} s", id, elapsed_s());
     } catch (const force_model::Cancelled&) {
         const bool requeue = requeue_on_cancel_.load();
-        finish(Kind::Optimization, id, requeue ? "queued" : "cancelled", "");
+        finish(Kind::Optimization, id, requeue ? db::JobState::Queued : db::JobState::Cancelled, "");
         metrics_.optimization_finished(requeue ? "requeued" : "cancelled", elapsed_s());
     } catch (const std::exception& e) {
-        finish(Kind::Optimization, id, "failed", e.what());
+        finish(Kind::Optimization, id, db::JobState::Failed, e.what());
         metrics_.optimization_finished("failed", elapsed_s());
         spdlog::warn("optimization {} failed: {}", id, e.what());
     }

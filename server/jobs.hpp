@@ -7,10 +7,13 @@
 
 #include "app/predict_run.hpp"
 #include "common.hpp"
+#include "db/jobs.hpp"
 #include "metrics.hpp"
 
 #include <filesystem>
+#include <condition_variable>
 #include <map>
+#include <mutex>
 #include <thread>
 
 namespace cutload::server {
@@ -19,12 +22,12 @@ namespace cutload::server {
 // input; an nc_options object that is no longer valid is ApiError 400 naming the key.
 app::RunInput run_input(const json& inputs, const std::filesystem::path& upload_dir, bool use_opencl);
 
-// The final stock of base_run, from its bytes in the database (null without a base run).
-force_model::StockPtr load_base_stock(DbPool& pool, std::optional<std::int64_t> base_run);
+// The final stock of base_run, from its bytes in the store (null without a base run).
+force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run);
 
 class Jobs {
 public:
-    Jobs(DbPool& pool, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
+    Jobs(db::Store& store, const ServerOptions& opt, std::filesystem::path data_dir, Metrics& metrics,
          std::function<void()> on_alerts);
     ~Jobs();
 
@@ -45,9 +48,9 @@ private:
     std::optional<Job> claim();
     void execute(std::int64_t id, const std::atomic<bool>& cancel);
     void optimize(std::int64_t id, const std::atomic<bool>& cancel);
-    void finish(Kind kind, std::int64_t id, const std::string& state, const std::string& error);
+    void finish(Kind kind, std::int64_t id, db::JobState state, const std::string& error);
 
-    DbPool& pool_;
+    db::Store& store_;
     const ServerOptions& opt_;
     std::filesystem::path data_dir_;
     Metrics& metrics_;

@@ -2,11 +2,11 @@
 #pragma once
 
 #include "common.hpp"
+#include "db/library.hpp"
 
 namespace cutload::server {
 
-// The stored body of a library item, or nullopt when the id does not exist.
-// table: "machines", "tools" or "materials".
-std::optional<json> library_body(db::Connection& c, const char* table, std::int64_t id);
+// The stored body of a library item with its name, or nullopt when the id does not exist.
+std::optional<json> library_body(db::Session& s, db::LibraryKind kind, std::int64_t id);
 
 }  // namespace cutload::server

@@ -2,6 +2,8 @@
 
 #include "jobs.hpp"
 #include "results.hpp"
+#include "db/optimizations.hpp"
+#include "db/runs.hpp"
 
 #include "textio/csv.hpp"
 
@@ -237,22 +239,20 @@ json optimization_params(const json& body) {
     return p;
 }
 
-bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, std::int64_t id,
+bool run_optimization(db::Store& store, const fs::path& data_dir, bool use_opencl, std::int64_t id,
                       const std::atomic<bool>& cancel, const std::function<void(double)>& progress) {
     json params, inputs;
     fs::path dir;
     std::optional<std::int64_t> base_run;
     {
-        auto c = pool.get();
-        auto st = c->prepare(
-            "SELECT o.params, r.inputs, r.upload_dir, r.base_run FROM optimizations o JOIN runs r ON r.id = o.run_id "
-            "WHERE o.id = ?");
-        st.bind(1, id);
-        if (!st.step()) return false;   // deleted meanwhile
-        params = json::parse(st.text(0));
-        inputs = json::parse(st.text(1));
-        dir = data_dir / st.text(2);
-        base_run = st.opt_i64(3);
+        auto s = store.session();
+        const auto o = s->optimizations().get(id);
+        const auto run = o ? s->runs().get(o->run_id) : std::nullopt;
+        if (!run) return false;   // deleted meanwhile
+        params = json::parse(o->params_json);
+        inputs = json::parse(run->inputs_json);
+        dir = data_dir / run->upload_dir;
+        base_run = run->base_run;
     }
     app::RunInput run = run_input(inputs, dir, use_opencl);
     app::OptimizeInput in;
@@ -261,7 +261,7 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
     in.spec = run.spec;
     in.program = program_source(inputs.at("nc_program"), dir);
     in.device = run.device;
-    const force_model::StockPtr base = load_base_stock(pool, base_run);
+    const force_model::StockPtr base = load_base_stock(store, base_run);
     in.base_stock = base.get();
     in.search.target = params["target"].get<double>();
     in.search.min_feed_mm_min = params["min_feed_mm_min"].get<double>();
@@ -308,16 +308,7 @@ bool run_optimization(DbPool& pool, const fs::path& data_dir, bool use_opencl, s
                       {"cycle_before_s", r.before.stats.simulated_s},
                       {"cycle_after_s", r.after.stats.simulated_s}};
     if (cancel) throw force_model::Cancelled();
-    auto c = pool.get();
-    c->prepare(
-         "UPDATE optimizations SET state = 'done', progress = 1, result = ?, program = ?, finished_at = ? "
-         "WHERE id = ? AND state = 'running'")
-        .bind(1, result.dump())
-        .bind(2, o.program_text)
-        .bind(3, db::now_iso())
-        .bind(4, id)
-        .run();
-    return c->changes() > 0;
+    return store.session()->optimizations().mark_done(id, result.dump(), o.program_text, db::now_iso());
 }
 
 }  // namespace cutload::server

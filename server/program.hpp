@@ -37,7 +37,7 @@ json optimization_params(const json& body);
 // Computes optimization `id` (claimed, state 'running') and stores its result; false when its row
 // was deleted meanwhile (nothing stored). Throws force_model::Cancelled when `cancel` is set;
 // other exceptions are the job's failure.
-bool run_optimization(DbPool& pool, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
+bool run_optimization(db::Store& store, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
                       const std::atomic<bool>& cancel, const std::function<void(double)>& progress);
 
 }  // namespace cutload::server

@@ -2,6 +2,8 @@
 
 #include "program.hpp"
 #include "series.hpp"
+#include "db/library.hpp"
+#include "db/runs.hpp"
 
 #include <fmt/format.h>
 
@@ -73,19 +75,18 @@ struct RunRefs {
     std::optional<double> spindle_power_kW;
 };
 
-RunRefs load_refs(db::Connection& c, std::int64_t run_id) {
+RunRefs load_refs(db::Session& s, std::int64_t run_id) {
     RunRefs r;
-    auto st = c.prepare(
-        "SELECT r.machine_id, r.tool_id, r.material_id, r.name, r.program, m.body FROM runs r "
-        "LEFT JOIN machines m ON m.id = r.machine_id WHERE r.id = ?");
-    st.bind(1, run_id);
-    if (!st.step()) return r;
-    r.machine_id = st.opt_i64(0);
-    r.tool_id = st.opt_i64(1);
-    r.material_id = st.opt_i64(2);
-    r.name = st.opt_text(3);
-    r.program = st.opt_text(4);
-    if (!st.is_null(5)) r.spindle_power_kW = json::parse(st.text(5)).value("spindle_power_kW", 0.0);
+    const auto run = s.runs().get(run_id);
+    if (!run) return r;
+    r.machine_id = run->machine_id;
+    r.tool_id = run->tool_id;
+    r.material_id = run->material_id;
+    r.name = run->name;
+    r.program = run->program;
+    if (r.machine_id)
+        if (const auto m = s.library().get(db::LibraryKind::Machine, *r.machine_id))
+            r.spindle_power_kW = json::parse(m->body_json).value("spindle_power_kW", 0.0);
     return r;
 }
 
@@ -109,18 +110,9 @@ bool collision_flag(const std::string& flag) { return flag == "rapid_in_material
 // `limit_alerts`: a run whose blocks the engine flagged against the run's own limits raises an
 // alert of its own (threshold_id null, "run limits") for the flags that no enabled flag threshold
 // applying to the run covers already (an "any flag" threshold covers all).
-int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Prediction& p, bool limit_alerts) {
-    const RunRefs refs = load_refs(c, run_id);
-    auto rules = c.prepare(
-        "SELECT id, name, scope, machine_id, tool_id, material_id, metric, flag, limit_value, severity "
-        "FROM thresholds WHERE enabled = 1 ORDER BY id");
-    auto ins = c.prepare("INSERT INTO alerts(run_id, threshold_id, severity, body, created_at) VALUES (?,?,?,?,?)");
-    auto hooks = c.prepare("SELECT id FROM webhooks WHERE enabled = 1");
-    auto deliver = c.prepare(
-        "INSERT INTO webhook_deliveries(webhook_id, alert_id, payload, state, attempts, next_attempt_unix, created_at) "
-        "VALUES (?,?,?,'pending',0,?,?)");
-    std::vector<std::int64_t> hook_ids;
-    while (hooks.step()) hook_ids.push_back(hooks.i64(0));
+int raise_alerts(db::Session& s, std::int64_t run_id, const force_model::Prediction& p, bool limit_alerts) {
+    const RunRefs refs = load_refs(s, run_id);
+    const std::vector<std::int64_t> hook_ids = s.webhooks().enabled_ids();
 
     int raised = 0;
     // One rule over the run's blocks; inserts its alert when it trips.
@@ -167,37 +159,31 @@ int raise_alerts(db::Connection& c, std::int64_t run_id, const force_model::Pred
                   {"blocks", blocks},
                   {"message", message}};
         const std::string now = db::now_iso();
-        ins.reset();
-        ins.bind(1, run_id).bind(2, threshold_id).bind(3, severity.value_or(collision ? "critical" : "warning"));
-        ins.bind(4, body.dump()).bind(5, now).run();
-        const std::int64_t alert_id = c.last_insert_id();
+        const std::int64_t alert_id = s.alerts().create(
+            run_id, threshold_id, severity.value_or(collision ? "critical" : "warning"), body.dump(), now);
         ++raised;
 
-        const json payload{{"event", "alert.raised"}, {"alert", load_alert(c, alert_id)}};
-        for (auto hook : hook_ids) {
-            deliver.reset();
-            deliver.bind(1, hook).bind(2, alert_id).bind(3, payload.dump()).bind(4, unix_now_s()).bind(5, now).run();
-        }
+        const json payload{{"event", "alert.raised"}, {"alert", load_alert(s, alert_id)}};
+        for (auto hook : hook_ids) s.webhooks().enqueue(hook, alert_id, payload.dump(), unix_now_s(), now);
     };
 
     std::set<std::string> covered;   // flags that applicable flag thresholds raise alerts for
-    while (rules.step()) {
-        const std::string scope = rules.text(2);
-        auto matches = [&](int col, const std::optional<std::int64_t>& ref) {
-            return ref && !rules.is_null(col) && rules.i64(col) == *ref;
+    for (const db::ThresholdRecord& rule : s.thresholds().enabled()) {
+        auto matches = [&](const std::optional<std::int64_t>& scoped, const std::optional<std::int64_t>& ref) {
+            return ref && scoped && *scoped == *ref;
         };
-        if ((scope == "machine" && !matches(3, refs.machine_id)) || (scope == "tool" && !matches(4, refs.tool_id)) ||
-            (scope == "material" && !matches(5, refs.material_id)))
+        if ((rule.scope == "machine" && !matches(rule.machine_id, refs.machine_id)) ||
+            (rule.scope == "tool" && !matches(rule.tool_id, refs.tool_id)) ||
+            (rule.scope == "material" && !matches(rule.material_id, refs.material_id)))
             continue;
-        const std::string metric = rules.text(6);
-        const std::string flag = rules.opt_text(7).value_or("any");
-        if (metric == "flag") {
+        const std::string flag = rule.flag.value_or("any");
+        if (rule.metric == "flag") {
             if (flag == "any")
                 covered.insert(known_flags().begin(), known_flags().end());
             else
                 covered.insert(flag);
         }
-        evaluate(rules.i64(0), rules.text(1), metric, flag, rules.opt_real(8).value_or(0), rules.text(9));
+        evaluate(rule.id, rule.name, rule.metric, flag, rule.limit.value_or(0), rule.severity);
     }
     if (limit_alerts) evaluate(std::nullopt, "run limits", "flag", "any", 0, std::nullopt, covered);
     return raised;
@@ -249,56 +235,42 @@ const std::vector<std::string>& known_flags() {
     return f;
 }
 
-json load_alert(db::Connection& c, std::int64_t alert_id) {
-    auto st = c.prepare(
-        "SELECT a.id, a.run_id, a.threshold_id, a.severity, a.body, a.created_at, a.acked_at, a.acked_by, a.ack_note, "
-        "r.name, r.program, r.machine_id FROM alerts a JOIN runs r ON r.id = a.run_id WHERE a.id = ?");
-    st.bind(1, alert_id);
-    if (!st.step()) return nullptr;
-    return alert_row_json(st);
-}
-
-json alert_row_json(const db::Stmt& st) {
-    json j = json::parse(st.text(4));
-    j["id"] = st.i64(0);
-    j["run_id"] = st.i64(1);
-    j["threshold_id"] = st.is_null(2) ? json(nullptr) : json(st.i64(2));
-    j["severity"] = st.text(3);
-    j["created_at"] = st.text(5);
-    j["acked_at"] = st.is_null(6) ? json(nullptr) : json(st.text(6));
-    j["acked_by"] = st.is_null(7) ? json(nullptr) : json(st.text(7));
-    j["ack_note"] = st.is_null(8) ? json(nullptr) : json(st.text(8));
-    j["run"] = {{"name", st.is_null(9) ? json(nullptr) : json(st.text(9))},
-                {"program", st.is_null(10) ? json(nullptr) : json(st.text(10))},
-                {"machine_id", st.is_null(11) ? json(nullptr) : json(st.i64(11))}};
+json alert_json(const db::AlertRecord& a) {
+    json j = json::parse(a.body_json);
+    j["id"] = a.id;
+    j["run_id"] = a.run_id;
+    j["threshold_id"] = or_null(a.threshold_id);
+    j["severity"] = a.severity;
+    j["created_at"] = a.created_at;
+    j["acked_at"] = or_null(a.acked_at);
+    j["acked_by"] = or_null(a.acked_by);
+    j["ack_note"] = or_null(a.ack_note);
+    j["run"] = {{"name", or_null(a.run_name)}, {"program", or_null(a.run_program)}, {"machine_id", or_null(a.run_machine_id)}};
     return j;
 }
 
-int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
+json load_alert(db::Session& s, std::int64_t alert_id) {
+    const auto a = s.alerts().get(alert_id);
+    return a ? alert_json(*a) : json(nullptr);
+}
+
+int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
                  bool limit_alerts) {
-    db::Transaction tx(c);
-    {
-        auto st = c.prepare("SELECT state FROM runs WHERE id = ?");
-        st.bind(1, run_id);
-        // Cancelled or deleted while computing: nothing to store.
-        if (!st.step() || st.text(0) != "running") return 0;
-    }
-    auto blk = c.prepare("INSERT INTO run_blocks(run_id, idx, body, flagged) VALUES (?,?,?,?)");
+    db::Transaction tx(s);
+    // Cancelled or deleted while computing: nothing to store.
+    const auto status = s.runs().status(run_id);
+    if (!status || status->state != db::JobState::Running) return 0;
+    db::RunRepository& runs = s.runs();
     bool flagged = false;
     for (std::size_t i = 0; i < p.blocks.size(); ++i) {
-        blk.reset();
-        blk.bind(1, run_id).bind(2, static_cast<std::int64_t>(i)).bind(3, block_json(i, p.blocks[i]).dump());
-        blk.bind(4, p.blocks[i].flags.empty() ? 0 : 1).run();
+        runs.add_block(run_id, static_cast<std::int64_t>(i), block_json(i, p.blocks[i]).dump(), !p.blocks[i].flags.empty());
         flagged = flagged || !p.blocks[i].flags.empty();
     }
-    write_series(c, run_id, SeriesId::Forces, force_series(p));
-    write_series(c, run_id, SeriesId::Motion, motion_series(motion));
-    c.prepare("INSERT INTO run_stock(run_id, data) VALUES (?, ?)")
-        .bind(1, run_id)
-        .bind_blob(2, stock_bytes.data(), stock_bytes.size())
-        .run();
-    const int alerts = raise_alerts(c, run_id, p, limit_alerts);
+    write_series(runs, run_id, SeriesId::Forces, force_series(p));
+    write_series(runs, run_id, SeriesId::Motion, motion_series(motion));
+    runs.set_final_stock(run_id, stock_bytes);
+    const int alerts = raise_alerts(s, run_id, p, limit_alerts);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0);
     summary["alerts"] = alerts;
     std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;
@@ -314,12 +286,9 @@ int store_result(db::Connection& c, std::int64_t run_id, const motion_io::Motion
         // On the actual run's time axis, block by block, so the two traces line up in one plot.
         SeriesData cmd_series = force_series(cmd, block_of);
         for (double& t : cmd_series.t_s) t = program->prediction.to_actual_time(t);
-        write_series(c, run_id, SeriesId::CommandedForces, cmd_series);
+        write_series(runs, run_id, SeriesId::CommandedForces, cmd_series);
         const json commanded_summary = summary_json(cmd, cmd.final_stock ? force_model::stock_volume_mm3(*cmd.final_stock) : 0.0);
-        c.prepare("INSERT INTO run_program(run_id, body) VALUES (?, ?)")
-            .bind(1, run_id)
-            .bind(2, program_body(*program, commanded_summary).dump())
-            .run();
+        runs.set_program_body(run_id, program_body(*program, commanded_summary).dump());
         const auto& q = program->run.mapping.quality;
         summary["program"] = {{"program_blocks", program->run.program.blocks.size()},
                               {"mapped", program->run.mapped},
@@ -327,15 +296,7 @@ int store_result(db::Connection& c, std::int64_t run_id, const motion_io::Motion
                               {"commanded_peak_force_N", commanded_summary["peak_force_N"]},
                               {"commanded_simulated_s", cmd.stats.simulated_s}};
     }
-    c.prepare(
-         "UPDATE runs SET state = 'done', progress = 1, summary = ?, block_names = ?, flagged = ?, finished_at = ? "
-         "WHERE id = ?")
-        .bind(1, summary.dump())
-        .bind(2, json(names).dump())
-        .bind(3, (flagged || alerts > 0) ? 1 : 0)
-        .bind(4, db::now_iso())
-        .bind(5, run_id)
-        .run();
+    runs.mark_done(run_id, summary.dump(), json(names).dump(), flagged || alerts > 0, db::now_iso());
     tx.commit();
     return alerts;
 }

@@ -4,6 +4,7 @@
 
 #include "app/predict_run.hpp"
 #include "common.hpp"
+#include "db/alerts.hpp"
 
 namespace cutload::server {
 
@@ -12,15 +13,13 @@ struct ProgramResult;
 // Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
 // the commanded prediction and comparison of a run uploaded with an NC program, or null.
 // `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
-int store_result(db::Connection& c, std::int64_t run_id, const motion_io::MotionModel& motion,
+int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
                  bool limit_alerts = true);
 
-// An alert as the API shows it; null when unknown. alert_row_json reads the columns of the
-// SELECT in load_alert (a.id, a.run_id, a.threshold_id, a.severity, a.body, a.created_at,
-// a.acked_at, a.acked_by, a.ack_note, r.name, r.program, r.machine_id).
-json load_alert(db::Connection& c, std::int64_t alert_id);
-json alert_row_json(const db::Stmt& st);
+// An alert as the API shows it; load_alert: null when unknown.
+json alert_json(const db::AlertRecord& a);
+json load_alert(db::Session& s, std::int64_t alert_id);
 
 // Metrics a threshold can test, and how to read each from a block summary.
 const std::vector<std::string>& threshold_metrics();

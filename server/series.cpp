@@ -42,12 +42,10 @@ Level reduce(const std::vector<double>& t0, const std::vector<double>& t1, const
     return out;
 }
 
-void put_chunk(db::Stmt& ins, std::int64_t run_id, SeriesId s, int level, std::int64_t chunk, double t0, double t1,
-               std::size_t n, const std::vector<unsigned char>& blob) {
-    ins.reset();
-    ins.bind(1, run_id).bind(2, static_cast<int>(s)).bind(3, level).bind(4, chunk);
-    ins.bind(5, t0).bind(6, t1).bind(7, static_cast<std::int64_t>(n)).bind_blob(8, blob.data(), blob.size());
-    ins.run();
+void put_chunk(db::RunRepository& runs, std::int64_t run_id, SeriesId s, int level, std::int64_t chunk, double t0,
+               double t1, std::size_t n, const std::vector<unsigned char>& blob) {
+    runs.add_series_chunk(run_id, db::SeriesChunkInfo{static_cast<int>(s), level, chunk, t0, t1, static_cast<std::int64_t>(n)},
+                          blob);
 }
 
 }  // namespace
@@ -60,11 +58,9 @@ const std::vector<std::string>& series_channels(SeriesId s) {
     return s == SeriesId::Motion ? motion : forces;
 }
 
-void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const SeriesData& d) {
+void write_series(db::RunRepository& runs, std::int64_t run_id, SeriesId s, const SeriesData& d) {
     const std::size_t k = series_channels(s).size();
     const std::size_t n = d.t_s.size();
-    auto ins = c.prepare(
-        "INSERT INTO series_chunks(run_id, series, level, chunk, t0_s, t1_s, n, data) VALUES (?,?,?,?,?,?,?,?)");
     std::vector<unsigned char> blob;
     for (std::size_t b = 0, chunk = 0; b < n; b += kChunkElems, ++chunk) {
         const std::size_t e = std::min(n, b + kChunkElems);
@@ -75,7 +71,7 @@ void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const Seri
             std::memcpy(p + sizeof(double), &d.values[i * k], k * sizeof(float));
             p += elem_bytes(0, k);
         }
-        put_chunk(ins, run_id, s, 0, static_cast<std::int64_t>(chunk), d.t_s[b], d.t_s[e - 1], e - b, blob);
+        put_chunk(runs, run_id, s, 0, static_cast<std::int64_t>(chunk), d.t_s[b], d.t_s[e - 1], e - b, blob);
     }
     // Envelope levels until one chunk's worth of elements is left.
     Level cur = reduce(d.t_s, d.t_s, d.values, d.values, k);
@@ -92,7 +88,7 @@ void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const Seri
                 std::memcpy(p + 2 * sizeof(double) + k * sizeof(float), &cur.maxs[i * k], k * sizeof(float));
                 p += elem_bytes(level, k);
             }
-            put_chunk(ins, run_id, s, level, static_cast<std::int64_t>(chunk), cur.t0[b], cur.t1[e - 1], e - b, blob);
+            put_chunk(runs, run_id, s, level, static_cast<std::int64_t>(chunk), cur.t0[b], cur.t1[e - 1], e - b, blob);
         }
         if (m <= kFanout) break;
         cur = reduce(cur.t0, cur.t1, cur.mins, cur.maxs, k);
@@ -171,60 +167,57 @@ struct Chunk {
     std::vector<float> lo, hi;    // lo[j * n + i]; hi stays empty at level 0 (equal to lo)
 };
 
-std::shared_ptr<const ChunkIndex> load_index(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s) {
+std::shared_ptr<const ChunkIndex> load_index(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s) {
     const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::Index, static_cast<int>(s), 0, 0};
     return cache.get<ChunkIndex>(key, [&] {
         auto idx = std::make_shared<ChunkIndex>();
-        auto st = c.prepare(
-            "SELECT level, chunk, t0_s, t1_s, n FROM series_chunks WHERE run_id = ? AND series = ? ORDER BY level, chunk");
-        st.bind(1, run.id).bind(2, static_cast<int>(s));
         std::size_t bytes = sizeof(ChunkIndex);
-        while (st.step()) {
-            const auto level = static_cast<std::size_t>(st.i64(0));
+        for (const db::SeriesChunkInfo& info : c.runs().series_index(run.id, static_cast<int>(s))) {
+            const auto level = static_cast<std::size_t>(info.level);
             if (idx->levels.size() <= level) idx->levels.resize(level + 1);
             auto& l = idx->levels[level];
-            l.chunk.push_back(st.i64(1));
-            l.t0.push_back(st.real(2));
-            l.t1.push_back(st.real(3));
-            l.n.push_back(st.i64(4));
+            l.chunk.push_back(info.chunk);
+            l.t0.push_back(info.t0_s);
+            l.t1.push_back(info.t1_s);
+            l.n.push_back(info.n);
             bytes += 2 * sizeof(std::int64_t) + 2 * sizeof(double);
         }
         return std::pair{std::shared_ptr<const ChunkIndex>(std::move(idx)), bytes};
     });
 }
 
-std::shared_ptr<const Chunk> load_chunk(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, int level,
+std::shared_ptr<const Chunk> load_chunk(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, int level,
                                         std::int64_t chunk) {
     const SeriesCache::Key key{run.id, run.version, SeriesCache::Kind::Chunk, static_cast<int>(s), level, chunk};
     return cache.get<Chunk>(key, [&] {
         const std::size_t k = series_channels(s).size();
-        auto st = c.prepare("SELECT n, data FROM series_chunks WHERE run_id = ? AND series = ? AND level = ? AND chunk = ?");
-        st.bind(1, run.id).bind(2, static_cast<int>(s)).bind(3, level).bind(4, chunk);
-        if (!st.step()) throw std::runtime_error(fmt::format("run {}: series chunk {}/{} is missing", run.id, level, chunk));
         auto out = std::make_shared<Chunk>();
-        const auto n = static_cast<std::size_t>(st.i64(0));
-        std::size_t bytes = 0;
-        const auto* p = static_cast<const unsigned char*>(st.blob(1, &bytes));
-        const std::size_t stride = elem_bytes(static_cast<std::size_t>(level), k);
-        if (bytes != n * stride)
-            throw std::runtime_error(fmt::format("run {}: series chunk {}/{} holds {} bytes, not {} elements", run.id, level,
-                                                 chunk, bytes, n));
-        out->n = n;
-        out->t0.resize(n);
-        out->lo.resize(n * k);
-        if (level > 0) {
-            out->t1.resize(n);
-            out->hi.resize(n * k);
-        }
-        const std::size_t lo_at = level == 0 ? sizeof(double) : 2 * sizeof(double);
-        for (std::size_t i = 0; i < n; ++i, p += stride) {
-            std::memcpy(&out->t0[i], p, sizeof(double));
-            if (level > 0) std::memcpy(&out->t1[i], p + sizeof(double), sizeof(double));
-            for (std::size_t j = 0; j < k; ++j) {
-                std::memcpy(&out->lo[j * n + i], p + lo_at + j * sizeof(float), sizeof(float));
-                if (level > 0) std::memcpy(&out->hi[j * n + i], p + lo_at + (k + j) * sizeof(float), sizeof(float));
+        auto decode = [&](std::int64_t elements, std::span<const unsigned char> data) {
+            const auto n = static_cast<std::size_t>(elements);
+            const unsigned char* p = data.data();
+            const std::size_t stride = elem_bytes(static_cast<std::size_t>(level), k);
+            if (data.size() != n * stride)
+                throw std::runtime_error(fmt::format("run {}: series chunk {}/{} holds {} bytes, not {} elements", run.id,
+                                                     level, chunk, data.size(), n));
+            out->n = n;
+            out->t0.resize(n);
+            out->lo.resize(n * k);
+            if (level > 0) {
+                out->t1.resize(n);
+                out->hi.resize(n * k);
             }
-        }
+            const std::size_t lo_at = level == 0 ? sizeof(double) : 2 * sizeof(double);
+            for (std::size_t i = 0; i < n; ++i, p += stride) {
+                std::memcpy(&out->t0[i], p, sizeof(double));
+                if (level > 0) std::memcpy(&out->t1[i], p + sizeof(double), sizeof(double));
+                for (std::size_t j = 0; j < k; ++j) {
+                    std::memcpy(&out->lo[j * n + i], p + lo_at + j * sizeof(float), sizeof(float));
+                    if (level > 0) std::memcpy(&out->hi[j * n + i], p + lo_at + (k + j) * sizeof(float), sizeof(float));
+                }
+            }
+        };
+        if (!c.runs().read_series_chunk(run.id, static_cast<int>(s), level, chunk, decode))
+            throw std::runtime_error(fmt::format("run {}: series chunk {}/{} is missing", run.id, level, chunk));
         const std::size_t size = sizeof(Chunk) + (out->t0.size() + out->t1.size()) * sizeof(double) +
                                  (out->lo.size() + out->hi.size()) * sizeof(float);
         return std::pair{std::shared_ptr<const Chunk>(std::move(out)), size};
@@ -246,7 +239,7 @@ double rows_in(const ChunkIndex::Level& l0, double from_s, double to_s) {
 
 }  // namespace
 
-bool series_extent(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s) {
+bool series_extent(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s) {
     const auto idx = load_index(c, cache, run, s);
     if (idx->levels.empty() || idx->levels[0].t0.empty()) return false;
     const auto& l0 = idx->levels[0];
@@ -255,7 +248,7 @@ bool series_extent(db::Connection& c, SeriesCache& cache, const RunRef& run, Ser
     return true;
 }
 
-Window query_window(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
+Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
                     std::size_t max_points, const std::vector<bool>& channels) {
     const std::size_t k = series_channels(s).size();
     Window w;

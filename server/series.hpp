@@ -7,7 +7,8 @@
 // (little-endian on every platform cutload targets).
 #pragma once
 
-#include "db/db.hpp"
+#include "db/runs.hpp"
+#include "db/store.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -36,7 +37,7 @@ struct SeriesData {
 };
 
 // Inside an open transaction.
-void write_series(db::Connection& c, std::int64_t run_id, SeriesId s, const SeriesData& d);
+void write_series(db::RunRepository& runs, std::int64_t run_id, SeriesId s, const SeriesData& d);
 
 // A finished run's results never change, but a deleted run's id can be given to the next upload:
 // `version` (the run's finished_at) keeps the two apart in the cache.
@@ -113,10 +114,10 @@ struct Window {
 };
 
 // First and last time stored, or false when the run has no rows in this series.
-bool series_extent(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s);
+bool series_extent(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s);
 
 // channels[j]: whether channel j is wanted in the answer.
-Window query_window(db::Connection& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
+Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
                     std::size_t max_points, const std::vector<bool>& channels);
 
 }  // namespace cutload::server

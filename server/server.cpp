@@ -3,6 +3,7 @@
 #include "app/inputs.hpp"
 #include "auth.hpp"
 #include "core.hpp"
+#include "db/runs.hpp"
 #include "gzip.hpp"
 #include "jobs.hpp"
 #include "webhooks.hpp"
@@ -48,17 +49,14 @@ fs::path default_data_dir(const ServerOptions& o) {
 }
 
 // Uploads that never got their run row (crash between the file write and the commit).
-void remove_orphan_uploads(db::Connection& c, const fs::path& data_dir) {
+void remove_orphan_uploads(db::RunRepository& runs, const fs::path& data_dir) {
     std::error_code ec;
     fs::remove_all(data_dir / "tmp", ec);
     fs::create_directories(data_dir / "tmp");
     fs::create_directories(data_dir / "uploads");
-    auto st = c.prepare("SELECT 1 FROM runs WHERE upload_dir = ?");
     for (const auto& e : fs::directory_iterator(data_dir / "uploads")) {
         const std::string rel = "uploads/" + e.path().filename().string();
-        st.reset();
-        st.bind(1, rel);
-        if (!st.step()) {
+        if (!runs.upload_dir_in_use(rel)) {
             spdlog::warn("removing orphan upload {}", (data_dir / rel).string());
             fs::remove_all(e.path(), ec);
         }
@@ -67,17 +65,59 @@ void remove_orphan_uploads(db::Connection& c, const fs::path& data_dir) {
 
 }  // namespace
 
-std::int64_t Ctx::id(std::size_t n) const {
-    try {
-        return std::stoll(req.matches[n].str());
-    } catch (const std::exception&) {
-        bad_request(fmt::format("path parameter '{}' is not a valid id", req.matches[n].str()));
-    }
+const ParamValue& Ctx::value_of(std::string_view name, ParamType type) const {
+    for (std::size_t i = 0; i < route.params.size(); ++i)
+        if (route.params[i].name == name) {
+            if (route.params[i].type != type)
+                throw std::logic_error(fmt::format("{} {}: parameter {} is read as another type than declared", route.method,
+                                                   route.path, name));
+            return values[i];
+        }
+    throw std::logic_error(fmt::format("{} {}: parameter {} is not declared", route.method, route.path, name));
+}
+
+std::int64_t Ctx::id() const { return std::get<std::int64_t>(value_of("id", ParamType::Integer)); }
+
+std::optional<std::string> Ctx::param(std::string_view name) const {
+    const auto& v = value_of(name, ParamType::String);
+    if (const auto* s = std::get_if<std::string>(&v)) return *s;
+    return std::nullopt;
+}
+
+std::optional<double> Ctx::param_double(std::string_view name) const {
+    const auto& v = value_of(name, ParamType::Number);
+    if (const auto* d = std::get_if<double>(&v)) return *d;
+    return std::nullopt;
+}
+
+std::optional<std::int64_t> Ctx::param_int(std::string_view name) const {
+    const auto& v = value_of(name, ParamType::Integer);
+    if (const auto* i = std::get_if<std::int64_t>(&v)) return *i;
+    return std::nullopt;
+}
+
+std::optional<bool> Ctx::param_bool(std::string_view name) const {
+    const auto& v = value_of(name, ParamType::Boolean);
+    if (const auto* b = std::get_if<bool>(&v)) return *b;
+    return std::nullopt;
+}
+
+bool Ctx::given(std::string_view name) const {
+    for (const Param& p : route.params)
+        if (p.name == name) return p.in == ParamIn::Path || req.has_param(p.name);
+    throw std::logic_error(fmt::format("{} {}: parameter {} is not declared", route.method, route.path, name));
 }
 
 bool Ctx::wants_csv() const {
-    const std::string accept = req.get_header_value("Accept");
-    return accept.find("text/csv") != std::string::npos || param("format").value_or("") == "csv";
+    if (req.get_header_value("Accept").find("text/csv") != std::string::npos) return true;
+    for (const Param& p : route.params)
+        if (p.name == "format") return param("format").value_or("") == "csv";
+    return false;
+}
+
+std::optional<json> Ctx::json_body() const {
+    if (route.body == Body::OptionalJson && req.body.empty()) return std::nullopt;
+    return parse_json_body(req.body);
 }
 
 void Ctx::reply(int status, const json& body) {
@@ -93,45 +133,7 @@ std::string client_text(const std::string& bytes, const std::string& what) {
     return out;
 }
 
-std::optional<std::string> Ctx::param(const char* name) const {
-    if (!req.has_param(name)) return std::nullopt;
-    return req.get_param_value(name);
-}
-
-std::optional<double> Ctx::param_double(const char* name) const {
-    auto s = param(name);
-    if (!s) return std::nullopt;
-    try {
-        std::size_t used = 0;
-        double v = std::stod(*s, &used);
-        if (used == s->size() && std::isfinite(v)) return v;
-    } catch (const std::exception&) {
-    }
-    bad_request(fmt::format("query parameter {}: '{}' is not a number", name, *s));
-}
-
-std::optional<std::int64_t> Ctx::param_int(const char* name) const {
-    auto s = param(name);
-    if (!s) return std::nullopt;
-    try {
-        std::size_t used = 0;
-        long long v = std::stoll(*s, &used);
-        if (used == s->size()) return v;
-    } catch (const std::exception&) {
-    }
-    bad_request(fmt::format("query parameter {}: '{}' is not an integer", name, *s));
-}
-
-std::optional<bool> Ctx::param_bool(const char* name) const {
-    auto s = param(name);
-    if (!s) return std::nullopt;
-    if (*s == "true" || *s == "1") return true;
-    if (*s == "false" || *s == "0") return false;
-    bad_request(fmt::format("query parameter {}: '{}' is not true or false", name, *s));
-}
-
-Core::Core(ServerOptions o)
-    : opt(std::move(o)), data_dir(default_data_dir(opt)), pool(opt.db_path), series_cache(opt.cache_bytes) {}
+Core::Core(ServerOptions o) : opt(std::move(o)), data_dir(default_data_dir(opt)), series_cache(opt.cache_bytes) {}
 
 Core::~Core() {
     if (lock_fd >= 0) ::close(lock_fd);
@@ -147,12 +149,12 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
     if (auth.rfind("Bearer ", 0) != 0)
         throw ApiError(401, "unauthorized", "Authorization header must be 'Bearer <key>'");
     const std::string key = auth.substr(7);
-    auto c = pool.get();
-    auto found = lookup_api_key(*c, key);
+    auto s = session();
+    auto found = lookup_api_key(*s, key);
     if (!found) throw ApiError(401, "unauthorized", "unknown API key");
     if (found->revoked_at)
         throw ApiError(401, "unauthorized", fmt::format("API key {} was revoked at {}", found->prefix, *found->revoked_at));
-    if (found->last_use_stale) touch_api_key(*c, key);
+    if (found->last_use_stale) touch_api_key(*s, key);
     *actor = found->prefix;
     if (static_cast<int>(found->role) < static_cast<int>(need))
         throw ApiError(403, "forbidden", fmt::format("this request needs the {} role; the key has {}", role_name(need),
@@ -160,15 +162,25 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
     return found->role;
 }
 
-void Core::route(const std::string& method, const std::string& path, std::optional<Role> need, Handler h) {
-    route_list.emplace_back(method, path);
-    const std::string pattern = std::regex_replace(path, std::regex(R"(\{[a-z_]+\})"), "([0-9]+)");
-    auto wrapped = [this, method, path, need, h](const httplib::Request& req, httplib::Response& res) {
+void Core::route(RouteSpec spec, Handler h) {
+    const std::string pattern = route_pattern(spec);   // also checks every {name} is declared
+    routes.push_back(spec);
+    auto r = std::make_shared<const RouteSpec>(std::move(spec));
+    const std::string method = r->method;
+    auto wrapped = [this, r, h](const httplib::Request& req, httplib::Response& res) {
         const auto t0 = std::chrono::steady_clock::now();
         try {
             std::string actor = "anonymous";
-            const Role role = need ? authorize(req, *need, &actor) : Role::Read;
-            Ctx ctx{req, res, role, actor};
+            const Role role = r->role ? authorize(req, *r->role, &actor) : Role::Read;
+            std::vector<std::string> path_values;
+            for (std::size_t i = 1; i < req.matches.size(); ++i) path_values.push_back(req.matches[i].str());
+            auto query = [&req](const std::string& name) -> std::optional<std::string> {
+                if (!req.has_param(name)) return std::nullopt;
+                return req.get_param_value(name);
+            };
+            Ctx ctx{req, res, *r, read_params(*r, path_values, query), role, actor};
+            if (r->body == Body::Multipart && !req.is_multipart_form_data())
+                bad_request(fmt::format("{} {} takes multipart/form-data{}", r->method, r->path, r->multipart_hint));
             h(ctx);
         } catch (const ApiError& e) {
             res.status = e.status;
@@ -185,16 +197,16 @@ void Core::route(const std::string& method, const std::string& path, std::option
         } catch (const db::Error& e) {
             const bool conflict = e.is_constraint();
             res.status = conflict ? 409 : 500;
-            if (!conflict) spdlog::error("{} {}: {}", method, req.path, e.what());
+            if (!conflict) spdlog::error("{} {}: {}", r->method, req.path, e.what());
             res.set_content(body_text(error_body(conflict ? "conflict" : "internal", conflict ? e.what() : "database error")),
                             "application/json");
         } catch (const std::exception& e) {
-            spdlog::error("{} {}: {}", method, req.path, textio::printable(e.what()));
+            spdlog::error("{} {}: {}", r->method, req.path, textio::printable(e.what()));
             res.status = 500;
             res.set_content(body_text(error_body("internal", e.what())), "application/json");
         }
         compress_answer(req, res);
-        metrics.request(method, path, res.status,
+        metrics.request(r->method, r->path, res.status,
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     };
     if (method == "GET")
@@ -225,14 +237,12 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     if (c.lock_fd < 0 || ::flock(c.lock_fd, LOCK_EX | LOCK_NB) != 0)
         throw std::runtime_error(fmt::format("{} is in use by another cutload serve (lock {}.lock)", c.opt.db_path,
                                              c.opt.db_path));
-    {
-        auto conn = c.pool.get();
-        db::migrate(*conn);
-        fs::create_directories(c.data_dir);
-        remove_orphan_uploads(*conn, c.data_dir);
-    }
-    c.hooks = std::make_unique<Webhooks>(c.pool, c.opt, c.metrics);
-    c.jobs = std::make_unique<Jobs>(c.pool, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); });
+    c.store = db::Store::open(c.opt.db_path);
+    c.store->migrate();
+    fs::create_directories(c.data_dir);
+    remove_orphan_uploads(c.session()->runs(), c.data_dir);
+    c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
+    c.jobs = std::make_unique<Jobs>(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); });
 
     const int threads = std::max(4, c.opt.http_threads);
     c.http.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
@@ -268,14 +278,8 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     });
     if (!c.opt.web_dir.empty() && fs::is_directory(c.opt.web_dir)) c.http.set_mount_point("/", c.opt.web_dir);
 
-    add_library_routes(c);
-    add_run_routes(c);
-    add_program_routes(c);
-    add_measurement_routes(c);
-    add_calibration_routes(c);
-    add_alert_routes(c);
-    add_misc_routes(c);
-    add_view_routes(c);
+    add_all_routes(c);
+    c.openapi = openapi_document(json::parse(openapi_base()), c.routes).dump(1);
 }
 
 Server::~Server() { stop(); }
@@ -320,6 +324,32 @@ void Server::wait() {
 
 int Server::port() const { return impl_->bound_port; }
 
-std::vector<std::pair<std::string, std::string>> Server::routes() const { return impl_->route_list; }
+std::vector<std::pair<std::string, std::string>> Server::routes() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const RouteSpec& r : impl_->routes) out.emplace_back(r.method, r.path);
+    return out;
+}
+
+void add_all_routes(Core& c) {
+    add_library_routes(c);
+    add_run_routes(c);
+    add_program_routes(c);
+    add_measurement_routes(c);
+    add_calibration_routes(c);
+    add_alert_routes(c);
+    add_misc_routes(c);
+    add_view_routes(c);
+}
+
+const std::string& openapi_json() {
+    // The routes of a server with the default options (a route's bounds may follow the options:
+    // each server serves its own document).
+    static const std::string doc = [] {
+        Core c{ServerOptions{}};
+        add_all_routes(c);
+        return openapi_document(json::parse(openapi_base()), c.routes).dump(1);
+    }();
+    return doc;
+}
 
 }  // namespace cutload::server

@@ -1,5 +1,7 @@
 #include "webhooks.hpp"
 
+#include "db/alerts.hpp"
+
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <httplib.h>
@@ -67,8 +69,8 @@ std::string refused_webhook_host(const std::string& host, bool resolve) {
     return why;
 }
 
-Webhooks::Webhooks(DbPool& pool, const ServerOptions& opt, Metrics& metrics)
-    : pool_(pool), opt_(opt), metrics_(metrics) {}
+Webhooks::Webhooks(db::Store& store, const ServerOptions& opt, Metrics& metrics)
+    : store_(store), opt_(opt), metrics_(metrics) {}
 
 Webhooks::~Webhooks() { stop(); }
 
@@ -106,22 +108,7 @@ void Webhooks::loop() {
 }
 
 double Webhooks::deliver_due() {
-    struct Due {
-        std::int64_t id;
-        std::string url, secret, payload;
-        int attempts;
-    };
-    std::vector<Due> due;
-    {
-        auto c = pool_.get();
-        auto st = c->prepare(
-            "SELECT d.id, w.url, w.secret, d.payload, d.attempts FROM webhook_deliveries d "
-            "JOIN webhooks w ON w.id = d.webhook_id WHERE d.state = 'pending' AND d.next_attempt_unix <= ? "
-            "ORDER BY d.next_attempt_unix LIMIT 32");
-        st.bind(1, unix_now_s());
-        while (st.step())
-            due.push_back({st.i64(0), st.text(1), st.opt_text(2).value_or(""), st.text(3), static_cast<int>(st.i64(4))});
-    }
+    const std::vector<db::DueDelivery> due = store_.session()->webhooks().due(unix_now_s(), 32);
     for (const auto& d : due) {
         {
             std::lock_guard lk(mu_);
@@ -141,7 +128,8 @@ double Webhooks::deliver_due() {
             cli.set_read_timeout(std::chrono::duration_cast<std::chrono::microseconds>(timeout));
             cli.set_write_timeout(std::chrono::duration_cast<std::chrono::microseconds>(timeout));
             httplib::Headers h{{"User-Agent", "cutload-webhook/1"}, {"X-Cutload-Delivery", std::to_string(d.id)}};
-            if (!d.secret.empty()) h.emplace("X-Cutload-Signature", "sha256=" + hmac_sha256_hex(d.secret, d.payload));
+            const std::string secret = d.secret.value_or("");
+            if (!secret.empty()) h.emplace("X-Cutload-Signature", "sha256=" + hmac_sha256_hex(secret, d.payload));
             auto res = cli.Post(path, h, d.payload, "application/json");
             if (!res)
                 error = httplib::to_string(res.error());
@@ -153,37 +141,17 @@ double Webhooks::deliver_due() {
         if (!ok && error.empty()) error = "HTTP " + std::to_string(status);
         metrics_.webhook_attempt(ok);
 
-        const int attempt = d.attempts + 1;
+        const std::int64_t attempt = d.attempts + 1;
         const bool give_up = !ok && attempt >= opt_.webhook_max_attempts;
-        const double next = unix_now_s() + opt_.webhook_backoff_s * std::pow(2.0, attempt - 1);
-        auto c = pool_.get();
-        db::Transaction tx(*c);
-        auto log = c->prepare(
-            "INSERT INTO webhook_attempts(delivery_id, attempt, at, status, error, duration_ms) VALUES (?,?,?,?,?,?)");
-        log.bind(1, d.id).bind(2, attempt).bind(3, db::now_iso());
-        if (status)
-            log.bind(4, status);
-        else
-            log.bind_null(4);
-        if (ok)
-            log.bind_null(5);
-        else
-            log.bind(5, error);
-        log.bind(6, ms).run();
-        auto up = c->prepare(
-            "UPDATE webhook_deliveries SET attempts = ?, state = ?, next_attempt_unix = ?, delivered_at = ? WHERE id = ?");
-        up.bind(1, attempt).bind(2, ok ? "delivered" : give_up ? "failed" : "pending").bind(3, next);
-        if (ok)
-            up.bind(4, db::now_iso());
-        else
-            up.bind_null(4);
-        up.bind(5, d.id).run();
-        tx.commit();
+        const double next = unix_now_s() + opt_.webhook_backoff_s * std::pow(2.0, static_cast<double>(attempt - 1));
+        const std::string now = db::now_iso();
+        db::DeliveryAttempt a{attempt, now, status ? std::optional<std::int64_t>(status) : std::nullopt,
+                              ok ? std::nullopt : std::optional<std::string>(error), ms};
+        const auto state = ok ? db::DeliveryState::Delivered : give_up ? db::DeliveryState::Failed : db::DeliveryState::Pending;
+        store_.session()->webhooks().record_attempt(d.id, a, state, next, ok ? std::optional<std::string>(now) : std::nullopt);
         if (!ok) spdlog::warn("webhook delivery {} attempt {} to {}: {}", d.id, attempt, d.url, error);
     }
-    auto c = pool_.get();
-    auto st = c->prepare("SELECT min(next_attempt_unix) FROM webhook_deliveries WHERE state = 'pending'");
-    if (st.step() && !st.is_null(0)) return st.real(0) - unix_now_s();
+    if (const auto next = store_.session()->webhooks().next_pending_unix()) return *next - unix_now_s();
     return 1;
 }
 

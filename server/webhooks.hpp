@@ -5,13 +5,15 @@
 #include "common.hpp"
 #include "metrics.hpp"
 
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 namespace cutload::server {
 
 class Webhooks {
 public:
-    Webhooks(DbPool& pool, const ServerOptions& opt, Metrics& metrics);
+    Webhooks(db::Store& store, const ServerOptions& opt, Metrics& metrics);
     ~Webhooks();
     void start();
     void notify();
@@ -22,7 +24,7 @@ private:
     // Returns seconds until the next pending delivery is due (or a long wait when none is).
     double deliver_due();
 
-    DbPool& pool_;
+    db::Store& store_;
     const ServerOptions& opt_;
     Metrics& metrics_;
     std::mutex mu_;

@@ -1,6 +1,8 @@
 // The OpenAPI document matches the routes the server registers, both ways; /healthz and
 // /metrics answer in their formats.
 #include "harness.hpp"
+#include "server/core.hpp"
+#include "server/route.hpp"
 
 #include <set>
 
@@ -62,4 +64,76 @@ TEST_CASE("metrics and health: Prometheus text with requests and latency and job
         INFO(needle);
         REQUIRE(text.find(needle) != std::string::npos);
     }
+}
+
+namespace {
+
+// The routes a server with the default options declares.
+std::vector<cutload::server::RouteSpec> declared_routes() {
+    cutload::server::Core core{cutload::server::ServerOptions{}};
+    cutload::server::add_all_routes(core);
+    return core.routes;
+}
+
+std::string lower(std::string s) {
+    for (auto& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("openapi: parameters and key requirements come from the route declarations, bodies match their kind") {
+    using cutload::server::Body;
+    using cutload::server::ParamIn;
+    const json base = json::parse(cutload::server::openapi_base());
+    const json doc = json::parse(cutload::server::openapi_json());
+    // The hand-kept part says nothing about parameters or keys: they would drift from the code.
+    for (const auto& [path, item] : base["paths"].items()) {
+        INFO(path);
+        REQUIRE_FALSE(item.contains("parameters"));
+        for (const auto& [method, op] : item.items()) {
+            INFO(method);
+            REQUIRE_FALSE(op.contains("parameters"));
+            REQUIRE_FALSE(op.contains("security"));
+        }
+    }
+    const auto routes = declared_routes();
+    std::size_t with_params = 0;
+    for (const auto& r : routes) {
+        INFO(r.method << " " << r.path);
+        const json& op = doc["paths"][r.path][lower(r.method)];
+        // Parameter by parameter, both ways: the served operation lists exactly the declared ones.
+        const json served = op.value("parameters", json::array());
+        REQUIRE(served.size() == r.params.size());
+        for (std::size_t i = 0; i < r.params.size(); ++i) {
+            const auto& p = r.params[i];
+            INFO(p.name);
+            REQUIRE(served[i]["name"] == p.name);
+            REQUIRE(served[i]["in"] == (p.in == ParamIn::Path ? "path" : "query"));
+            REQUIRE(served[i]["required"] == p.required);
+            REQUIRE(served[i]["schema"].value("default", json()) == p.fallback.value_or(json()));
+            // Every {name} of the template is a declared path parameter.
+            if (p.in == ParamIn::Path) REQUIRE(r.path.find("{" + p.name + "}") != std::string::npos);
+        }
+        with_params += r.params.empty() ? 0 : 1;
+        if (r.role)
+            REQUIRE(op["x-cutload-role"] == cutload::server::role_name(*r.role));
+        else
+            REQUIRE(op["security"] == json::array());
+        // The body the route reads is the one documented.
+        const json& rb = op.value("requestBody", json());
+        switch (r.body) {
+            case Body::None: REQUIRE(rb.is_null()); break;
+            case Body::Multipart:
+                REQUIRE(rb["content"].contains("multipart/form-data"));
+                REQUIRE(rb.value("required", false));
+                break;
+            case Body::Json:
+            case Body::OptionalJson:
+                REQUIRE(rb["content"].contains("application/json"));
+                REQUIRE(rb.value("required", false) == (r.body == Body::Json));
+                break;
+        }
+    }
+    REQUIRE(with_params > 20);
 }

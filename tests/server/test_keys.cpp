@@ -1,6 +1,6 @@
 // API key management through the real binary: `cutload keys list` shows what a key is without
 // the key, `cutload keys revoke` shuts a key out with a 401 at once.
-#include "db/db.hpp"
+#include "db/store.hpp"
 #include "harness.hpp"
 
 #include <sqlite3.h>
@@ -137,8 +137,13 @@ TEST_CASE("keys: a schema 1 database upgrades in place and keeps its keys") {
     REQUIRE(keys.size() == 1);
     REQUIRE(keys[0].prefix == key.substr(0, 10));
     REQUIRE_FALSE(keys[0].last_used_at);
-    cutload::db::Connection c(db);
-    auto st = c.prepare("PRAGMA user_version");
-    REQUIRE(st.step());
-    REQUIRE(st.i64(0) == cutload::db::schema_version());
+    sqlite3* h = nullptr;
+    REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
+    sqlite3_stmt* st = nullptr;
+    REQUIRE(sqlite3_prepare_v2(h, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK);
+    REQUIRE(sqlite3_step(st) == SQLITE_ROW);
+    const auto version = sqlite3_column_int64(st, 0);
+    sqlite3_finalize(st);
+    sqlite3_close(h);
+    REQUIRE(version == cutload::db::schema_version());
 }

@@ -1,32 +1,23 @@
-// Public interface of db: a thin, exception-based wrapper over SQLite and cutload's schema.
+// Private to db: a thin, exception-based wrapper over SQLite for the SQLite backend.
 //
 // One Connection per thread at a time (SQLite connections are not shared between threads here);
 // WAL mode lets many readers run beside the one writer. Write transactions start IMMEDIATE so two
 // writers queue on the busy timeout instead of failing half-way with SQLITE_BUSY.
 #pragma once
 
+#include "db/store.hpp"
+
 #include <cstdint>
 #include <optional>
-#include <stdexcept>
+#include <span>
 #include <string>
 #include <string_view>
 #include <unordered_map>
-#include <vector>
 
 struct sqlite3;
 struct sqlite3_stmt;
 
-namespace cutload::db {
-
-
-class Error : public std::runtime_error {
-public:
-    Error(const std::string& what, int code) : std::runtime_error(what), code_(code) {}
-    int code() const { return code_; }              // SQLite extended result code
-    bool is_constraint() const;                     // UNIQUE / FOREIGN KEY / CHECK violation
-private:
-    int code_;
-};
+namespace cutload::db::sqlite {
 
 class Stmt {
 public:
@@ -41,6 +32,7 @@ public:
     // Parameters are 1-based like SQLite's; each returns *this so calls chain.
     Stmt& bind(int i, std::int64_t v);
     Stmt& bind(int i, int v) { return bind(i, static_cast<std::int64_t>(v)); }
+    Stmt& bind(int i, bool v) { return bind(i, static_cast<std::int64_t>(v ? 1 : 0)); }
     Stmt& bind(int i, double v);
     Stmt& bind(int i, std::string_view v);
     Stmt& bind(int i, const char* v) { return bind(i, std::string_view(v)); }
@@ -62,7 +54,7 @@ public:
     std::optional<std::int64_t> opt_i64(int col) const;
     std::optional<double> opt_real(int col) const;
     // Borrowed until the next step/reset.
-    const void* blob(int col, std::size_t* bytes) const;
+    std::span<const unsigned char> blob(int col) const;
 
 private:
     sqlite3* db_;
@@ -88,26 +80,25 @@ public:
     void set_busy_timeout(int ms);
     std::int64_t last_insert_id() const;
     int changes() const;
-    sqlite3* handle() { return db_; }
 
 private:
     struct Cached {
         sqlite3_stmt* st = nullptr;
         bool in_use = false;
     };
-    // Bounded: every statement cutload runs is one of a few dozen fixed texts.
+    // Bounded: every statement cutload runs is one of a few dozen fixed texts (a few per job queue).
     static constexpr std::size_t kMaxCached = 128;
     sqlite3* db_ = nullptr;
     std::unordered_map<std::string, Cached> cache_;
 };
 
-// Rolls back unless commit() was called.
-class Transaction {
+// BEGIN IMMEDIATE .. COMMIT on a bare connection (migrations); rolls back unless committed.
+class ImmediateTransaction {
 public:
-    explicit Transaction(Connection& c, bool immediate = true);
-    Transaction(const Transaction&) = delete;
-    Transaction& operator=(const Transaction&) = delete;
-    ~Transaction();
+    explicit ImmediateTransaction(Connection& c) : c_(c) { c_.exec("BEGIN IMMEDIATE"); }
+    ImmediateTransaction(const ImmediateTransaction&) = delete;
+    ImmediateTransaction& operator=(const ImmediateTransaction&) = delete;
+    ~ImmediateTransaction();
     void commit();
 
 private:
@@ -115,12 +106,24 @@ private:
     bool open_ = true;
 };
 
+// Makes the statements until release() one atomic step, inside a transaction or on its own (a
+// savepoint outside any transaction is one); rolled back to its start unless released.
+class Savepoint {
+public:
+    Savepoint(Connection& c, const char* name);
+    Savepoint(const Savepoint&) = delete;
+    Savepoint& operator=(const Savepoint&) = delete;
+    ~Savepoint();
+    void release();
+
+private:
+    Connection& c_;
+    std::string name_;
+    bool open_ = true;
+};
+
 // Brings the database to the newest schema version (PRAGMA user_version); idempotent.
 // Returns the version reached.
 int migrate(Connection& c);
-int schema_version();
 
-// UTC "YYYY-MM-DDTHH:MM:SS.sssZ" now, the format every timestamp column uses.
-std::string now_iso();
-
-}  // namespace cutload::db
+}  // namespace cutload::db::sqlite

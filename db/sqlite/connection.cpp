@@ -1,22 +1,27 @@
-#include "db/db.hpp"
+#include "sqlite/connection.hpp"
 
 #include <fmt/format.h>
 #include <sqlite3.h>
 
-#include <chrono>
-#include <ctime>
 
-namespace cutload::db {
+namespace cutload::db::sqlite {
 namespace {
+
+Error::Kind kind_of(int code) {
+    switch (code & 0xff) {
+        case SQLITE_CONSTRAINT: return Error::Kind::Constraint;
+        case SQLITE_BUSY:
+        case SQLITE_LOCKED: return Error::Kind::Busy;
+        default: return Error::Kind::Other;
+    }
+}
 
 [[noreturn]] void fail(sqlite3* db, int rc, std::string_view what) {
     const char* msg = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
-    throw Error(fmt::format("sqlite: {}: {}", what, msg), db ? sqlite3_extended_errcode(db) : rc);
+    throw Error(fmt::format("sqlite: {}: {}", what, msg), kind_of(db ? sqlite3_extended_errcode(db) : rc));
 }
 
 }  // namespace
-
-bool Error::is_constraint() const { return (code_ & 0xff) == SQLITE_CONSTRAINT; }
 
 Stmt::Stmt(sqlite3* db, std::string_view sql) : db_(db), st_(nullptr) {
     int rc = sqlite3_prepare_v2(db, sql.data(), static_cast<int>(sql.size()), &st_, nullptr);
@@ -96,10 +101,9 @@ std::optional<double> Stmt::opt_real(int col) const {
     if (is_null(col)) return std::nullopt;
     return real(col);
 }
-const void* Stmt::blob(int col, std::size_t* bytes) const {
-    const void* p = sqlite3_column_blob(st_, col);
-    *bytes = static_cast<std::size_t>(sqlite3_column_bytes(st_, col));
-    return p;
+std::span<const unsigned char> Stmt::blob(int col) const {
+    const auto* p = static_cast<const unsigned char*>(sqlite3_column_blob(st_, col));
+    return {p, static_cast<std::size_t>(sqlite3_column_bytes(st_, col))};
 }
 
 Connection::Connection(const std::string& path, int busy_timeout_ms) {
@@ -109,7 +113,7 @@ Connection::Connection(const std::string& path, int busy_timeout_ms) {
         std::string msg = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
         sqlite3_close(db_);
         db_ = nullptr;
-        throw Error(fmt::format("cannot open database {}: {}", path, msg), rc);
+        throw Error(fmt::format("cannot open database {}: {}", path, msg), kind_of(rc));
     }
     sqlite3_busy_timeout(db_, busy_timeout_ms);
     // NORMAL is durable across application crashes in WAL mode (only power loss can lose the
@@ -144,7 +148,7 @@ void Connection::exec(std::string_view sql) {
     if (rc != SQLITE_OK) {
         std::string msg = err ? err : sqlite3_errstr(rc);
         sqlite3_free(err);
-        throw Error(fmt::format("sqlite: {}", msg), sqlite3_extended_errcode(db_));
+        throw Error(fmt::format("sqlite: {}", msg), kind_of(sqlite3_extended_errcode(db_)));
     }
 }
 
@@ -153,35 +157,34 @@ void Connection::set_busy_timeout(int ms) { sqlite3_busy_timeout(db_, ms); }
 std::int64_t Connection::last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
 int Connection::changes() const { return sqlite3_changes(db_); }
 
-Transaction::Transaction(Connection& c, bool immediate) : c_(c) {
-    c_.exec(immediate ? "BEGIN IMMEDIATE" : "BEGIN");
-}
-
-Transaction::~Transaction() {
-    if (open_) {
-        try {
-            c_.exec("ROLLBACK");
-        } catch (const Error&) {
-            // The transaction was already rolled back by SQLite itself (e.g. after SQLITE_FULL).
-        }
+ImmediateTransaction::~ImmediateTransaction() {
+    if (!open_) return;
+    try {
+        c_.exec("ROLLBACK");
+    } catch (const Error&) {
+        // Already rolled back by SQLite itself (e.g. after SQLITE_FULL).
     }
 }
 
-void Transaction::commit() {
+void ImmediateTransaction::commit() {
     c_.exec("COMMIT");
     open_ = false;
 }
 
-std::string now_iso() {
-    using namespace std::chrono;
-    auto now = system_clock::now();
-    auto ms = duration_cast<milliseconds>(now.time_since_epoch()).count() % 1000;
-    std::time_t t = system_clock::to_time_t(now);
-    std::tm tm{};
-    gmtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
-    return fmt::format("{}.{:03}Z", buf, ms);
+Savepoint::Savepoint(Connection& c, const char* name) : c_(c), name_(name) { c_.exec(fmt::format("SAVEPOINT {}", name_)); }
+
+Savepoint::~Savepoint() {
+    if (!open_) return;
+    try {
+        c_.exec(fmt::format("ROLLBACK TO {0}; RELEASE {0}", name_));
+    } catch (const Error&) {
+        // Already rolled back by SQLite itself.
+    }
 }
 
-}  // namespace cutload::db
+void Savepoint::release() {
+    c_.exec(fmt::format("RELEASE {}", name_));
+    open_ = false;
+}
+
+}  // namespace cutload::db::sqlite

@@ -1,12 +1,13 @@
-// cutload's schema as numbered migrations. A migration is never edited once released: changes
+// cutload's schema in SQLite's dialect, as numbered migrations. A migration is never edited once released: changes
 // go into a new entry, so any older database upgrades in place at startup.
-#include "db/db.hpp"
+#include "schema.hpp"
+#include "sqlite/connection.hpp"
 
 #include <fmt/format.h>
 
 #include <array>
 
-namespace cutload::db {
+namespace cutload::db::sqlite {
 namespace {
 
 // Timestamps are ISO 8601 UTC text (see now_iso), so they sort and compare as strings.
@@ -197,17 +198,17 @@ int user_version(Connection& c) {
 
 }  // namespace
 
-int schema_version() { return static_cast<int>(kMigrations.size()); }
-
 int migrate(Connection& c) {
-    Transaction tx(c);
+    static_assert(kMigrations.size() == kSchemaVersion, "one SQLite migration per schema version");
+    ImmediateTransaction tx(c);
     int v = user_version(c);
     if (v > schema_version())
-        throw Error(fmt::format("database schema version {} is newer than this cutload ({})", v, schema_version()), 0);
+        throw Error(fmt::format("database schema version {} is newer than this cutload ({})", v, schema_version()),
+                    Error::Kind::Other);
     for (; v < schema_version(); ++v) c.exec(kMigrations[static_cast<std::size_t>(v)]);
     c.exec(fmt::format("PRAGMA user_version={}", v));
     tx.commit();
     return v;
 }
 
-}  // namespace cutload::db
+}  // namespace cutload::db::sqlite

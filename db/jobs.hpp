@@ -1,0 +1,69 @@
+// Public interface of db: job states and job queues.
+//
+// A job is a row of a job table (runs, optimizations, ...): besides its own data it carries the
+// job columns state, progress, error, attempts, started_at and finished_at. The JobRepository
+// works on any job table by its queue name, so a new kind of job needs its table (a migration
+// with those columns) and its own repository for its data, and gets claiming, finishing,
+// cancelling, re-queueing and counting from here.
+#pragma once
+
+#include <cstdint>
+#include <initializer_list>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace cutload::db {
+
+// The life of a job: queued -> running -> done | failed | cancelled; running -> queued again when
+// the server stops or dies mid-job.
+enum class JobState { Queued, Running, Done, Failed, Cancelled };
+
+// The one place where states meet their text (stored, and shown by the API).
+std::string_view to_text(JobState s);
+// Throws std::invalid_argument naming the text for anything that is not a state.
+JobState job_state_from_text(std::string_view text);
+std::optional<JobState> parse_job_state(std::string_view text);
+// Every state, in the order above.
+const std::vector<JobState>& job_states();
+
+// A job table, named as in the schema ("runs", "optimizations"): a constant of the code, never
+// text from a request.
+struct JobQueue {
+    std::string_view name;
+    constexpr bool operator==(const JobQueue&) const = default;
+};
+inline constexpr JobQueue kRunQueue{"runs"};
+inline constexpr JobQueue kOptimizationQueue{"optimizations"};
+
+// Queue operations shared by every job table. Claims are made by one server per store today (a
+// lock file guards it); a backend serving several servers claims with row locks and leases, so
+// these operations say what they guarantee, not how.
+class JobRepository {
+public:
+    virtual ~JobRepository() = default;
+
+    // Marks the oldest queued job running (attempts + 1, progress 0, started_at) and returns its
+    // id; nullopt when none is queued. Two claims never return the same job.
+    virtual std::optional<std::int64_t> claim_oldest(const JobQueue& q, const std::string& now) = 0;
+
+    // Jobs left running by a server that is gone go back to queued (progress 0); returns how many.
+    virtual int requeue_interrupted(const JobQueue& q) = 0;
+
+    // Ends a running job as failed, cancelled or queued (re-queued: progress 0, no finished_at);
+    // error is kept for failed. A job no longer running (cancelled, deleted) is left alone.
+    virtual void finish(const JobQueue& q, std::int64_t id, JobState state, const std::optional<std::string>& error,
+                        const std::string& now) = 0;
+
+    // Cancels a queued job; false when it is not queued (or does not exist).
+    virtual bool cancel_queued(const JobQueue& q, std::int64_t id, const std::string& now) = 0;
+
+    // Progress 0..1 of a running job; ignored once it is no longer running.
+    virtual void set_progress(const JobQueue& q, std::int64_t id, double fraction) = 0;
+
+    // Jobs in any of these states.
+    virtual std::int64_t count(const JobQueue& q, std::initializer_list<JobState> states) = 0;
+};
+
+}  // namespace cutload::db
