@@ -37,6 +37,8 @@ TEST_CASE("webhooks: a stored link-local target is refused at delivery without a
     {
         sqlite3* h = nullptr;
         REQUIRE(sqlite3_open(ts.opt.db_path.c_str(), &h) == SQLITE_OK);
+        // The server's workers take the write lock for a moment now and then (claiming jobs).
+        sqlite3_busy_timeout(h, 5000);
         REQUIRE(sqlite3_exec(h,
                              "INSERT INTO webhooks(url, enabled, created_at) VALUES "
                              "('http://169.254.169.254/latest', 1, '2026-01-01T00:00:00Z')",
