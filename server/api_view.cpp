@@ -43,8 +43,8 @@ void add_view_routes(Core& core) {
             auto c = core.pool.get();
             require_done(*c, id);
         }
-        // The final stock is stored as the engine's stock file (what base_run starts from).
-        const auto stock = load_base_stock(core.pool, id, core.data_dir / "tmp");
+        // The final stock as stored (what a run with base_run starts from).
+        const auto stock = load_base_stock(core.pool, id);
         x.reply(200, height_field_json(id, force_model::stock_height_field(*stock, static_cast<std::size_t>(max_cells))));
     });
 }
