@@ -5,6 +5,7 @@
 // prediction of data/demo_dryrun.csv). Prints its size, the medians of 7 runs (wall and CPU) and
 // the load average, since the machine is shared.
 #include "app/predict_run.hpp"
+#include "force_model/stock.hpp"   // the grid size printed (bench sees internals)
 
 #include <algorithm>
 #include <chrono>

@@ -42,7 +42,7 @@ void add_view_routes(Core& core) {
                    const std::int64_t id = x.id();
                    const auto max_cells = static_cast<std::size_t>(*x.param_int("max_cells"));
                    require_done(*core.session(), id);
-                   // The final stock is stored as the engine's stock bytes (what base_run starts from).
+                   // The final stock as stored (what a run with base_run starts from).
                    const auto stock = load_base_stock(*core.store, id);
                    x.reply(200, height_field_json(id, force_model::stock_height_field(*stock, max_cells)));
                });

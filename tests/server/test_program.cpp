@@ -6,8 +6,11 @@
 #include "motion_io/nc_program.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <initializer_list>
 #include <set>
+#include <thread>
 
 using namespace cutload::test;
 
@@ -69,6 +72,19 @@ json wait_optimization(httplib::Client& c, std::int64_t id, double timeout_s = 3
         if (std::chrono::steady_clock::now() > until) FAIL("optimization " << id << " still " << state);
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
+}
+
+// The job counters move just after the commit that wait_optimization saw (CI caught the gap):
+// the metrics text once it holds every needle, or after 2 s as it is, for the checks to report.
+std::string metrics_once(httplib::Client& c, std::initializer_list<const char*> needles) {
+    std::string text;
+    for (int i = 0; i < 200; ++i) {
+        text = c.Get("/metrics")->body;
+        if (std::all_of(needles.begin(), needles.end(), [&](const char* n) { return text.find(n) != std::string::npos; }))
+            break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return text;
 }
 
 }  // namespace
@@ -307,7 +323,7 @@ TEST_CASE("program api: a feed optimization job meets the target and changes onl
         REQUIRE(b["peak_force_after_N"].get<double>() <= 0.8 * 400 + 1e-6);
     }
     REQUIRE(get_json(c, base + "/optimizations")["items"][0]["id"] == oid);
-    const std::string metrics = c.Get("/metrics")->body;
+    const std::string metrics = metrics_once(c, {"cutload_optimizations_total{state=\"done\"} 1\n"});
     REQUIRE(metrics.find("cutload_optimizations_total{state=\"done\"} 1\n") != std::string::npos);
     REQUIRE(metrics.find("cutload_optimizations_queued 0\n") != std::string::npos);
 
@@ -393,7 +409,8 @@ TEST_CASE("program api: deleting a run stops its running optimization, and optim
     REQUIRE(done["state"] == "done");
     REQUIRE(done["params"]["target"] == 0.8);   // its own result, not the deleted job's
     // The deleted run's job was stopped, not left to finish (it takes over a second on this log).
-    const std::string metrics = c.Get("/metrics")->body;
+    const std::string metrics = metrics_once(c, {"cutload_optimizations_total{state=\"cancelled\"} 1\n",
+                                                 "cutload_optimizations_total{state=\"done\"} 1\n"});
     CHECK(metrics.find("cutload_optimizations_total{state=\"cancelled\"} 1\n") != std::string::npos);
     CHECK(metrics.find("cutload_optimizations_total{state=\"done\"} 1\n") != std::string::npos);
 }
