@@ -34,7 +34,11 @@ Calibration calibrate_steps(const CalibrationInput& in, const Control& control) 
         steady.flutes = in.tool.flutes;
         steady.air_fraction = force_model::tooth_air_fraction(in.tool, t.test);
         CalibratedTest c;
-        c.steady = force_model::steady_mean_force(m, t.test.spindle_rpm, steady);
+        try {
+            c.steady = force_model::steady_mean_force(m, t.test.spindle_rpm, steady);
+        } catch (const force_model::SteadyError& e) {
+            throw SteadyInputNeeded(e, t.file);
+        }
         c.mean_feed_frame_N = force_model::to_feed_frame(c.steady.mean_N, t.test.feed_direction_deg);
         means.push_back(c.mean_feed_frame_N);
         out.tests.push_back(c);

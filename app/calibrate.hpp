@@ -11,6 +11,7 @@
 #include <array>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cutload::app {
@@ -49,10 +50,17 @@ struct Calibration {
     force_model::CalibrationFit fit;     // the material, residuals, condition number
 };
 
+// A test's record needs its steady window or its zero given (`need`); `file` names the test, as
+// its conditions do.
+class SteadyInputNeeded : public force_model::SteadyError {
+public:
+    SteadyInputNeeded(const force_model::SteadyError& e, std::string file) : SteadyError(e.what(), e.need), file(std::move(file)) {}
+    std::string file;
+};
+
 // Phase Calibrate: every record is read first (a bad one fails before any engine time), then the
 // regressors, one test after the other; Done. Throws force_model::MeasurementError for a bad
-// record, force_model::SteadyError when a record needs a window or a zero given (its `need` says
-// which), force_model::SpecError for a test the tool cannot cut or tests that cannot determine all
+// record, SteadyInputNeeded when a record needs a window or a zero given (its `need` says which), force_model::SpecError for a test the tool cannot cut or tests that cannot determine all
 // six coefficients, force_model::Cancelled.
 Calibration calibrate(const CalibrationInput& input, const Control& control = {});
 

@@ -188,13 +188,14 @@ void calibrate(Core& core, Ctx& x) {
     app::Calibration cal;
     try {
         cal = app::calibrate(in);
-    } catch (const force_model::SteadyError& e) {
+    } catch (const app::SteadyInputNeeded& e) {
         throw ApiError(400, "bad_measurement",
                        fmt::format("{} ({})", e.what(),
                                    e.need == force_model::SteadyError::Need::Window
-                                       ? "give from_s and to_s in that record's conditions, record time"
-                                       : "give zero_N in that record's conditions: its reading with no load at its first "
-                                         "sample, in its own channels"));
+                                       ? fmt::format("from_s and to_s in the conditions of '{}', record time", e.file)
+                                       : fmt::format("zero_N in the conditions of '{}': the record's reading with "
+                                                     "no load at its first sample, in its own channels",
+                                                     e.file)));
     } catch (const force_model::MeasurementError& e) {
         throw ApiError(400, "bad_measurement", e.what());
     } catch (const force_model::SpecError& e) {
