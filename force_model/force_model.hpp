@@ -27,7 +27,9 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-enum class ToolShape { Flat, Ball, Bull };
+// Flat, ball and bull-nose end mills; Drill: a sharp cone point (twist drill, spot drill);
+// Chamfer: a cone from a flat tip (chamfer mill, spot drill with a flat).
+enum class ToolShape { Flat, Ball, Bull, Drill, Chamfer };
 
 struct Holder {
     double diameter_mm = 0;
@@ -39,7 +41,9 @@ struct ToolSpec {
     double diameter_mm = 8;
     int flutes = 2;
     double helix_deg = 30;
-    double corner_radius_mm = 0;   // flat: 0; ball: diameter/2; bull: 0 < r < diameter/2
+    double corner_radius_mm = 0;   // flat: 0; ball: diameter/2; bull: 0 < r < diameter/2; cones: 0
+    double point_angle_deg = 0;    // drill, chamfer: the included angle of the cone
+    double tip_diameter_mm = 0;    // chamfer: the flat at the tip (0: a sharp point)
     double flute_length_mm = 20;
     double stickout_mm = 30;       // tip to holder face
     Holder holder;
@@ -65,6 +69,20 @@ struct Limits {
     double rapid_feed_mm_min = 20000;
 };
 
+// A tool's own limits in a tool table: each one given replaces the run's for the rows that tool
+// cuts; the others stay the run's. (The rapid feed is the machine's, not a tool's.)
+struct LimitOverrides {
+    std::optional<double> force_N, torque_Nm, power_kW, chip_mm, bending_MPa;
+};
+Limits limits_for(const Limits& run, const LimitOverrides& tool);
+
+// One entry of the run spec's tool table: the tool a program calls by T number.
+struct NumberedTool {
+    int number = 0;
+    ToolSpec tool;
+    LimitOverrides limits;
+};
+
 struct Resolution {
     double angle_step_deg = 2;
     double axial_step_mm = 0.1;
@@ -72,7 +90,11 @@ struct Resolution {
 };
 
 struct RunSpec {
+    // The run's one tool: it cuts every sample when there is no table, and the samples that name
+    // no tool (no tool channel, before the first change) when there is one.
     ToolSpec tool;
+    bool has_tool = true;               // false: the spec gives only a table
+    std::vector<NumberedTool> tools;    // by T number; numbers unique
     Material material;
     StockBox stock;
     double offset_mm[3] = {0, 0, 0};   // added to logged positions -> tool tip in stock coordinates
@@ -81,6 +103,10 @@ struct RunSpec {
 };
 
 RunSpec parse_run_spec(const nlohmann::json& j);     // throws SpecError naming the key
+// The table entry with this T number, or null.
+const NumberedTool* find_tool(const RunSpec& spec, int number);
+// The most flutes of any tool the spec names (the tooth period a log's sampling must resolve).
+int max_flutes(const RunSpec& spec);
 RunSpec load_run_spec(const std::string& path);      // file errors are SpecError too
 nlohmann::json to_json(const RunSpec& spec);
 
@@ -124,6 +150,7 @@ struct ForceSample {
     double t_s = 0;
     double spindle_angle_deg = 0;
     std::int32_t block = -1;        // index into MotionModel::block_names
+    std::int32_t tool = -1;         // T number of the tool in the spindle; -1: none named
     float fx_N = 0, fy_N = 0, fz_N = 0;
     float torque_Nm = 0, power_kW = 0;
     float chip_mm = 0;              // max uncut chip thickness over engaged elements
@@ -135,13 +162,18 @@ struct ForceSample {
 
 struct FlagHit {
     std::string flag;      // force_limit, torque_limit, power_limit, chip_load_limit, bending_limit,
-                           // rapid_in_material, holder_contact
+                           // rapid_in_material, holder_contact, spindle_stopped, unknown_tool
     double t_s = 0;        // first time it tripped
-    double value = 0;      // the value that tripped it (units of the matching limit)
+    double value = 0;      // the value that tripped it (units of the matching limit; unknown_tool:
+                           // the T number, -1 for none)
+    std::int32_t tool = -1;   // T number of the tool in the spindle when it tripped; -1: none named
 };
 
 struct BlockSummary {
     std::string block;
+    // T number of the tool that cut in the block (the one with the most cutting rows), else of the
+    // tool in the spindle at its end; -1: none named.
+    std::int32_t tool = -1;
     double t_start_s = 0, t_end_s = 0;
     double peak_force_N = 0, mean_force_N = 0;
     double peak_torque_Nm = 0, peak_power_kW = 0;
@@ -156,6 +188,10 @@ struct PredictStats {
     double wall_s = 0;
     std::size_t steps = 0, cutting_steps = 0;
     std::string device;           // device name actually used
+    // Samples whose tool the run spec's table does not have (no forces predicted for them; their
+    // blocks are flagged unknown_tool), and those tools' T numbers (-1: samples naming no tool).
+    std::size_t unknown_tool_samples = 0;
+    std::vector<int> unknown_tools;
 };
 
 struct Prediction {

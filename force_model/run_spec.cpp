@@ -2,11 +2,14 @@
 // says what was expected, because the person reading it is fixing a file by hand.
 #include "force_model/force_model.hpp"
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <fstream>
+#include <algorithm>
 #include <initializer_list>
+#include <numbers>
 #include <set>
 #include <sstream>
 #include <string>
@@ -114,7 +117,9 @@ ToolShape parse_shape(const std::string& s, const std::string& path) {
     if (s == "flat") return ToolShape::Flat;
     if (s == "ball") return ToolShape::Ball;
     if (s == "bull") return ToolShape::Bull;
-    fail(path, "expected one of \"flat\", \"ball\", \"bull\", got \"" + s + "\"");
+    if (s == "drill") return ToolShape::Drill;
+    if (s == "chamfer") return ToolShape::Chamfer;
+    fail(path, "expected one of \"flat\", \"ball\", \"bull\", \"drill\", \"chamfer\", got \"" + s + "\"");
 }
 
 const char* shape_name(ToolShape s) {
@@ -122,9 +127,16 @@ const char* shape_name(ToolShape s) {
         case ToolShape::Flat: return "flat";
         case ToolShape::Ball: return "ball";
         case ToolShape::Bull: return "bull";
+        case ToolShape::Drill: return "drill";
+        case ToolShape::Chamfer: return "chamfer";
     }
     return "flat";
 }
+
+bool is_cone(ToolShape s) { return s == ToolShape::Drill || s == ToolShape::Chamfer; }
+
+// T numbers as controls take them (FANUC: up to 8 digits).
+constexpr double kMaxToolNumber = 99999999;
 
 ToolSpec parse_tool(ObjectReader& r) {
     ToolSpec t;
@@ -142,7 +154,7 @@ ToolSpec parse_tool(ObjectReader& r) {
     require(t.helix_deg >= 0 && t.helix_deg < 70, r.key_path("helix_deg"), "must be in [0, 70) degrees");
 
     // The corner radius is implied by the shape for flat and ball tools; when given it must agree.
-    const double default_corner = t.shape == ToolShape::Flat ? 0.0 : t.shape == ToolShape::Ball ? R : -1.0;
+    const double default_corner = t.shape == ToolShape::Bull ? -1.0 : t.shape == ToolShape::Ball ? R : 0.0;
     if (t.shape == ToolShape::Bull && !r.has("corner_radius_mm"))
         fail(r.key_path("corner_radius_mm"), "required for a bull-nose tool");
     t.corner_radius_mm = r.number_or("corner_radius_mm", default_corner);
@@ -156,12 +168,38 @@ ToolSpec parse_tool(ObjectReader& r) {
             require(t.corner_radius_mm > 0 && t.corner_radius_mm < R, cr,
                     "must be in (0, diameter_mm / 2) for a bull-nose end mill");
             break;
+        case ToolShape::Drill:
+        case ToolShape::Chamfer: require(t.corner_radius_mm == 0, cr, "must be 0 for a drill or chamfer tool (a cone)"); break;
+    }
+
+    // Cones: the included point angle, and for a chamfer tool the flat at its tip.
+    double cone_height_mm = 0;
+    if (is_cone(t.shape)) {
+        t.point_angle_deg = r.number("point_angle_deg");
+        require(t.point_angle_deg >= 20 && t.point_angle_deg <= 170, r.key_path("point_angle_deg"),
+                "must be in [20, 170] degrees (118: a twist drill, 90: a spot drill or chamfer mill)");
+        if (t.shape == ToolShape::Chamfer) {
+            t.tip_diameter_mm = r.number_or("tip_diameter_mm", 0);
+            require(t.tip_diameter_mm >= 0 && t.tip_diameter_mm < t.diameter_mm, r.key_path("tip_diameter_mm"),
+                    "must be in [0, diameter_mm) mm");
+        } else if (r.has("tip_diameter_mm")) {
+            fail(r.key_path("tip_diameter_mm"), "only a chamfer tool has a flat tip (a drill's point is sharp)");
+        }
+        cone_height_mm = (R - t.tip_diameter_mm / 2) / std::tan(t.point_angle_deg / 2 * std::numbers::pi / 180);
+    } else {
+        for (const char* key : {"point_angle_deg", "tip_diameter_mm"})
+            if (r.has(key)) fail(r.key_path(key), "only for a drill or chamfer tool");
     }
 
     t.flute_length_mm = r.number("flute_length_mm");
     require(t.flute_length_mm > 0 && t.flute_length_mm <= 500, r.key_path("flute_length_mm"), "must be in (0, 500] mm");
     require(t.flute_length_mm >= t.corner_radius_mm, r.key_path("flute_length_mm"),
             "must be at least corner_radius_mm");
+    if (t.flute_length_mm < cone_height_mm - 1e-9) {
+        std::ostringstream msg;
+        msg << "must be at least the cone's height, " << cone_height_mm << " mm (the point widens to diameter_mm there)";
+        fail(r.key_path("flute_length_mm"), msg.str());
+    }
     t.stickout_mm = r.number("stickout_mm");
     require(t.stickout_mm >= t.flute_length_mm && t.stickout_mm <= 1000, r.key_path("stickout_mm"),
             "must be at least flute_length_mm and at most 1000 mm");
@@ -177,6 +215,11 @@ ToolSpec parse_tool(ObjectReader& r) {
     } else {
         r.accept_null("holder");
     }
+    return t;
+}
+
+ToolSpec parse_single_tool(ObjectReader& r) {
+    ToolSpec t = parse_tool(r);
     r.reject_unknown();
     return t;
 }
@@ -232,6 +275,55 @@ Limits parse_limits(ObjectReader& r) {
     return l;
 }
 
+LimitOverrides parse_limit_overrides(ObjectReader& r) {
+    LimitOverrides l;
+    auto read = [&r](const char* key, std::optional<double>& out) {
+        if (!r.has(key)) {
+            r.accept_null(key);
+            return;
+        }
+        out = r.number(key);
+        require(*out >= 0, r.key_path(key), "must be >= 0 (0 disables the check for this tool)");
+    };
+    read("force_N", l.force_N);
+    read("torque_Nm", l.torque_Nm);
+    read("power_kW", l.power_kW);
+    read("chip_mm", l.chip_mm);
+    read("bending_MPa", l.bending_MPa);
+    if (r.has("rapid_feed_mm_min"))
+        fail(r.key_path("rapid_feed_mm_min"), "the rapid feed is the machine's: set it in the run's limits");
+    r.reject_unknown();
+    return l;
+}
+
+// "tools": [{"number": 11, <the fields of "tool">, "limits": {...}}, ...]
+std::vector<NumberedTool> parse_tool_table(const json& j) {
+    if (!j.is_array()) fail("tools", "expected an array of tools, each {\"number\": T, <the fields of tool>}");
+    if (j.empty()) fail("tools", "must list at least one tool (or leave the key out)");
+    std::vector<NumberedTool> tools;
+    for (std::size_t k = 0; k < j.size(); ++k) {
+        ObjectReader r(j[k], "tools[" + std::to_string(k) + "]");
+        NumberedTool t;
+        const double number = r.number("number");
+        require(number >= 0 && number <= kMaxToolNumber && number == std::floor(number), r.key_path("number"),
+                "must be a whole T number from 0 to 99999999");
+        t.number = static_cast<int>(number);
+        for (std::size_t e = 0; e < tools.size(); ++e)
+            if (tools[e].number == t.number)
+                fail(r.key_path("number"), fmt::format("T{} is already tools[{}]", t.number, e));
+        t.tool = parse_tool(r);
+        if (r.has("limits")) {
+            ObjectReader l(r.object("limits"), r.key_path("limits"));
+            t.limits = parse_limit_overrides(l);
+        } else {
+            r.accept_null("limits");
+        }
+        r.reject_unknown();
+        tools.push_back(std::move(t));
+    }
+    return tools;
+}
+
 Resolution parse_resolution(ObjectReader& r) {
     Resolution res;
     res.angle_step_deg = r.number_or("angle_step_deg", res.angle_step_deg);
@@ -251,9 +343,19 @@ Resolution parse_resolution(ObjectReader& r) {
 RunSpec parse_run_spec(const json& j) {
     ObjectReader root(j, "");
     RunSpec spec;
-    {
+    if (root.has("tools")) {
+        root.accept_null("tools");
+        spec.tools = parse_tool_table(j.at("tools"));
+    } else {
+        root.accept_null("tools");
+    }
+    spec.has_tool = root.has("tool") || spec.tools.empty();
+    if (spec.has_tool) {
+        if (!root.has("tool")) fail("tool", "required key is missing (or give a tool table, \"tools\")");
         ObjectReader r(root.object("tool"), "tool");
-        spec.tool = parse_tool(r);
+        spec.tool = parse_single_tool(r);
+    } else {
+        root.accept_null("tool");
     }
     {
         ObjectReader r(root.object("material"), "material");
@@ -313,19 +415,65 @@ RunSpec load_run_spec(const std::string& path) {
     }
 }
 
+namespace {
+
+json tool_json(const ToolSpec& t) {
+    json tool = {{"shape", shape_name(t.shape)},
+                 {"diameter_mm", t.diameter_mm},
+                 {"flutes", t.flutes},
+                 {"helix_deg", t.helix_deg}};
+    if (is_cone(t.shape)) {
+        tool["point_angle_deg"] = t.point_angle_deg;
+        if (t.shape == ToolShape::Chamfer) tool["tip_diameter_mm"] = t.tip_diameter_mm;
+    } else {
+        tool["corner_radius_mm"] = t.corner_radius_mm;
+    }
+    tool["flute_length_mm"] = t.flute_length_mm;
+    tool["stickout_mm"] = t.stickout_mm;
+    if (t.holder.diameter_mm > 0) tool["holder"] = {{"diameter_mm", t.holder.diameter_mm}, {"length_mm", t.holder.length_mm}};
+    return tool;
+}
+
+json overrides_json(const LimitOverrides& l) {
+    json j = json::object();
+    auto put = [&j](const char* key, const std::optional<double>& v) {
+        if (v) j[key] = *v;
+    };
+    put("force_N", l.force_N);
+    put("torque_Nm", l.torque_Nm);
+    put("power_kW", l.power_kW);
+    put("chip_mm", l.chip_mm);
+    put("bending_MPa", l.bending_MPa);
+    return j;
+}
+
+}  // namespace
+
+Limits limits_for(const Limits& run, const LimitOverrides& tool) {
+    Limits l = run;
+    l.force_N = tool.force_N.value_or(run.force_N);
+    l.torque_Nm = tool.torque_Nm.value_or(run.torque_Nm);
+    l.power_kW = tool.power_kW.value_or(run.power_kW);
+    l.chip_mm = tool.chip_mm.value_or(run.chip_mm);
+    l.bending_MPa = tool.bending_MPa.value_or(run.bending_MPa);
+    return l;
+}
+
+const NumberedTool* find_tool(const RunSpec& spec, int number) {
+    for (const NumberedTool& t : spec.tools)
+        if (t.number == number) return &t;
+    return nullptr;
+}
+
+int max_flutes(const RunSpec& spec) {
+    int n = spec.has_tool ? spec.tool.flutes : 1;
+    for (const NumberedTool& t : spec.tools) n = std::max(n, t.tool.flutes);
+    return n;
+}
+
 json to_json(const RunSpec& s) {
-    json tool = {{"shape", shape_name(s.tool.shape)},
-                 {"diameter_mm", s.tool.diameter_mm},
-                 {"flutes", s.tool.flutes},
-                 {"helix_deg", s.tool.helix_deg},
-                 {"corner_radius_mm", s.tool.corner_radius_mm},
-                 {"flute_length_mm", s.tool.flute_length_mm},
-                 {"stickout_mm", s.tool.stickout_mm}};
-    if (s.tool.holder.diameter_mm > 0)
-        tool["holder"] = {{"diameter_mm", s.tool.holder.diameter_mm}, {"length_mm", s.tool.holder.length_mm}};
     const auto& m = s.material;
-    return {
-        {"tool", tool},
+    json j = {
         {"material",
          {{"name", m.name},
           {"Ktc_N_mm2", m.Ktc_N_mm2},
@@ -351,6 +499,18 @@ json to_json(const RunSpec& s) {
           {"axial_step_mm", s.resolution.axial_step_mm},
           {"grid_mm", s.resolution.grid_mm}}},
     };
+    if (s.has_tool) j["tool"] = tool_json(s.tool);
+    if (!s.tools.empty()) {
+        json table = json::array();
+        for (const NumberedTool& t : s.tools) {
+            json e = tool_json(t.tool);
+            e["number"] = t.number;
+            if (json l = overrides_json(t.limits); !l.empty()) e["limits"] = std::move(l);
+            table.push_back(std::move(e));
+        }
+        j["tools"] = std::move(table);
+    }
+    return j;
 }
 
 }  // namespace cutload::force_model

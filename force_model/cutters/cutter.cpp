@@ -12,15 +12,26 @@ double corner_radius_mm(const ToolSpec& tool) {
         case ToolShape::Flat: return 0;
         case ToolShape::Ball: return tool.diameter_mm / 2;
         case ToolShape::Bull: return tool.corner_radius_mm;
+        case ToolShape::Drill:
+        case ToolShape::Chamfer: return 0;
     }
     return tool.corner_radius_mm;
+}
+
+CutterProfile profile_from_spec(const ToolSpec& tool) {
+    switch (tool.shape) {
+        case ToolShape::Drill: return cone_profile(tool.diameter_mm, 0, tool.point_angle_deg, tool.flute_length_mm);
+        case ToolShape::Chamfer:
+            return cone_profile(tool.diameter_mm, tool.tip_diameter_mm, tool.point_angle_deg, tool.flute_length_mm);
+        default: return corner_radius_profile(tool.diameter_mm, corner_radius_mm(tool), tool.flute_length_mm);
+    }
 }
 
 }  // namespace
 
 Cutter cutter_from_spec(const ToolSpec& tool) {
-    return Cutter{corner_radius_profile(tool.diameter_mm, corner_radius_mm(tool), tool.flute_length_mm), tool.flutes,
-                  tool.helix_deg, tool.stickout_mm, tool.holder.diameter_mm, tool.holder.length_mm};
+    return Cutter{profile_from_spec(tool), tool.flutes, tool.helix_deg, tool.stickout_mm, tool.holder.diameter_mm,
+                  tool.holder.length_mm};
 }
 
 }  // namespace cutload::force_model
