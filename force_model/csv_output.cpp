@@ -37,7 +37,7 @@ void write_atomically(const std::string& path, Fill fill) {
 
 void write_forces_csv(const Prediction& p, const std::string& path) {
     write_atomically(path, [&](std::ofstream& out) {
-        out << "t_s,spindle_angle_deg,block,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+        out << "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
                "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
         // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
         // through it is several times faster than stream or fmt float formatting.
@@ -55,6 +55,11 @@ void write_forces_csv(const Prediction& p, const std::string& path) {
             num(s.t_s, 6);
             num(s.spindle_angle_deg, 3);
             if (s.block >= 0 && std::size_t(s.block) < names.size()) buf += names[s.block];
+            buf += ',';
+            if (s.tool >= 0) {
+                const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
+                buf.append(tmp, r.ptr);
+            }
             buf += ',';
             num(s.fx_N, 3);
             num(s.fy_N, 3);
@@ -78,7 +83,7 @@ void write_forces_csv(const Prediction& p, const std::string& path) {
 
 void write_blocks_csv(const Prediction& p, const std::string& path, const BlockCsvExtra& extra) {
     write_atomically(path, [&](std::ofstream& out) {
-        out << "block,t_start_s,t_end_s,peak_force_N,mean_force_N,peak_torque_Nm,peak_power_kW,max_chip_mm,"
+        out << "block,tool,t_start_s,t_end_s,peak_force_N,mean_force_N,peak_torque_Nm,peak_power_kW,max_chip_mm,"
                "max_bending_MPa,max_radial_engagement_mm,max_axial_engagement_mm,removed_mm3,flags,flag_details"
             << extra.header << '\n';
         for (const BlockSummary& b : p.blocks) {
@@ -86,9 +91,10 @@ void write_blocks_csv(const Prediction& p, const std::string& path, const BlockC
             for (const FlagHit& f : b.flags) {
                 flags += (flags.empty() ? "" : ";") + f.flag;
                 details += fmt::format("{}{}@{:.4f}s={:.4g}", details.empty() ? "" : ";", f.flag, f.t_s, f.value);
+                if (f.tool >= 0) details += fmt::format(" T{}", f.tool);
             }
-            out << fmt::format("{},{:.6f},{:.6f},{:.3f},{:.3f},{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.3f},{:.3f},{},{}",
-                               csv_field(b.block), b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N,
+            out << fmt::format("{},{},{:.6f},{:.6f},{:.3f},{:.3f},{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.3f},{:.3f},{},{}",
+                               csv_field(b.block), b.tool >= 0 ? std::to_string(b.tool) : std::string(), b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N,
                                b.peak_torque_Nm, b.peak_power_kW, b.max_chip_mm, b.max_bending_MPa,
                                b.max_radial_engagement_mm, b.max_axial_engagement_mm, b.removed_mm3, flags,
                                csv_field(details))

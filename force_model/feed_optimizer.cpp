@@ -18,6 +18,12 @@ constexpr std::array<const char*, kQuantities> kQuantityNames{"force", "torque",
 
 std::array<double, kQuantities> limits_of(const Limits& l) { return {l.force_N, l.torque_Nm, l.power_kW, l.chip_mm, l.bending_MPa}; }
 
+// The limits of the blocks a tool cuts: its own over the run's.
+std::array<double, kQuantities> tool_limits(const RunSpec& spec, int tool) {
+    const NumberedTool* t = tool >= 0 ? find_tool(spec, tool) : nullptr;
+    return limits_of(t ? limits_for(spec.limits, t->limits) : spec.limits);
+}
+
 std::array<double, kQuantities> values_of(const BlockSummary& b) {
     return {b.peak_force_N, b.peak_torque_Nm, b.peak_power_kW, b.max_chip_mm, b.max_bending_MPa};
 }
@@ -30,6 +36,7 @@ bool feed_move(const motion_io::NcBlock& b) {
 struct Unit {
     std::string name;
     std::vector<std::size_t> blocks;   // feed moves with this name
+    std::array<double, kQuantities> lim{};   // of the tool of its first block
     double programmed_mm_min = 0;      // of the first one
     double scale = 1;                  // recommended / programmed
     struct Point {
@@ -139,6 +146,7 @@ motion_io::MotionModel retime_motion(const motion_io::MotionModel& m, const std:
             out.spindle_rpm.push_back(rpm);
             out.spindle_angle_deg.push_back(angle);
             out.block.push_back(u < 1.0 ? m.block[i] : m.block[i1]);
+            if (m.tool.size() == m.size()) out.tool.push_back(u < 1.0 ? m.tool[i] : m.tool[i1]);
         }
     }
     return out;
@@ -147,8 +155,10 @@ motion_io::MotionModel retime_motion(const motion_io::MotionModel& m, const std:
 FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motion_io::MotionModel& actual,
                                 const RunSpec& spec, const PredictOptions& predict_options,
                                 const FeedOptimizerOptions& o) {
-    const std::array<double, kQuantities> lim = limits_of(spec.limits);
-    if (std::none_of(lim.begin(), lim.end(), [](double l) { return l > 0; }))
+    auto any_limit = [](const std::array<double, kQuantities>& l) { return std::any_of(l.begin(), l.end(), [](double x) { return x > 0; }); };
+    bool limited = any_limit(limits_of(spec.limits));
+    for (const NumberedTool& t : spec.tools) limited = limited || any_limit(tool_limits(spec, t.number));
+    if (!limited)
         throw SpecError("limits: none of force_N, torque_Nm, power_kW, chip_mm, bending_MPa is set; feeds cannot be optimised");
     if (!(o.target > 0 && o.target <= 1)) throw std::invalid_argument(fmt::format("target {}: must be in (0, 1]", o.target));
     const double max_feed = o.max_feed_mm_min > 0 ? o.max_feed_mm_min : 0.9 * spec.limits.rapid_feed_mm_min;
@@ -167,6 +177,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
             Unit u;
             u.name = b.name;
             u.programmed_mm_min = b.feed_mm_min;
+            u.lim = tool_limits(spec, b.tool);
             units.push_back(u);
         }
         units[it->second].blocks.push_back(i);
@@ -224,7 +235,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         for (Unit& u : units) {
             const BlockSummary* s = summary(p, u.name);
             const std::array<double, kQuantities> v = s ? values_of(*s) : std::array<double, kQuantities>{};
-            const double rr = ratio(v, lim);
+            const double rr = ratio(v, u.lim);
             const double feed = feeds[u.blocks.front()];
             if (r.predictions == 1) {
                 u.cuts = rr > 0;
@@ -263,7 +274,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
                 // At most 4x per step: far from the current feed the affine model is extrapolated
                 // (below the minimum chip thickness a block stops cutting at all).
                 const double now = u.history.back().feed_mm_min;
-                double f = std::clamp(next_feed(u, lim, aim), now / 4, now * 4);
+                double f = std::clamp(next_feed(u, u.lim, aim), now / 4, now * 4);
                 // A block's load also depends on its neighbours' feeds (what they leave, how the
                 // machine enters it), so its own history can point upwards even when it is over
                 // the target: a block over it as programmed is only ever slowed.
@@ -280,7 +291,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         for (Unit& u : units) {
             if (!u.cuts || u.fixed) continue;
             const BlockSummary* s = summary(r.after, u.name);
-            const double rr = s ? ratio(values_of(*s), lim) : 0.0;
+            const double rr = s ? ratio(values_of(*s), u.lim) : 0.0;
             if (rr > o.target && feeds[u.blocks.front()] > o.min_feed_mm_min + 1.0) {
                 u.scale *= o.target / rr * (1 - 0.5 * o.tolerance);
                 over = true;
@@ -303,8 +314,8 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         int which = 0;
         const BlockSummary* before = summary(r.before, u.name);
         const BlockSummary* after = summary(r.after, u.name);
-        if (before) bf.ratio_before = ratio(values_of(*before), lim);
-        if (after) bf.ratio_after = ratio(values_of(*after), lim, &which);
+        if (before) bf.ratio_before = ratio(values_of(*before), u.lim);
+        if (after) bf.ratio_after = ratio(values_of(*after), u.lim, &which);
         bf.binding = kQuantityNames[static_cast<std::size_t>(which)];
         bf.at_feed_limit = u.at_limit;
         bf.flags_before = flag_names(before);
@@ -317,7 +328,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         r.blocks.push_back(bf);
     }
     for (const BlockSummary& b : r.after.blocks)
-        if (const double rr = ratio(values_of(b), lim); rr > r.max_ratio_after) {
+        if (const double rr = ratio(values_of(b), tool_limits(spec, b.tool)); rr > r.max_ratio_after) {
             r.max_ratio_after = rr;
             r.max_ratio_block = b.block;
         }

@@ -1,4 +1,5 @@
-// predict(): checks the inputs, sets up the engine (cutter tables, cutting law, stock, backend),
+// predict(): checks the inputs, plans which cutter cuts each sample (engine/tool_plan.hpp), sets up
+// the engine (every cutter's tables, cutting law, stock, backend),
 // runs its walk (engine/driver.hpp) and collects the rows, block summaries and final stock. See
 // docs/force_model.md.
 #include "engine.hpp"
@@ -8,6 +9,9 @@
 #include "engine/motion_walk.hpp"
 #include "engine/phase_timer.hpp"
 #include "engine/setup.hpp"
+#include "engine/tool_plan.hpp"
+
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <optional>
@@ -21,15 +25,16 @@ namespace {
 static_assert(EngineSettings{}.wall_tolerance_mm == kernels::kSliverMm,
               "the default wall tolerance is the kernels' float round-off");
 
-void check_inputs(const motion_io::MotionModel& m, const RunSpec& spec, int flutes) {
+void check_inputs(const motion_io::MotionModel& m, const RunSpec& spec) {
     const std::size_t n = m.size();
     for (const auto* v : {&m.x_mm, &m.y_mm, &m.z_mm, &m.vx_mm_s, &m.vy_mm_s, &m.vz_mm_s, &m.spindle_rpm,
                           &m.spindle_angle_deg})
         if (v->size() != n) throw std::invalid_argument("predict: motion model channels have different lengths");
     if (m.block.size() != n) throw std::invalid_argument("predict: motion model block channel has a different length");
+    if (!m.tool.empty() && m.tool.size() != n)
+        throw std::invalid_argument("predict: motion model tool channel has a different length");
     if (!(spec.resolution.angle_step_deg > 0) || !(spec.resolution.axial_step_mm > 0) || !(spec.resolution.grid_mm > 0))
         throw SpecError("resolution: steps must be > 0");
-    if (flutes < 1) throw SpecError("tool.flutes: must be >= 1");
     for (std::size_t s = 0; s < m.session_start.size(); ++s) {
         const std::size_t i = m.session_start[s];
         if (i >= std::max<std::size_t>(n, 1) || (s > 0 && i <= m.session_start[s - 1]))
@@ -39,12 +44,24 @@ void check_inputs(const motion_io::MotionModel& m, const RunSpec& spec, int flut
     }
 }
 
-Prediction collect(const motion_io::MotionModel& motion, const RunSpec& spec, Engine& engine, EngineSetup& setup) {
+void check_plan(const ToolPlan& plan) {
+    for (std::size_t k = 0; k < plan.tools.size(); ++k)
+        if (plan.tools[k].cutter.flutes < 1) {
+            const std::int32_t t = plan.tools[k].number;
+            throw SpecError(t < 0 ? std::string("tool.flutes: must be >= 1") : fmt::format("tool T{}: flutes must be >= 1", t));
+        }
+}
+
+Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup) {
     setup.backend->download(*setup.stock);
     Prediction p;
     RowTable& rows = engine.rows();
     p.block_names = motion.block_names;
-    p.blocks = summarise_blocks(motion, rows.samples, rows.extra, spec.limits);
+    std::vector<Limits> limits;
+    for (const PlannedTool& t : plan.tools) limits.push_back(t.limits);
+    p.blocks = summarise_blocks(motion, rows.samples, rows.extra, limits);
+    p.stats.unknown_tool_samples = plan.unknown_samples;
+    p.stats.unknown_tools = plan.unknown_tools;
     p.samples = std::move(rows.samples);
     p.final_stock = std::move(setup.stock);
     p.stats.simulated_s = simulated_seconds(motion);
@@ -56,20 +73,21 @@ Prediction collect(const motion_io::MotionModel& motion, const RunSpec& spec, En
 }
 
 // The inputs are checked.
-Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& spec, const Cutter& cutter,
+Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& spec, const ToolPlan& plan,
                           const PredictOptions& opt, const EngineSettings& settings, EnginePhases* phases_out) {
+    check_plan(plan);
     const auto wall0 = Clock::now();
     EnginePhases phases;
     std::optional<PhaseTimer> setup_timer(std::in_place, phases.setup_s);
-    EngineSetup setup(spec, cutter, opt, settings);
-    Engine engine(motion, spec, opt, settings, setup, phases);
+    EngineSetup setup(spec, plan, opt, settings);
+    Engine engine(motion, spec, plan, opt, settings, setup, phases);
     setup_timer.reset();
     {
         PhaseTimer timer(phases.walk_s);
         engine.run();
     }
     std::optional<PhaseTimer> finish_timer(std::in_place, phases.finish_s);
-    Prediction p = collect(motion, spec, engine, setup);
+    Prediction p = collect(motion, plan, engine, setup);
     finish_timer.reset();
     // The walk's own share: what the timed phases inside it leave over (step generation, batching,
     // air checks).
@@ -85,14 +103,14 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
 
 Prediction predict_with_cutter(const motion_io::MotionModel& motion, const RunSpec& spec, const Cutter& cutter,
                                const PredictOptions& opt, const EngineSettings& settings, EnginePhases* phases) {
-    check_inputs(motion, spec, cutter.flutes);
-    return run_prediction(motion, spec, cutter, opt, settings, phases);
+    check_inputs(motion, spec);
+    return run_prediction(motion, spec, single_cutter_plan(motion, cutter, spec.limits), opt, settings, phases);
 }
 
 Prediction predict_with(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
                         const EngineSettings& settings, EnginePhases* phases) {
-    check_inputs(motion, spec, spec.tool.flutes);
-    return run_prediction(motion, spec, cutter_from_spec(spec.tool), opt, settings, phases);
+    check_inputs(motion, spec);
+    return run_prediction(motion, spec, plan_tools(motion, spec), opt, settings, phases);
 }
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt) {

@@ -16,7 +16,8 @@ namespace cutload::force_model {
 // volume along path segments from it. Both only queue the work, in order (an engagement sees every
 // removal queued before it); the results are valid after wait(). The inputs may be reused as soon
 // as the call returns; the outputs must stay in place until wait(). At most one engage() and one
-// sweep() call may be outstanding between waits.
+// sweep() call may be outstanding between waits. Both use the tool chosen by use_tool() (the
+// first one until then): the backend holds every tool's tables, built once.
 class Backend {
 public:
     virtual ~Backend() = default;
@@ -27,12 +28,16 @@ public:
     virtual void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
                        const kernels::SweepParams& p, kernels::SweepCellResult* out) = 0;
     virtual void wait() = 0;
+    // The tool (an index into the tools the backend was made with) of the calls that follow.
+    // Work already queued keeps its tool.
+    virtual void use_tool(std::size_t slot) = 0;
     // Copies the backend's stock into the host stock (end of run).
     virtual void download(Stock& stock) = 0;
 };
 
 // Both work on `stock` (the OpenCL backend copies it to the device, or wraps it on CPU devices).
-std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const ToolGeometry& tool);
-std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const ToolGeometry& tool);   // throws OpenClError
+// `tools` (at least one) must outlive the backend.
+std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const std::vector<ToolGeometry>& tools);
+std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools);   // throws OpenClError
 
 }  // namespace cutload::force_model

@@ -8,10 +8,10 @@ namespace {
 
 class CpuBackend final : public Backend {
 public:
-    CpuBackend(Stock& stock, const ToolGeometry& tool) : stock_(stock), tool_(tool) {}
+    CpuBackend(Stock& stock, const std::vector<ToolGeometry>& tools) : stock_(stock), tools_(tools), tool_(&tools.at(0)) {}
     std::string name() const override { return "cpu (scalar C++ twins)"; }
     void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
-        kernels::engage_twin(steps, tool_.edges, p, stock_.view(), out);
+        kernels::engage_twin(steps, tool_->edges, p, stock_.view(), out);
     }
     void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
                const kernels::SweepParams& p, kernels::SweepCellResult* out) override {
@@ -21,17 +21,19 @@ public:
         }
     }
     void wait() override {}
+    void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
     void download(Stock&) override {}
 
 private:
     Stock& stock_;
-    const ToolGeometry& tool_;
+    const std::vector<ToolGeometry>& tools_;
+    const ToolGeometry* tool_;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const ToolGeometry& tool) {
-    return std::make_unique<CpuBackend>(stock, tool);
+std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const std::vector<ToolGeometry>& tools) {
+    return std::make_unique<CpuBackend>(stock, tools);
 }
 
 }  // namespace cutload::force_model

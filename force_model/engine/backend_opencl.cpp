@@ -24,8 +24,8 @@ constexpr std::size_t kCpuGroupSize = 64;
 
 class OpenClBackend final : public Backend {
 public:
-    OpenClBackend(Stock& stock, const ToolGeometry& tool)
-        : rt_(kernels::OpenClRuntime::instance()), stock_(stock), tool_(tool) {
+    OpenClBackend(Stock& stock, const std::vector<ToolGeometry>& tools)
+        : rt_(kernels::OpenClRuntime::instance()), stock_(stock) {
         queue_ = rt_.make_queue();
         engage_ = rt_.make_kernel("engage.cl", "engage");
         remove_ = rt_.make_kernel("remove.cl", "remove_sweep");
@@ -42,31 +42,8 @@ public:
         base_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof stock.codec.base,
                        const_cast<std::uint32_t*>(stock.codec.base.data()));
 
-        // Structure-of-arrays element table padded to whole float8 lanes (padding never cuts: nr = nz = 0).
-        const auto& e = tool.edges;
-        const std::size_t E = e.size();
-        stride_ = (std::max<std::size_t>(E, 1) + 7) / 8 * 8;
-        std::vector<float> elems(8 * stride_, 0.0f);
-        for (std::size_t k = 0; k < E; ++k) {
-            const double span = e.z_hi_mm[k] - e.z_lo_mm[k];
-            const double row[8] = {e.r_mm[k],    e.z_mm[k],    e.nr[k],      e.nz[k],
-                                   e.db_mm[k],   e.z_lo_mm[k], e.z_hi_mm[k], span > 0 ? 1 / span : 0.0};
-            for (int f = 0; f < 8; ++f) elems[f * stride_ + k] = float(row[f]);
-        }
-        elems_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, elems.size() * sizeof(float), elems.data());
-        std::vector<float> rot(2 * 2 * std::size_t(e.flutes) * stride_, 0.0f);
-        for (int s = 0; s < 2; ++s)
-            for (int j = 0; j < e.flutes; ++j)
-                for (std::size_t k = 0; k < E; ++k) {
-                    const double spin = s == 0 ? 1.0 : -1.0;
-                    const double psi = -2 * std::numbers::pi * j / e.flutes + spin * e.lag_rad[k];
-                    const std::size_t base = 2 * (std::size_t(s) * e.flutes + j) * stride_;
-                    rot[base + k] = float(std::cos(psi));
-                    rot[base + stride_ + k] = float(std::sin(psi));
-                }
-        rot_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rot.size() * sizeof(float), rot.data());
-        std::vector<float> lower(tool.lower_mm.begin(), tool.lower_mm.end());
-        lower_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lower.size() * sizeof(float), lower.data());
+        for (const ToolGeometry& t : tools) tools_.push_back(upload_tool(t));
+        tool_ = &tools_.at(0);
         coef_ = buffer(CL_MEM_READ_ONLY, sizeof coef_host_, nullptr);
     }
 
@@ -99,8 +76,8 @@ public:
         check_cl(clEnqueueWriteBuffer(queue_.get(), steps_buf_.get(), CL_FALSE, 0, 8 * n * sizeof(float),
                                       host_steps_.data(), 0, nullptr, nullptr),
                  "write steps");
-        const auto& e = tool_.edges;
-        const cl_int n_steps = cl_int(n), n_elems = cl_int(stride_), n_flutes = e.flutes, bottom = e.bottom_count,
+        const DeviceTool& t = *tool_;
+        const cl_int n_steps = cl_int(n), n_elems = cl_int(t.stride), n_flutes = t.flutes, bottom = t.bottom_count,
                      end = p.element_end, nx = stock_.grid.nx, ny = stock_.grid.ny;
         const float x0 = float(stock_.grid.x0_mm), y0 = float(stock_.grid.y0_mm), inv = float(1.0 / stock_.grid.cell_mm);
         const float spin = float(steps.spin);
@@ -109,8 +86,8 @@ public:
         arg(k, a++, n_steps);
         arg(k, a++, steps_buf_.get());
         arg(k, a++, spin);
-        arg(k, a++, elems_.get());
-        arg(k, a++, rot_.get());
+        arg(k, a++, t.elems.get());
+        arg(k, a++, t.rot.get());
         arg(k, a++, n_elems);
         arg(k, a++, n_flutes);
         arg(k, a++, bottom);
@@ -148,7 +125,7 @@ public:
         check_cl(clEnqueueWriteBuffer(queue_.get(), segs_buf_.get(), CL_FALSE, 0, host_segs_.size() * sizeof(float),
                                       host_segs_.data(), 0, nullptr, nullptr),
                  "write segments");
-        const cl_int nx = stock_.grid.nx, n_lower = cl_int(tool_.lower_mm.size());
+        const cl_int nx = stock_.grid.nx, n_lower = tool_->n_lower;
         const float x0 = float(stock_.grid.x0_mm), y0 = float(stock_.grid.y0_mm), cell = float(stock_.grid.cell_mm),
                     radius = float(p.radius_mm), cut = float(p.cut_length_mm), band = float(p.wall_band_mm);
         cl_kernel k = remove_.get();
@@ -170,7 +147,7 @@ public:
             arg(k, a++, segs_buf_.get());
             arg(k, a++, seg_first);
             arg(k, a++, n_segs);
-            arg(k, a++, lower_.get());
+            arg(k, a++, tool_->lower.get());
             arg(k, a++, n_lower);
             arg(k, a++, radius);
             arg(k, a++, cut);
@@ -188,12 +165,55 @@ public:
 
     void wait() override { check_cl(clFinish(queue_.get()), "clFinish"); }
 
+    // Kernel arguments are taken when a kernel is queued, so queued work keeps its tool's tables.
+    void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
+
     void download(Stock& stock) override {
         download(cells_, stock.stored(), stock.storage.bytes());
         download(walls_, stock.stored_walls(), stock.walls.bytes());
     }
 
 private:
+    // One cutter's tables on the device.
+    struct DeviceTool {
+        ClMem elems, rot, lower;
+        std::size_t stride = 8;
+        cl_int flutes = 1, bottom_count = 0, n_lower = 0;
+    };
+
+    DeviceTool upload_tool(const ToolGeometry& tool) {
+        DeviceTool d;
+        // Structure-of-arrays element table padded to whole float8 lanes (padding never cuts: nr = nz = 0).
+        const auto& e = tool.edges;
+        const std::size_t E = e.size();
+        d.stride = (std::max<std::size_t>(E, 1) + 7) / 8 * 8;
+        d.flutes = e.flutes;
+        d.bottom_count = e.bottom_count;
+        std::vector<float> elems(8 * d.stride, 0.0f);
+        for (std::size_t k = 0; k < E; ++k) {
+            const double span = e.z_hi_mm[k] - e.z_lo_mm[k];
+            const double row[8] = {e.r_mm[k],    e.z_mm[k],    e.nr[k],      e.nz[k],
+                                   e.db_mm[k],   e.z_lo_mm[k], e.z_hi_mm[k], span > 0 ? 1 / span : 0.0};
+            for (int f = 0; f < 8; ++f) elems[f * d.stride + k] = float(row[f]);
+        }
+        d.elems = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, elems.size() * sizeof(float), elems.data());
+        std::vector<float> rot(2 * 2 * std::size_t(e.flutes) * d.stride, 0.0f);
+        for (int s = 0; s < 2; ++s)
+            for (int j = 0; j < e.flutes; ++j)
+                for (std::size_t k = 0; k < E; ++k) {
+                    const double spin = s == 0 ? 1.0 : -1.0;
+                    const double psi = -2 * std::numbers::pi * j / e.flutes + spin * e.lag_rad[k];
+                    const std::size_t base = 2 * (std::size_t(s) * e.flutes + j) * d.stride;
+                    rot[base + k] = float(std::cos(psi));
+                    rot[base + d.stride + k] = float(std::sin(psi));
+                }
+        d.rot = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rot.size() * sizeof(float), rot.data());
+        std::vector<float> lower(tool.lower_mm.begin(), tool.lower_mm.end());
+        d.n_lower = cl_int(lower.size());
+        d.lower = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lower.size() * sizeof(float), lower.data());
+        return d;
+    }
+
     void download(const ClMem& buf, void* host, std::size_t bytes) {
         if (wrap_host_) {
             // Mapping makes the host array current; PoCL maps a USE_HOST_PTR buffer in place.
@@ -241,13 +261,13 @@ private:
 
     kernels::OpenClRuntime& rt_;
     Stock& stock_;
-    const ToolGeometry& tool_;
+    std::vector<DeviceTool> tools_;
+    const DeviceTool* tool_ = nullptr;
     kernels::ClQueue queue_;
     kernels::ClKernel engage_, remove_;
     bool wrap_host_ = false;
     std::size_t group_ = 0;
-    std::size_t stride_ = 8;
-    ClMem cells_, walls_, base_, elems_, rot_, lower_, coef_;
+    ClMem cells_, walls_, base_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
     ClMem steps_buf_, out_buf_, segs_buf_, sweep_buf_;
     std::size_t steps_cap_ = 0, out_cap_ = 0, segs_cap_ = 0, sweep_cap_ = 0;
@@ -257,8 +277,8 @@ private:
 
 }  // namespace
 
-std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const ToolGeometry& tool) {
-    return std::make_unique<OpenClBackend>(stock, tool);
+std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools) {
+    return std::make_unique<OpenClBackend>(stock, tools);
 }
 
 }  // namespace cutload::force_model

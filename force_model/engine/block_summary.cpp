@@ -7,16 +7,31 @@ namespace cutload::force_model {
 
 namespace {
 
-void trip(BlockSummary& b, const char* flag, double t_s, double value) {
+void trip(BlockSummary& b, const char* flag, double t_s, double value, std::int32_t tool) {
     for (const FlagHit& f : b.flags)
         if (f.flag == flag) return;   // keep the first time it tripped
-    b.flags.push_back({flag, t_s, value});
+    b.flags.push_back({flag, t_s, value, tool});
+}
+
+// Cutting rows per T number in one block (a block rarely sees more than one tool).
+struct ToolCount {
+    std::int32_t tool;
+    std::size_t rows;
+};
+
+void count_tool(std::vector<ToolCount>& counts, std::int32_t tool) {
+    for (ToolCount& c : counts)
+        if (c.tool == tool) {
+            ++c.rows;
+            return;
+        }
+    counts.push_back({tool, 1});
 }
 
 }  // namespace
 
 std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
-                                           const std::vector<RowExtra>& extra, const Limits& limits) {
+                                           const std::vector<RowExtra>& extra, const std::vector<Limits>& slot_limits) {
     // One summary per block in order of first appearance in the motion; rows without a block
     // (a negative index) are summarised as "(none)". Block indices are small: a flat table maps
     // them to summaries.
@@ -43,6 +58,7 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
     }
     std::vector<double> force_sum(out.size() + 1, 0.0);
     std::vector<std::size_t> cutting_rows(out.size() + 1, 0);
+    std::vector<std::vector<ToolCount>> tools(out.size() + 1);
     for (std::size_t r = 0; r < rows.size(); ++r) {
         const ForceSample& s = rows[r];
         const RowExtra& x = extra[r];
@@ -51,7 +67,9 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
         if (force_sum.size() < out.size()) {
             force_sum.resize(out.size(), 0.0);
             cutting_rows.resize(out.size(), 0);
+            tools.resize(out.size());
         }
+        b.tool = s.tool;   // the tool in the spindle at the block's end, unless one cut in it
         const double force = std::sqrt(double(s.fx_N) * s.fx_N + double(s.fy_N) * s.fy_N + double(s.fz_N) * s.fz_N);
         b.peak_force_N = std::max(b.peak_force_N, force);
         b.peak_torque_Nm = std::max(b.peak_torque_Nm, double(s.torque_Nm));
@@ -64,20 +82,32 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
         if (x.engaged > 0) {
             force_sum[bi] += force;
             ++cutting_rows[bi];
+            count_tool(tools[bi], s.tool);
         }
-        if (limits.force_N > 0 && force > limits.force_N) trip(b, "force_limit", s.t_s, force);
-        if (limits.torque_Nm > 0 && s.torque_Nm > limits.torque_Nm) trip(b, "torque_limit", s.t_s, s.torque_Nm);
-        if (limits.power_kW > 0 && s.power_kW > limits.power_kW) trip(b, "power_limit", s.t_s, s.power_kW);
-        if (limits.chip_mm > 0 && s.chip_mm > limits.chip_mm) trip(b, "chip_load_limit", s.t_s, s.chip_mm);
+        if (x.slot < 0 || std::size_t(x.slot) >= slot_limits.size()) {
+            trip(b, "unknown_tool", s.t_s, s.tool, s.tool);
+            continue;
+        }
+        const Limits& limits = slot_limits[std::size_t(x.slot)];
+        const std::int32_t t = s.tool;
+        if (limits.force_N > 0 && force > limits.force_N) trip(b, "force_limit", s.t_s, force, t);
+        if (limits.torque_Nm > 0 && s.torque_Nm > limits.torque_Nm) trip(b, "torque_limit", s.t_s, s.torque_Nm, t);
+        if (limits.power_kW > 0 && s.power_kW > limits.power_kW) trip(b, "power_limit", s.t_s, s.power_kW, t);
+        if (limits.chip_mm > 0 && s.chip_mm > limits.chip_mm) trip(b, "chip_load_limit", s.t_s, s.chip_mm, t);
         if (limits.bending_MPa > 0 && s.bending_MPa > limits.bending_MPa)
-            trip(b, "bending_limit", s.t_s, s.bending_MPa);
+            trip(b, "bending_limit", s.t_s, s.bending_MPa, t);
         if (limits.rapid_feed_mm_min > 0 && x.feed_mm_min >= limits.rapid_feed_mm_min && (x.engaged > 0 || s.removed_mm3 > 0))
-            trip(b, "rapid_in_material", s.t_s, x.feed_mm_min);
-        if (s.holder_contact) trip(b, "holder_contact", s.t_s, 1.0);
-        if (x.stopped_in_material) trip(b, "spindle_stopped", s.t_s, x.spindle_rpm);
+            trip(b, "rapid_in_material", s.t_s, x.feed_mm_min, t);
+        if (s.holder_contact) trip(b, "holder_contact", s.t_s, 1.0, t);
+        if (x.stopped_in_material) trip(b, "spindle_stopped", s.t_s, x.spindle_rpm, t);
     }
-    for (std::size_t bi = 0; bi < out.size(); ++bi)
+    for (std::size_t bi = 0; bi < out.size(); ++bi) {
         if (bi < cutting_rows.size() && cutting_rows[bi] > 0) out[bi].mean_force_N = force_sum[bi] / double(cutting_rows[bi]);
+        if (bi < tools.size() && !tools[bi].empty())
+            out[bi].tool = std::max_element(tools[bi].begin(), tools[bi].end(), [](const ToolCount& a, const ToolCount& b) {
+                               return a.rows < b.rows;
+                           })->tool;
+    }
     return out;
 }
 

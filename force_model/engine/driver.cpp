@@ -14,16 +14,19 @@ constexpr std::size_t kMaxReservedRows = std::size_t(1) << 22;
 
 }  // namespace
 
-Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
+Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const ToolPlan& plan, const PredictOptions& opt,
                const EngineSettings& settings, EngineSetup& setup, EnginePhases& phases)
     : motion_(motion), offset_mm_(spec.offset_mm), angle_step_deg_(spec.resolution.angle_step_deg), options_(opt),
-      tool_(setup.tool), phases_(phases), stock_map_(*setup.stock, setup.fresh_stock),
-      removal_path_(setup.stock->grid.cell_mm, setup.tool.radius_mm,
-                    settings.removal_lag_cells * setup.stock->grid.cell_mm,
+      plan_(plan), tools_(setup.tools), tool_(&setup.tools.at(std::size_t(plan.first_slot()))), slot_(plan.first_slot()),
+      phases_(phases), stock_map_(*setup.stock, setup.fresh_stock),
+      removal_path_(setup.stock->grid.cell_mm, tool_->radius_mm, settings.removal_lag_cells * setup.stock->grid.cell_mm,
                     settings.chord_tolerance_cells * setup.stock->grid.cell_mm),
       batcher_(settings, setup.stock->grid.cell_mm),
-      engagement_(*setup.backend, setup.tool, setup.law, settings, setup.stock->grid, phases),
-      rows_(setup.tool.shank_diameter_mm) {
+      engagement_(*setup.backend, *tool_, setup.law, settings, setup.stock->grid, phases) {
+    setup.backend->use_tool(std::size_t(slot_));
+    number_ = motion.size() > 0 ? plan.number_at(0) : -1;
+    if (motion.size() > 0 && plan.slot_at(0) < 0) slot_ = -1;
+    rows_.use_tool(slot_, number_, tool_->shank_diameter_mm);
     rows_.reserve(std::min(expected_rows(motion, angle_step_deg_), kMaxReservedRows));
 }
 
@@ -42,8 +45,29 @@ void Engine::run() {
     complete();
 }
 
+void Engine::use_tool(std::int32_t slot, std::int32_t number) {
+    // What the old cutter walked is removed with its own shape before the next one cuts.
+    flush_batch();
+    remove_all_pending();
+    if (slot >= 0 && tool_ != &tools_[std::size_t(slot)]) {
+        tool_ = &tools_[std::size_t(slot)];
+        removal_path_.set_cutter_radius(tool_->radius_mm);
+        engagement_.use_tool(*tool_, std::size_t(slot));
+    }
+    slot_ = slot;
+    number_ = number;
+    rows_.use_tool(slot, number, tool_->shank_diameter_mm);
+}
+
 void Engine::walk_interval(std::size_t i) {
     if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
+    if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)
+        use_tool(slot, number);
+    if (slot_ < 0) {
+        // A tool the run does not have: nothing is guessed (no forces, no removal).
+        rows_.append_unknown_tool(motion_, i, number_);
+        return;
+    }
     if (interval_in_air(i)) {
         flush_batch();
         remove_all_pending();
@@ -65,7 +89,7 @@ bool Engine::interval_in_air(std::size_t i) {
     const double v_max = std::max(speed_mm_s(motion_, i), speed_mm_s(motion_, i + 1));
     // The Hermite curve can leave the chord by about |v| h / 4 between samples.
     const double slack_mm = 0.05 + 0.25 * v_max * h_s;
-    const double reach_mm = tool_.holder_radius_mm + slack_mm;
+    const double reach_mm = tool_->holder_radius_mm + slack_mm;
     const float top = stock_map_.max_top(std::min(p0.x, p1.x) - reach_mm, std::min(p0.y, p1.y) - reach_mm,
                                          std::max(p0.x, p1.x) + reach_mm, std::max(p0.y, p1.y) + reach_mm);
     return top <= std::min(p0.z, p1.z) - slack_mm;
@@ -79,14 +103,15 @@ void Engine::walk_stopped_spindle(std::size_t i) {
     const Vec3 p0 = tip_position(motion_, i, offset_mm_), p1 = tip_position(motion_, i + 1, offset_mm_);
     removal_path_.add(p0);
     removal_path_.add(p1);
-    const bool in_material = stock_map_.material_above(p0.x, p0.y, 0, tool_.radius_mm, p0.z + 1e-3) ||
-                             stock_map_.material_above(p1.x, p1.y, 0, tool_.radius_mm, p1.z + 1e-3);
+    const bool in_material = stock_map_.material_above(p0.x, p0.y, 0, tool_->radius_mm, p0.z + 1e-3) ||
+                             stock_map_.material_above(p1.x, p1.y, 0, tool_->radius_mm, p1.z + 1e-3);
     rows_.append_motion_sample(motion_, i, in_material);
 }
 
 void Engine::walk_angle_steps(std::size_t i) {
-    IntervalSteps steps(motion_, i, offset_mm_, angle_step_deg_, tool_.edges.flutes);
+    IntervalSteps steps(motion_, i, offset_mm_, angle_step_deg_, tool_->edges.flutes);
     if (steps.empty()) return;
+    if (plan_.slot_at(i + 1) != slot_ || plan_.number_at(i + 1) != number_) steps.keep_first_block();
     if (batcher_.size() > 0 && steps.spin() != batcher_.spin()) flush_batch();
     TimeStep s;
     while (steps.next(s)) {
@@ -102,9 +127,9 @@ void Engine::flush_batch() {
     steps_ += n;
     const TipBounds b = batcher_.tip_bounds();
     // Elements higher than the highest material under the batch cannot engage: skip them.
-    const double R = tool_.radius_mm;
+    const double R = tool_->radius_mm;
     const double reach_mm = double(stock_map_.max_top(b.x0_mm - R, b.y0_mm - R, b.x1_mm + R, b.y1_mm + R)) - b.z_min_mm;
-    engagement_.queue_batch(batcher_, b, tool_.elements_reaching(reach_mm));
+    engagement_.queue_batch(batcher_, b, tool_->elements_reaching(reach_mm));
     removal_path_.add_batch(engagement_.in_flight().steps);
     queue_removal(true);
 }
@@ -143,7 +168,7 @@ void Engine::complete() {
     rows_.attribute_removed(first_row, batch_rows, removed_mm3);
     if (batch_rows > 0) {
         PhaseTimer timer(phases_.holder_s);
-        mark_holder_contact(stock_map_, tool_, f.steps, f.bounds, rows_.samples.data() + first_row);
+        mark_holder_contact(stock_map_, *tool_, f.steps, f.bounds, rows_.samples.data() + first_row);
     }
     engagement_.release();
     report_progress();

@@ -4,7 +4,10 @@
 // the lagged removal of the path before it queued on the backend and completed while the walk
 // produces the next batch (docs/force_model.md, "Pipeline"). The parts it drives each do one job:
 // motion_walk (time steps), batcher (batches), stock_map and removal_path (stock tracking),
-// engagement (backend calls), rows and derived (output rows), holder_check.
+// engagement (backend calls), rows and derived (output rows), holder_check. The tool plan says
+// which cutter cuts each sample: a tool change completes the work in flight and removes the whole
+// pending path with the old cutter before the next one cuts, so each tool cuts what the ones
+// before it left.
 #pragma once
 
 #include "engine/batcher.hpp"
@@ -18,7 +21,7 @@ namespace cutload::force_model {
 
 class Engine {
 public:
-    Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt,
+    Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const ToolPlan& plan, const PredictOptions& opt,
            const EngineSettings& settings, EngineSetup& setup, EnginePhases& phases);
     Engine(const Engine&) = delete;
     Engine& operator=(const Engine&) = delete;
@@ -31,6 +34,8 @@ public:
 
 private:
     void walk_interval(std::size_t i);
+    // Makes slot (with T number `number`) the cutter of what follows; slot -1: no cutter.
+    void use_tool(std::int32_t slot, std::int32_t number);
     bool interval_in_air(std::size_t i);
     void walk_stopped_spindle(std::size_t i);
     void walk_angle_steps(std::size_t i);
@@ -49,7 +54,10 @@ private:
     const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates
     const double angle_step_deg_;
     const PredictOptions& options_;
-    const ToolGeometry& tool_;
+    const ToolPlan& plan_;
+    const std::vector<ToolGeometry>& tools_;
+    const ToolGeometry* tool_;   // the cutter in the spindle (the last known one while it is unknown)
+    std::int32_t slot_ = 0, number_ = -1;
     EnginePhases& phases_;
 
     StockMap stock_map_;

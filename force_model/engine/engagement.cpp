@@ -2,6 +2,7 @@
 #include "engine/phase_timer.hpp"
 
 #include <exception>
+#include <stdexcept>
 
 namespace cutload::force_model {
 
@@ -9,16 +10,26 @@ Engagement::Engagement(Backend& backend, const ToolGeometry& tool, const LinearE
                        const EngineSettings& settings, const kernels::GridInfo& grid, EnginePhases& phases)
     : backend_(backend), phases_(phases) {
     set_kernel_law(law, engage_params_);
-    engage_params_.holder_face_z_mm = tool.stickout_mm;
     engage_params_.wall_tolerance_mm = settings.wall_tolerance_mm;
-    sweep_params_.lower_mm = tool.lower_mm;
-    sweep_params_.radius_mm = tool.radius_mm;
-    sweep_params_.cut_length_mm = tool.flute_length_mm;
+    set_tool_params(tool);
     // An edge point lies within half a cell diagonal of its ray's centre: walls farther than that
     // from the centre cannot change a test. A whole cell keeps a margin.
     sweep_params_.wall_band_mm = grid.cell_mm;
     in_flight_.steps.reserve(settings.max_batch_steps);
     in_flight_.meta.reserve(settings.max_batch_steps);
+}
+
+void Engagement::set_tool_params(const ToolGeometry& tool) {
+    engage_params_.holder_face_z_mm = tool.stickout_mm;
+    sweep_params_.lower_mm = tool.lower_mm;
+    sweep_params_.radius_mm = tool.radius_mm;
+    sweep_params_.cut_length_mm = tool.flute_length_mm;
+}
+
+void Engagement::use_tool(const ToolGeometry& tool, std::size_t slot) {
+    if (in_flight_.active) throw std::logic_error("engine: a tool change with work in flight");
+    set_tool_params(tool);
+    backend_.use_tool(slot);
 }
 
 Engagement::~Engagement() {

@@ -35,6 +35,9 @@ public:
     ~Engagement();
 
     InFlight& in_flight() { return in_flight_; }
+    // The tool of the work queued from now on (nothing may be in flight): its holder face and
+    // removal tables here, its edge tables in the backend.
+    void use_tool(const ToolGeometry& tool, std::size_t slot);
     // Queues the engagement of the batcher's batch over the edge elements [0, element_end) (none
     // when 0: every result is zero) and takes the batch into the in-flight slot.
     void queue_batch(StepBatcher& batcher, const TipBounds& bounds, int element_end);
@@ -46,6 +49,8 @@ public:
     void release();
 
 private:
+    void set_tool_params(const ToolGeometry& tool);
+
     Backend& backend_;
     EnginePhases& phases_;
     kernels::EngageParams engage_params_;

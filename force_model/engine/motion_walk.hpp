@@ -54,6 +54,9 @@ public:
                   int flutes);
     bool empty() const { return done(first_angle_index_ * step_deg_); }
     double spin() const { return spin_; }   // +1 M03, -1 M04
+    // Every step keeps the first sample's block (normally the later half of the interval takes the
+    // next sample's): at a tool change the interval is the old tool's, and so is its block.
+    void keep_first_block() { block1_ = block0_; }
     // The next step; false after the last one.
     bool next(TimeStep& s);
 

@@ -17,6 +17,8 @@ public:
     RemovalPath(double cell_mm, double cutter_radius_mm, double lag_mm, double chord_tolerance_mm);
 
     bool empty() const { return pending_.empty(); }
+    // Another cutter follows (at a tool change, once the path is taken: empty()).
+    void set_cutter_radius(double cutter_radius_mm) { cutter_radius_mm_ = cutter_radius_mm; }
     // Appends a tip position; with keep false it is dropped when within half a cell of the last one.
     void add(const Vec3& tip_mm, bool keep = true);
     // Appends every tip of a batch (thinned, the last one kept).

@@ -4,7 +4,11 @@
 
 namespace cutload::force_model {
 
-RowTable::RowTable(double shank_diameter_mm) : section_modulus_mm3_(shank_section_modulus_mm3(shank_diameter_mm)) {}
+void RowTable::use_tool(std::int32_t slot, std::int32_t number, double shank_diameter_mm) {
+    slot_ = slot;
+    number_ = number;
+    section_modulus_mm3_ = shank_section_modulus_mm3(shank_diameter_mm);
+}
 
 void RowTable::reserve(std::size_t rows) {
     samples.reserve(rows);
@@ -19,6 +23,7 @@ void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector
         s.t_s = step.t_s;
         s.spindle_angle_deg = step.angle_deg;
         s.block = step.block;
+        s.tool = number_;
         s.fx_N = r.fx_N;
         s.fy_N = r.fy_N;
         s.fz_N = r.fz_N;
@@ -30,6 +35,7 @@ void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector
         s.axial_engagement_mm = r.z_max_mm - r.z_min_mm;
         samples.push_back(s);
         RowExtra x;
+        x.slot = slot_;
         x.feed_mm_min = float(step.feed_mm_min);
         x.engaged = r.engaged;
         x.spindle_rpm = float(step.rpm);
@@ -37,17 +43,32 @@ void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector
     }
 }
 
-void RowTable::append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material) {
+namespace {
+
+void append_sample(RowTable& rows, const motion_io::MotionModel& m, std::size_t i, std::int32_t slot, std::int32_t number,
+                   bool stopped_in_material) {
     ForceSample s;
     s.t_s = m.t_s[i];
     s.spindle_angle_deg = m.spindle_angle_deg[i];
     s.block = m.block[i];
-    samples.push_back(s);
+    s.tool = number;
+    rows.samples.push_back(s);
     RowExtra x;
+    x.slot = slot;
     x.feed_mm_min = float(speed_mm_s(m, i) * 60);
     x.stopped_in_material = stopped_in_material;
     x.spindle_rpm = float(m.spindle_rpm[i]);
-    extra.push_back(x);
+    rows.extra.push_back(x);
+}
+
+}  // namespace
+
+void RowTable::append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material) {
+    append_sample(*this, m, i, slot_, number_, stopped_in_material);
+}
+
+void RowTable::append_unknown_tool(const motion_io::MotionModel& m, std::size_t i, std::int32_t number) {
+    append_sample(*this, m, i, -1, number, false);
 }
 
 void RowTable::attribute_removed(std::size_t first_row, std::size_t batch_rows, double removed_mm3) {

@@ -13,6 +13,7 @@ namespace cutload::force_model {
 
 // What the engine knows about a row beyond the public ForceSample.
 struct RowExtra {
+    std::int32_t slot = 0;             // the cutter's slot in the tool plan; -1: unknown tool
     float feed_mm_min = 0;
     float engaged = 0;                 // engaged edge elements
     bool stopped_in_material = false;  // |rpm| < 1 with the cutter in material
@@ -21,14 +22,18 @@ struct RowExtra {
 
 class RowTable {
 public:
-    explicit RowTable(double shank_diameter_mm);
+    RowTable() = default;
+    // The cutter of the rows that follow: its slot, its T number and its shank (bending stress).
+    void use_tool(std::int32_t slot, std::int32_t number, double shank_diameter_mm);
     void reserve(std::size_t rows);
     std::size_t size() const { return samples.size(); }
 
     // One row per step of a completed batch, from the kernel's results.
     void append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results);
-    // One zero-force row at motion sample i.
+    // One zero-force row at motion sample i, of the current tool.
     void append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material);
+    // One zero-force row at motion sample i whose tool the run does not have (T number, -1: none).
+    void append_unknown_tool(const motion_io::MotionModel& m, std::size_t i, std::int32_t number);
     // Spreads a batch's removed volume evenly over its rows [first_row, size()); with no rows there,
     // the volume goes to the last row written (the tail of the path, removed at a stop).
     void attribute_removed(std::size_t first_row, std::size_t batch_rows, double removed_mm3);
@@ -37,7 +42,8 @@ public:
     std::vector<RowExtra> extra;
 
 private:
-    double section_modulus_mm3_;
+    double section_modulus_mm3_ = 0;
+    std::int32_t slot_ = 0, number_ = -1;
 };
 
 }  // namespace cutload::force_model

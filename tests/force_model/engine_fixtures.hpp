@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@ struct Leg {
     double feed_mm_min;
     std::string block;
     double rpm = 10000;
+    std::int32_t tool = -1;   // T number in the spindle; the motion names tools when any leg does
 };
 
 // Uniform 1 ms samples along straight legs from `start`; spindle angle by the trapezoid rule.
@@ -30,7 +32,9 @@ inline motion_io::MotionModel legs_motion(P3 start, const std::vector<Leg>& legs
     m.step_s = step_s;
     double t = 0, angle = 0, prev_rpm = legs.empty() ? 0 : legs.front().rpm;
     P3 p = start;
+    const bool tools = std::any_of(legs.begin(), legs.end(), [](const Leg& l) { return l.tool >= 0; });
     auto push = [&](const P3& pos, const P3& vel, double rpm, int block) {
+        if (tools) m.tool.push_back(block >= 0 ? legs[std::size_t(block)].tool : -1);
         if (!m.t_s.empty()) angle += 6.0 * 0.5 * (prev_rpm + rpm) * step_s;
         prev_rpm = rpm;
         m.t_s.push_back(t);
