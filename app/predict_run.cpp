@@ -11,6 +11,25 @@
 namespace cutload::app {
 namespace {
 
+// Samples cut by a tool the table does not have get no forces: say how many, and which tools.
+std::string unknown_tool_warning(const force_model::PredictStats& stats, const motion_io::MotionModel& motion) {
+    if (stats.unknown_tool_samples == 0) return {};
+    std::string list;
+    bool unnamed = false;
+    for (int t : stats.unknown_tools) {
+        if (t < 0) unnamed = true;
+        else list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
+    }
+    if (unnamed) list += fmt::format("{}samples that name no tool", list.empty() ? "" : ", and ");
+    const double share = 100.0 * double(stats.unknown_tool_samples) / double(std::max<std::size_t>(motion.size(), 1));
+    return fmt::format("{} samples ({:.1f} % of the log) run with a tool the run spec's table does not have ({}): no "
+                       "forces are predicted for them and their blocks are flagged unknown_tool{}",
+                       stats.unknown_tool_samples, share, list,
+                       unnamed ? " (give the spec a \"tool\" for samples that name none, or a log or program that names "
+                                 "the tools)"
+                               : "");
+}
+
 RunResult predict_steps(const RunInput& in, const Control& control) {
     Tracker track(control);
     RunResult r;
@@ -21,7 +40,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     r.motion = motion_io::ingest(in.log_path, in.read, &r.ingest);
     if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
     // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
-    r.sampling = motion_io::check_sampling(r.ingest, in.spec.tool.flutes);
+    r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
 
     // Before predicting: a log without the program's block names takes them by mapping.
     if (in.program) {
@@ -29,11 +48,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         ProgramSource source = *in.program;
         source.settings.limits.sample_step_s = r.motion.step_s;   // the commanded samples it may imply
         motion_io::NcProgram program = read_program(source, in.spec, log_start_mm(r.motion));
-        if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1) {
+        // Without a tool table the run spec's one tool cuts every block; say so when the program
+        // changes tools. (With a table, tools it lacks are counted after the prediction.)
+        if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1 && in.spec.tools.empty()) {
             std::string list;
             for (int t : tools) list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
             r.warnings.push_back(fmt::format("the program uses tools {}; forces are predicted with the run spec's one tool "
-                                             "for every block",
+                                             "for every block (give the spec a tool table, \"tools\", to predict each "
+                                             "block with its own)",
                                              list));
         }
         track.begin(Phase::Mapping, 0, 0);
@@ -68,6 +90,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     track.begin(Phase::Predict, 0, actual_share);
     po.progress = track.engine_progress();
     r.prediction = force_model::predict(r.motion, in.spec, po);
+    if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);
     if (r.program) {
         track.begin(Phase::Commanded, actual_share, 1);
         po.progress = track.engine_progress();

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <map>
 #include <stdexcept>
 #include <set>
 
@@ -22,7 +23,46 @@ bool log_blocks_match(const motion_io::MotionModel& m, const motion_io::NcProgra
     return named > 0 && matching >= 0.95 * double(named);
 }
 
+bool names_tools(const motion_io::MotionModel& m) {
+    return std::any_of(m.tool.begin(), m.tool.end(), [](std::int32_t t) { return t >= 0; });
+}
+
 }  // namespace
+
+std::vector<std::int32_t> program_tools_per_sample(const motion_io::NcProgram& program,
+                                                   const motion_io::BlockMapping& mapping,
+                                                   const motion_io::MotionModel& motion) {
+    const std::size_t n = motion.size();
+    std::vector<std::int32_t> tool(n, -1);
+    // Per block name: its one tool, -2 when blocks of that name run with different tools.
+    std::map<std::string, std::int32_t> by_name;
+    for (const motion_io::NcBlock& b : program.blocks) {
+        if (b.tool < 0) continue;
+        auto [it, fresh] = by_name.try_emplace(b.name, b.tool);
+        if (!fresh && it->second != b.tool) it->second = -2;
+    }
+    if (by_name.empty()) return tool;
+    std::vector<std::int32_t> of_block(motion.block_names.size(), -1);
+    for (std::size_t k = 0; k < motion.block_names.size(); ++k)
+        if (const auto it = by_name.find(motion.block_names[k]); it != by_name.end()) of_block[k] = it->second;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::int32_t b = motion.block[i];
+        std::int32_t t = b >= 0 && std::size_t(b) < of_block.size() ? of_block[std::size_t(b)] : -1;
+        if (t == -2) {
+            const std::int32_t pb = i < mapping.program_block.size() ? mapping.program_block[i] : -1;
+            t = pb >= 0 ? program.blocks[std::size_t(pb)].tool : -1;
+        }
+        tool[i] = t;
+    }
+    std::int32_t held = -1;
+    for (std::int32_t& t : tool) {
+        if (t >= 0) held = t;
+        else t = held;
+    }
+    const auto first = std::find_if(tool.begin(), tool.end(), [](std::int32_t t) { return t >= 0; });
+    if (first != tool.end()) std::fill(tool.begin(), first, *first);
+    return tool;
+}
 
 std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& motion) {
     if (motion.x_mm.empty()) return std::nullopt;
@@ -87,6 +127,14 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
             100 * double(q.excluded_tool_change) / n, 100 * q.coverage));
     }
     if (run.mapped) motion = motion_io::with_mapped_blocks(std::move(motion), run.mapping);
+    // The log's own tool channel first; else the program says which tool each block runs.
+    if (!names_tools(motion)) {
+        std::vector<std::int32_t> tools = program_tools_per_sample(run.program, run.mapping, motion);
+        if (std::any_of(tools.begin(), tools.end(), [](std::int32_t t) { return t >= 0; })) {
+            motion.tool = std::move(tools);
+            run.tools_from_program = true;
+        }
+    }
     return run;
 }
 

@@ -45,6 +45,7 @@ struct ProgramRun {
     motion_io::BlockMapping mapping;          // always computed: it gives the path deviations
     motion_io::CommandedOptions commanded;    // step of the log's model, the rapid rate
     bool mapped = false;                      // the motion's blocks come from the mapping
+    bool tools_from_program = false;          // the motion's tools come from the program's blocks
     std::optional<double> estimated_lead_s;   // logs with their own block channel
 };
 
@@ -58,12 +59,22 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
 std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& motion);
 
 // Maps the log onto the program and relabels `motion`'s blocks with the program's names when the
-// log has none that match (or settings.map_blocks). Throws motion_io::NcProgramError when under
+// log has none that match (or settings.map_blocks). A log that names no tool takes the tools of the
+// program's blocks (program_tools_per_sample). Throws motion_io::NcProgramError when under
 // settings.min_match of the counted samples lie near the program's path (wrong program or work
 // offset; samples at rest, rapids away from the cutting moves and tool changes are not counted),
 // or when the commanded motion at the log's step would pass settings.limits.max_samples.
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
                                motion_io::MotionModel& motion);
+
+// The tool in the spindle at each sample by the program: the tool of the sample's block (blocks
+// that share a name and a tool; where a name spans several tools, the block matched to the sample
+// geometrically), carried over samples no block names (the tool stays in the spindle until a
+// change; before the first named sample, the first tool named). -1 throughout when the program
+// changes no tool.
+std::vector<std::int32_t> program_tools_per_sample(const motion_io::NcProgram& program,
+                                                   const motion_io::BlockMapping& mapping,
+                                                   const motion_io::MotionModel& motion);
 
 // Commanded time -> actual time, piecewise linear: each program block's commanded span is
 // stretched onto the span the machine took for it (the mapping's first sample of each block), so

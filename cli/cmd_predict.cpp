@@ -70,7 +70,7 @@ void run_predict(const PredictArgs& a) {
     for (const auto& b : p.blocks) {
         if (b.flags.empty()) continue;
         ++flagged;
-        std::printf("  %s:", b.block.c_str());
+        std::printf("  %s%s:", b.block.c_str(), b.tool >= 0 ? (" (T" + std::to_string(b.tool) + ")").c_str() : "");
         for (const auto& f : b.flags) std::printf(" %s@%.3fs=%.4g", f.flag.c_str(), f.t_s, f.value);
         std::printf("\n");
     }

@@ -2,6 +2,7 @@
 // the comparison columns, consistent with each other, and one-line errors for bad programs.
 #include "cli/run_cli.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +10,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 namespace fs = std::filesystem;
 using namespace cutload::clitest;
@@ -216,4 +219,54 @@ TEST_CASE("program options: units, arc centres, tolerance, block skip and the ma
         CHECK(r.exit_code != 0);
         CHECK(r.output.rfind("cutload: error: ", 0) == 0);
     }
+}
+
+TEST_CASE("demo2 with its tool table: every block predicted with its tool, none unknown", "[cli][program][tools]") {
+    const fs::path dir = scratch("demo2_tools");
+    // The bundled spec at a coarser resolution (the tools' assignment does not depend on it; the
+    // suite stays fast): 4 degree steps, 0.2 mm grid and elements.
+    nlohmann::json spec = nlohmann::json::parse(read(source("data/demo2_run.json")));
+    REQUIRE(spec.contains("tools"));
+    REQUIRE_FALSE(spec.contains("tool"));
+    spec["resolution"] = {{"angle_step_deg", 4}, {"axial_step_mm", 0.2}, {"grid_mm", 0.2}};
+    write(dir / "demo2_run.json", spec.dump());
+    const Result r = run("predict " + source("data/demo2_dryrun.csv") + " --spec " + (dir / "demo2_run.json").string() +
+                         " --device cpu -q --out " + (dir / "forces.csv").string() + " --blocks " + (dir / "blocks.csv").string());
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    CHECK(r.output.find("unknown_tool") == std::string::npos);
+    CHECK(r.output.find("one tool for every block") == std::string::npos);
+
+    // Every block names its tool; each tool cuts in the blocks the program runs it in (the log's
+    // block column), and every tool cuts somewhere.
+    const auto blocks = read_csv(dir / "blocks.csv");
+    REQUIRE(blocks.size() > 70);
+    std::map<std::string, double> peak_by_tool;
+    for (const auto& b : blocks) {
+        INFO(b.at("block"));
+        REQUIRE_FALSE(b.at("tool").empty());
+        CHECK(b.at("flags").find("unknown_tool") == std::string::npos);
+        peak_by_tool[b.at("tool")] = std::max(peak_by_tool[b.at("tool")], std::stod(b.at("peak_force_N")));
+    }
+    REQUIRE(peak_by_tool.size() == 3);
+    for (const auto& [tool, peak] : peak_by_tool) {
+        INFO("T" << tool);
+        CHECK(peak > 20);
+    }
+    // demo2_program.nc: the face mill T1 through N140, the end mill T2 from N150 to N720, the drill T3 after.
+    auto tool_of = [&](const std::string& name) {
+        for (const auto& b : blocks)
+            if (b.at("block") == name) return b.at("tool");
+        return std::string("(missing)");
+    };
+    CHECK(tool_of("N60") == "1");
+    CHECK(tool_of("N450") == "2");
+    CHECK(tool_of("N770") == "3");
+
+    // FORCES.csv's rows carry the tool too.
+    const auto forces = read_csv(dir / "forces.csv");
+    std::map<std::string, std::size_t> rows_by_tool;
+    for (const auto& f : forces) ++rows_by_tool[f.at("tool")];
+    CHECK(rows_by_tool.size() == 3);
+    CHECK(rows_by_tool.count("") == 0);
 }

@@ -1,6 +1,6 @@
 // The second demo (issue 12): a multi-tool inch program without G20 or G90.1, its dry-run log
-// from the generator (tool changes, acceleration-limited corners, client stalls) and the run spec
-// draft with a tool table. data/demo2_program.nc and data/demo2_dryrun.csv are the generator's
+// from the generator (tool changes, acceleration-limited corners, client stalls) and its run spec
+// with a tool table. data/demo2_program.nc and data/demo2_dryrun.csv are the generator's
 // output, checked here and regenerated with
 //   CUTLOAD_UPDATE_DEMO2=1 build/tests/test_nc "[demo2]"
 #include "nc_fixtures.hpp"
@@ -52,11 +52,7 @@ app::ProgramSettings demo2_settings() {
     return s;
 }
 
-force_model::RunSpec demo2_spec_without_tools() {
-    nlohmann::json j = demo2_run();
-    j.erase("tools");   // the engine reads the tool table in a later change
-    return force_model::parse_run_spec(j);
-}
+force_model::RunSpec demo2_spec() { return force_model::parse_run_spec(demo2_run()); }
 
 }  // namespace
 
@@ -106,27 +102,24 @@ TEST_CASE("demo2: an inch program without G20 and G90.1, three tools, arcs and a
     // X-1.2 in at G54 = machine 250 mm: the first face pass starts 30.48 mm before the stock.
     for (const auto& b : p.blocks)
         if (b.name == "N20") CHECK(b.end_mm[0] == Approx(250 - 1.2 * 25.4));
-    // The run spec draft's G54 (minus its setup offset) is the one the program was read with.
-    const auto spec = demo2_spec_without_tools();
+    // The run spec's G54 (minus its setup offset) is the one the program was read with.
+    const auto spec = demo2_spec();
     for (int a = 0; a < 3; ++a) CHECK(-spec.offset_mm[a] == motion_io::demo2_read_options().work_offsets_mm.at("G54")[a]);
 }
 
-TEST_CASE("demo2: the run spec draft's tool table names the program's tools", "[demo2]") {
-    const nlohmann::json j = demo2_run();
-    REQUIRE(j.contains("tools"));
-    std::set<int> numbers;
-    for (const auto& t : j["tools"]) {
-        numbers.insert(t.at("number").get<int>());
-        for (const char* key : {"shape", "diameter_mm", "flutes", "helix_deg", "flute_length_mm", "stickout_mm"}) CHECK(t.contains(key));
-        // Milling tools are valid "tool" entries today (the drill's shape is for the later change).
-        if (t["shape"] == "drill") continue;
-        nlohmann::json one = j;
-        one.erase("tools");
-        one["tool"] = t;
-        one["tool"].erase("number");
-        CHECK_NOTHROW(force_model::parse_run_spec(one));
-    }
-    CHECK(numbers == std::set<int>{1, 2, 3});
+TEST_CASE("demo2: the run spec's tool table has the program's tools, and nothing else", "[demo2]") {
+    const force_model::RunSpec spec = demo2_spec();
+    CHECK_FALSE(spec.has_tool);
+    std::vector<int> numbers;
+    for (const auto& t : spec.tools) numbers.push_back(t.number);
+    const motion_io::NcProgram p = motion_io::parse_nc_program(read_text(source_path("data/demo2_program.nc")),
+                                                               "demo2_program.nc", motion_io::demo2_read_options());
+    CHECK(numbers == motion_io::program_tools(p));
+    REQUIRE(spec.tools.size() == 3);
+    CHECK(spec.tools[0].tool.shape == force_model::ToolShape::Bull);
+    CHECK(spec.tools[1].tool.diameter_mm == Approx(0.5 * 25.4));
+    CHECK(spec.tools[2].tool.shape == force_model::ToolShape::Drill);
+    CHECK(spec.tools[2].tool.diameter_mm == Approx(0.25 * 25.4));
 }
 
 TEST_CASE("demo2: mapping the log without its block column recovers the logged blocks", "[demo2][mapping]") {
@@ -144,7 +137,7 @@ TEST_CASE("demo2: mapping the log without its block column recovers the logged b
     CHECK(order == std::vector<int>{1, 2, 3});
 
     const app::ProgramSettings settings = demo2_settings();
-    const force_model::RunSpec spec = demo2_spec_without_tools();
+    const force_model::RunSpec spec = demo2_spec();
     const motion_io::NcProgram prog = motion_io::read_nc_program(
         source_path("data/demo2_program.nc"), app::program_read_options(settings, spec, app::log_start_mm(without)));
     motion_io::BlockMappingOptions mo;
@@ -176,4 +169,77 @@ TEST_CASE("demo2: mapping the log without its block column recovers the logged b
         s, relabelled);
     CHECK(run.mapped);
     CHECK(motion_io::block_agreement(with_blocks, relabelled.block, relabelled.block_names) == Approx(agreement));
+}
+
+namespace {
+
+// The log without its tool column (the second to last): a client that does not read the tool.
+std::string without_tool_column(const std::string& text) {
+    std::string out;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+        const std::size_t last = line.rfind(','), tool = line.rfind(',', last - 1);
+        out += line.substr(0, tool) + line.substr(last) + "\n";
+    }
+    return out;
+}
+
+// Of the samples where the spindle turns, the fraction whose tool in `a` is the one in `b`.
+double tool_agreement_turning(const motion_io::MotionModel& a, const std::vector<std::int32_t>& b) {
+    std::size_t n = 0, same = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        if (!(std::abs(a.spindle_rpm[i]) > 1)) continue;
+        ++n;
+        same += a.tool[i] == b[i];
+    }
+    return n ? double(same) / double(n) : 0.0;
+}
+
+}  // namespace
+
+TEST_CASE("demo2: a log without a tool column takes the tools of the program's blocks", "[demo2][tools]") {
+    const std::string text = read_text(source_path("data/demo2_dryrun.csv"));
+    const motion_io::MotionModel logged = ingest_text(text, "demo2_tools");
+    const force_model::RunSpec spec = demo2_spec();
+    const app::ProgramSettings settings = demo2_settings();
+    auto program = [&](const motion_io::MotionModel& m) {
+        return motion_io::read_nc_program(source_path("data/demo2_program.nc"),
+                                          app::program_read_options(settings, spec, app::log_start_mm(m)));
+    };
+    // Block names from the log, tools from the program.
+    {
+        motion_io::MotionModel m = ingest_text(without_tool_column(text), "demo2_notool");
+        REQUIRE(std::none_of(m.tool.begin(), m.tool.end(), [](std::int32_t t) { return t >= 0; }));
+        const app::ProgramRun run = app::prepare_program_run(program(m), settings, m);
+        CHECK_FALSE(run.mapped);
+        CHECK(run.tools_from_program);
+        REQUIRE(m.tool.size() == m.size());
+        CHECK(std::all_of(m.tool.begin(), m.tool.end(), [](std::int32_t t) { return t >= 1 && t <= 3; }));
+        const double agreement = tool_agreement_turning(logged, m.tool);
+        WARN(fmt::format("tools from the program's blocks (log block names) agree with the logged tool on {:.2f}% of the "
+                         "samples with the spindle turning",
+                         100 * agreement));
+        CHECK(agreement > 0.99);
+    }
+    // Neither blocks nor tools in the log: blocks by mapping, tools from the mapped blocks.
+    {
+        motion_io::MotionModel m = ingest_text(without_block_column(without_tool_column(text)), "demo2_bare");
+        app::ProgramSettings s = settings;
+        s.block_lead_ms = calibrated_lead_s() * 1e3;
+        const app::ProgramRun run = app::prepare_program_run(program(m), s, m);
+        CHECK(run.mapped);
+        CHECK(run.tools_from_program);
+        const double agreement = tool_agreement_turning(logged, m.tool);
+        WARN(fmt::format("tools from the mapped blocks agree with the logged tool on {:.2f}% of the samples with the "
+                         "spindle turning",
+                         100 * agreement));
+        CHECK(agreement > 0.99);
+    }
+    // A log that names its tools keeps them.
+    {
+        motion_io::MotionModel m = logged;
+        const app::ProgramRun run = app::prepare_program_run(program(m), settings, m);
+        CHECK_FALSE(run.tools_from_program);
+        CHECK(m.tool == logged.tool);
+    }
 }
