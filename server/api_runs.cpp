@@ -325,7 +325,7 @@ void create_run(Core& core, Ctx& x) {
     if (rows > core.opt.max_log_rows)
         throw ApiError(413, "too_many_rows", fmt::format("the log has {} rows; the limit is {}", rows, core.opt.max_log_rows));
     // Coarse data is said out loud before any prediction (docs/formats.md, "Coarse data").
-    const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, force_model::parse_run_spec(r.spec).tool.flutes);
+    const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, force_model::max_flutes(force_model::parse_run_spec(r.spec)));
     json warnings = json::array();
     for (const std::vector<motion_io::IngestWarning>* list :
          std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&report.warnings, &sampling.warnings})

@@ -17,9 +17,14 @@ namespace {
 
 json block_json(std::size_t idx, const force_model::BlockSummary& b) {
     json flags = json::array();
-    for (const auto& f : b.flags) flags.push_back({{"flag", f.flag}, {"t_s", f.t_s}, {"value", f.value}});
+    // Tools by T number; null where none is named (a run spec without a tool table on a log
+    // without a tool channel).
+    auto tool = [](std::int32_t t) { return t >= 0 ? json(t) : json(nullptr); };
+    for (const auto& f : b.flags)
+        flags.push_back({{"flag", f.flag}, {"t_s", f.t_s}, {"value", f.value}, {"tool", tool(f.tool)}});
     return {{"idx", idx},
             {"block", b.block},
+            {"tool", tool(b.tool)},
             {"t_start_s", b.t_start_s},
             {"t_end_s", b.t_end_s},
             {"peak_force_N", b.peak_force_N},
@@ -138,7 +143,9 @@ int raise_alerts(db::Session& s, std::int64_t run_id, const force_model::Predict
             if (!v) continue;
             if (hits == 0 || *v > worst) worst = *v;
             // The alert lists the first blocks; the count says how many there were.
-            if (++hits <= 50) blocks.push_back({{"block", b.block}, {"t_start_s", b.t_start_s}, {"value", *v}});
+            if (++hits <= 50)
+                blocks.push_back({{"block", b.block}, {"tool", b.tool >= 0 ? json(b.tool) : json(nullptr)},
+                                  {"t_start_s", b.t_start_s}, {"value", *v}});
         }
         if (hits == 0) return;
 
@@ -185,6 +192,9 @@ int raise_alerts(db::Session& s, std::int64_t run_id, const force_model::Predict
         }
         evaluate(rule.id, rule.name, rule.metric, flag, rule.limit.value_or(0), rule.severity);
     }
+    // A tool the run spec lacks is not a limit: its blocks are flagged (and a threshold on the flag
+    // unknown_tool can alert), but the run-limits alert stays about limits.
+    covered.insert("unknown_tool");
     if (limit_alerts) evaluate(std::nullopt, "run limits", "flag", "any", 0, std::nullopt, covered);
     return raised;
 }
@@ -231,7 +241,8 @@ const std::vector<std::string>& threshold_metrics() {
 
 const std::vector<std::string>& known_flags() {
     static const std::vector<std::string> f{"any",           "force_limit",       "torque_limit",  "power_limit",
-                                            "chip_load_limit", "bending_limit", "rapid_in_material", "holder_contact"};
+                                            "chip_load_limit", "bending_limit", "rapid_in_material", "holder_contact",
+                                            "unknown_tool"};
     return f;
 }
 
