@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Quick-start command 1: install what is missing, build, and start `cutload serve` on
-# 127.0.0.1:8080 with the bundled demo dry run already submitted, so the first thing a new user
-# sees is a finished run. Prints an admin API key and the URLs. Ctrl-C stops the service
+# 127.0.0.1:8080 with the bundled demo dry runs already submitted (the first demo, and the second:
+# a multi-tool inch program with its tool table), so the first thing a new user sees is finished
+# runs. Prints an admin API key and the URLs. Ctrl-C stops the service
 # gracefully. Safe to run again: the database, key and demo run are reused.
 #
 # Environment: CUTLOAD_LISTEN (127.0.0.1:8080), CUTLOAD_STATE_DIR (build/serve),
@@ -21,8 +22,13 @@ URL=http://$LISTEN
 LOG=data/demo_dryrun.csv
 SPEC=data/demo_run.json
 NC=data/demo_program.nc
+# The second demo: three tools (face mill, end mill, drill), an inch program without G20 or G90.1.
+LOG2=data/demo2_dryrun.csv
+SPEC2=data/demo2_run.json
+NC2=data/demo2_program.nc
+NC2_OPTIONS='{"program_units": "in", "arc_centers": "absolute"}'
 
-for f in "$LOG" "$SPEC" "$NC"; do
+for f in "$LOG" "$SPEC" "$NC" "$LOG2" "$SPEC2" "$NC2"; do
   [ -f "$f" ] || { echo "cutload start: $f is missing from this checkout" >&2; exit 1; }
 done
 mkdir -p "$STATE_DIR"
@@ -56,18 +62,30 @@ if [ -z "$RUN" ]; then
   echo "cutload start: submitting the demo dry run ($LOG) with its NC program ($NC)"
   RUN=$(api -F "log=@$LOG" -F "spec=<$SPEC" -F "nc_program=@$NC" -F name=demo -F program=demo "$URL/api/v1/runs" | json_field id)
 fi
-while :; do
-  STATE=$(api "$URL/api/v1/runs/$RUN" | json_field state)
-  case "$STATE" in
-    queued|running) sleep 0.5 ;;
-    *) break ;;
-  esac
-done
+RUN2=$(api "$URL/api/v1/runs?program=demo2&limit=1" | json_field id)
+if [ -z "$RUN2" ]; then
+  echo "cutload start: submitting the multi-tool demo ($LOG2) with its NC program ($NC2) and tool table ($SPEC2)"
+  RUN2=$(api -F "log=@$LOG2" -F "spec=<$SPEC2" -F "nc_program=@$NC2" -F "nc_options=$NC2_OPTIONS" \
+    -F name=demo2 -F program=demo2 "$URL/api/v1/runs" | json_field id)
+fi
+wait_run() {
+  local state
+  while :; do
+    state=$(api "$URL/api/v1/runs/$1" | json_field state)
+    case "$state" in
+      queued|running) sleep 0.5 ;;
+      *) echo "$state"; return ;;
+    esac
+  done
+}
+STATE=$(wait_run "$RUN")
+STATE2=$(wait_run "$RUN2")
 
 cat <<EOF
 
 cutload is running at $URL  (Ctrl-C stops it)
   demo run $RUN: $STATE
+  multi-tool demo run $RUN2: $STATE2 ($URL/#/runs/$RUN2)
   web page:         $URL/
   the run:          $URL/api/v1/runs/$RUN
   per-block loads:  $URL/api/v1/runs/$RUN/blocks

@@ -56,7 +56,8 @@ function compareValues(va, vb, dir) {
 
 export class BlockTable {
   // comparison: the blocks carry the COMPARISON_COLUMNS keys (withComparison) and show them.
-  constructor(container, blocks, { onSelect, comparison = false }) {
+  // onToolFilter(tool): the tool filter changed ('' for all tools, else the T number as text).
+  constructor(container, blocks, { onSelect, comparison = false, onToolFilter = null }) {
     this.blocks = blocks;
     this.columns = [...COLUMNS, ...(comparison ? COMPARISON_COLUMNS : [])].filter((c) => !c.when || c.when(blocks));
     this.onSelect = onSelect;
@@ -78,6 +79,7 @@ export class BlockTable {
     toolFilter?.addEventListener('change', () => {
       this.tool = toolFilter.value;
       this.render();
+      onToolFilter?.(this.tool);
     });
     const flagged = blocks.filter((b) => b.flags.length).length;
     this.el = h('section', { class: 'blocks', 'aria-labelledby': 'blocks-title' },
@@ -127,7 +129,7 @@ export class BlockTable {
     });
     for (const c of this.columns) {
       if (c.key === 'flags') {
-        tr.append(h('td', {}, b.flags.map((f) => h('span', { class: 'flag', title: `${flagLabel(f.flag)} from ${f.t_s.toFixed(4)} s (${num(f.value)})` },
+        tr.append(h('td', {}, b.flags.map((f) => h('span', { class: 'flag', title: `${flagLabel(f.flag)}${f.tool != null ? ` (T${f.tool})` : ''} from ${f.t_s.toFixed(4)} s (${num(f.value)})` },
           flagLabel(f.flag, { short: true })))));
       } else if (c.sticky) {
         tr.append(h('th', { scope: 'row', class: 'sticky' }, b[c.key]));

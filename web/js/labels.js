@@ -22,6 +22,8 @@ export const FLAGS = {
   power_limit: { label: 'Power over its limit', short: 'Power', quantity: 'power' },
   chip_load_limit: { label: 'Chip thickness over its limit', short: 'Chip load', quantity: 'chip' },
   bending_limit: { label: 'Bending stress over its limit', short: 'Bending', quantity: 'bending' },
+  unknown_tool: { label: 'Tool not in the run spec', short: 'Unknown tool',
+    explain: 'the tool in the spindle is not in the run spec\'s tool table: no forces were predicted' },
   any: { label: 'Any flag', short: 'Any flag' },
 };
 

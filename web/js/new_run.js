@@ -10,6 +10,8 @@ import {
 } from './spec_form.js';
 
 const INLINE = 'inline';
+// The tool choice that takes the tool table of a loaded spec file (its `tools`, by T number).
+const TABLE = 'table';
 
 function librarySelect(name, items, { none, inline }) {
   return h('select', { name },
@@ -182,6 +184,20 @@ export async function renderNewRun(main) {
   clear(main, h('h1', {}, 'New run'),
     h('p', { class: 'required-note muted' }, 'Fields marked ', h('span', { class: 'req' }, '*'), ' are required.'), form);
 
+  // A spec file's tool table travels with the run as it is (the form has no fields for it); the
+  // tool choice says so, and a tool chosen beside it cuts the samples that name no tool.
+  let toolTable = null;
+  function useToolTable(table) {
+    toolTable = Array.isArray(table) && table.length ? table : null;
+    tool.querySelector(`option[value="${TABLE}"]`)?.remove();
+    if (!toolTable) {
+      if (tool.value === TABLE) tool.value = INLINE;
+      return;
+    }
+    const names = toolTable.map((t) => `T${t.number}`).join(', ');
+    tool.append(h('option', { value: TABLE }, `Tool table from the spec file (${names})`));
+  }
+
   specFile.addEventListener('change', async () => {
     setFieldError(specFile, '');
     const f = specFile.files[0];
@@ -189,6 +205,8 @@ export async function renderNewRun(main) {
     try {
       const spec = JSON.parse(await f.text());
       for (const [k, g] of Object.entries(groups)) g.fill(spec[k]);
+      useToolTable(spec.tools);
+      if (toolTable && !spec.tool) tool.value = TABLE;
       if (spec.tool) tool.value = INLINE;
       if (spec.material) material.value = INLINE;
       syncInline();
@@ -273,7 +291,8 @@ export async function renderNewRun(main) {
       form.querySelector('[aria-invalid="true"]')?.focus();
       return;
     }
-    if (tool.value !== INLINE) spec.tool_id = Number(tool.value);
+    if (tool.value !== INLINE && tool.value !== TABLE) spec.tool_id = Number(tool.value);
+    if (toolTable) spec.tools = toolTable;
     if (material.value !== INLINE) spec.material_id = Number(material.value);
     if (machine.value) spec.machine_id = Number(machine.value);
 

@@ -184,7 +184,20 @@ export function pathPoints(w, offset = [0, 0, 0]) {
 }
 
 // The 3-D view section: loads three.js and the stock only now, so the plot never waits for them.
-function view3dSection(run, disposers) {
+// The run spec's tool at time t from the blocks' tools and the spec's tool table (null: none known).
+function toolAtTime(spec, blocks) {
+  const table = spec?.tools;
+  if (!table?.length) return null;
+  const byStart = blocks.filter((b) => b.tool != null).sort((a, b) => a.t_start_s - b.t_start_s);
+  const starts = byStart.map((b) => b.t_start_s);
+  return (t) => {
+    const i = lowerBound(starts, t + 1e-12) - 1;
+    const b = byStart[Math.max(0, i)];
+    return b ? table.find((x) => x.number === b.tool) || null : null;
+  };
+}
+
+function view3dSection(run, disposers, blocks = []) {
   const box = h('div', { class: 'view3d', id: 'view3d' });
   const status = statusLine('Loading the 3-D view…');
   const legend = h('div', { class: 'path-legend', id: 'path-legend' });
@@ -212,7 +225,8 @@ function view3dSection(run, disposers) {
       const { ratio, relative } = pathLoad(points, plot, run.inputs?.spec?.limits || {});
       const sameGrid = baseField && baseField.nx === field.nx && baseField.ny === field.ny && baseField.cell_mm === field.cell_mm;
       view = new View3D(box, {
-        field, path: points, ratio, relative, tool: run.inputs.spec.tool, onPick,
+        field, path: points, ratio, relative, onPick,
+        tool: run.inputs.spec.tool || run.inputs.spec.tools?.[0], toolAt: toolAtTime(run.inputs.spec, blocks),
         startTop: sameGrid ? fieldHeights(baseField) : null,
       });
       disposers.push(() => view.destroy());
@@ -389,7 +403,7 @@ async function showResults(body, run, lib, disposers) {
       caption: comparing ? 'The program text is not available for this run.' : 'No NC program attached: the log\'s block names.' });
 
   const problems = problemsPanel(blocks, limits, { ncText: (name) => listing.textOf(name), onSelect: (b) => selectBlock(b, null, true) });
-  const threeD = view3dSection(run, disposers);
+  const threeD = view3dSection(run, disposers, blocks);
   view3d = threeD;
   const tableBox = h('div');
   const optimizer = comparing ? optimizePanel(run, { blocks }) : null;
@@ -408,7 +422,19 @@ async function showResults(body, run, lib, disposers) {
   table = new BlockTable(tableBox, blocks, {
     onSelect: (b) => selectBlock(b, null, true),
     comparison: compared,
+    onToolFilter: (tool) => showTool(tool),
   });
+
+  // The plot follows the tool filter: the span of that tool's blocks (a tool runs in one stretch
+  // between its changes), the whole run for all tools.
+  function showTool(tool) {
+    const mine = blocks.filter((b) => String(b.tool) === tool);
+    if (!tool || !mine.length) {
+      plot.reset();
+      return;
+    }
+    plot.setRange(Math.min(...mine.map((b) => b.t_start_s)), Math.max(...mine.map((b) => b.t_end_s)));
+  }
 
   function selectBlock(b, t, zoom) {
     table?.select(b ? b.idx : null);

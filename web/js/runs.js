@@ -22,7 +22,9 @@ export function toolLabel(run, lib) {
   const t = run.tool_id && lib.byId('tools', run.tool_id);
   if (t) return t.name;
   const spec = run.inputs?.spec?.tool;
-  return spec ? `${spec.shape} Ø${spec.diameter_mm} ×${spec.flutes}` : '–';
+  if (spec) return `${spec.shape} Ø${spec.diameter_mm} ×${spec.flutes}`;
+  const table = run.inputs?.spec?.tools;
+  return table?.length ? `${table.length} tools (${table.map((t) => `T${t.number}`).join(', ')})` : '–';
 }
 
 export function stateBadge(run) {

@@ -55,9 +55,15 @@ export function webglAvailable() {
   }
 }
 
-// Height of the tool's lower surface above its tip at distance r from its axis (flat, ball, bull).
+// Height of the tool's lower surface above its tip at distance r from its axis (flat, ball, bull,
+// and the cones of drills and chamfer tools).
 export function toolProfile(tool) {
   const R = tool.diameter_mm / 2;
+  if (tool.shape === 'drill' || tool.shape === 'chamfer') {
+    const tip = tool.shape === 'chamfer' ? (tool.tip_diameter_mm || 0) / 2 : 0;
+    const slope = 1 / Math.tan(((tool.point_angle_deg || 118) / 2) * Math.PI / 180);
+    return (r) => (r > R ? Infinity : r <= tip ? 0 : (r - tip) * slope);
+  }
   const rc = tool.shape === 'ball' ? R : tool.shape === 'bull' ? Math.min(R, tool.corner_radius_mm || 0) : 0;
   const flat = R - rc;
   return (r) => {
@@ -75,7 +81,7 @@ function toolMeshes(tool) {
   const pts = [new THREE.Vector2(0, 0)];
   for (let k = 1; k <= 12; k++) {
     const r = (R * k) / 12;
-    pts.push(new THREE.Vector2(r, Math.min(profile(r), R)));
+    pts.push(new THREE.Vector2(r, Math.min(profile(r), Math.max(R, tool.flute_length_mm || R))));
   }
   const stickout = tool.stickout_mm || tool.flute_length_mm || 4 * R;
   pts.push(new THREE.Vector2(R, stickout));
@@ -151,8 +157,9 @@ export class View3D {
   // field: /stock answer (final stock); startTop: Float32Array of the starting heights on the same
   // grid (null: the box top); path: {t, x, y, z} in stock coordinates; ratio: load / limit per
   // path point (Float32Array), relative: true when no limit was set (ratio is load / peak);
-  // tool: the run spec's tool; onPick(t).
-  constructor(container, { field, startTop = null, path, ratio, relative = false, tool, onPick, onMeasure }) {
+  // tool: the run spec's tool; toolAt(t): the tool in the spindle at time t (runs with a tool
+  // table), null where none is known (the default tool is shown); onPick(t).
+  constructor(container, { field, startTop = null, path, ratio, relative = false, tool, toolAt = null, onPick, onMeasure }) {
     this.container = container;
     this.field = field;
     this.path = path;
@@ -165,6 +172,22 @@ export class View3D {
     const boxTop = field.box_mm.max[2];
     this.startTop = startTop || new Float32Array(this.finalTop.length).fill(boxTop);
     this.profile = toolProfile(tool);
+    // Per path point, the tool that walks it (an index into this.tools), for the in-process stock
+    // and the tool drawn at the cursor.
+    this.tools = [{ tool, profile: this.profile }];
+    this.pointTool = new Uint16Array(path.t.length);
+    if (toolAt) {
+      const seen = new Map([[tool, 0]]);
+      for (let i = 0; i < path.t.length; i++) {
+        const t = toolAt(path.t[i]) || tool;
+        if (!seen.has(t)) {
+          seen.set(t, this.tools.length);
+          this.tools.push({ tool: t, profile: toolProfile(t) });
+        }
+        this.pointTool[i] = seen.get(t);
+      }
+    }
+    this.shownTool = 0;
     this.mode = 'classes';
     this.time = null;          // cursor time; null: the final stock, no tool
     this.measuring = false;
@@ -338,9 +361,14 @@ export class View3D {
     const f = this.field;
     const { nx, ny } = f;
     const c = f.cell_mm;
-    const R = this.tool.diameter_mm / 2;
-    const rc = Math.ceil(R / c);
     const { x, y, z } = this.path;
+    let R = 0, rc = 0, profile = this.profile;
+    const use = (i) => {
+      const k = this.tools[this.pointTool[i]];
+      R = k.tool.diameter_mm / 2;
+      rc = Math.ceil(R / c);
+      profile = k.profile;
+    };
     const stamp = (px, py, pz) => {
       const ci = Math.floor((px - f.x0_mm) / c);
       const cj = Math.floor((py - f.y0_mm) / c);
@@ -348,7 +376,7 @@ export class View3D {
         const dy = f.y0_mm + (j + 0.5) * c - py;
         for (let i = Math.max(0, ci - rc); i <= Math.min(nx - 1, ci + rc); i++) {
           const dx = f.x0_mm + (i + 0.5) * c - px;
-          const lift = this.profile(Math.hypot(dx, dy));
+          const lift = profile(Math.hypot(dx, dy));
           if (lift === Infinity) continue;
           const k = j * nx + i;
           if (pz + lift < top[k]) top[k] = pz + lift;
@@ -356,6 +384,7 @@ export class View3D {
       }
     };
     for (let i = Math.max(1, from); i < to; i++) {
+      use(i - 1);
       const len = Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
       const steps = Math.max(1, Math.ceil(len / (c / 2)));
       if (steps > 4000) continue;   // a jump in the log (a new session), not a move
@@ -364,7 +393,10 @@ export class View3D {
         stamp(x[i - 1] + u * (x[i] - x[i - 1]), y[i - 1] + u * (y[i] - y[i - 1]), z[i - 1] + u * (z[i] - z[i - 1]));
       }
     }
-    if (from === 0 && to > 0) stamp(x[0], y[0], z[0]);
+    if (from === 0 && to > 0) {
+      use(0);
+      stamp(x[0], y[0], z[0]);
+    }
   }
 
   // The in-process heights after path point `upto` (exclusive), from the nearest saved state.
@@ -424,6 +456,17 @@ export class View3D {
       return;
     }
     const { x, y, z } = this.path;
+    if (this.pointTool[i] !== this.shownTool) {
+      // A tool change: the mesh of the tool in the spindle there.
+      this.shownTool = this.pointTool[i];
+      this.scene.remove(this.toolGroup);
+      this.toolGroup.traverse((o) => {
+        o.geometry?.dispose();
+        o.material?.dispose?.();
+      });
+      this.toolGroup = toolMeshes(this.tools[this.shownTool].tool);
+      this.scene.add(this.toolGroup);
+    }
     this.toolGroup.position.set(x[i], y[i], z[i]);
     this.toolGroup.visible = true;
   }
