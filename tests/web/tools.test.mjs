@@ -83,6 +83,15 @@ test('a tool table: uploaded from the spec file, every block names its tool, the
     return m && Math.abs(Number(m[1]) - a) < 0.01 && Math.abs(Number(m[2]) - b) < 0.01;
   }, [n20.t_start_s, n20.t_end_s]);
   await screenshot(page, 'tools-1-filtered');
+  // The unknown tool is no limit: the alerts box says so in words.
+  await page.locator('#no-alerts').waitFor();
+  assert.match(await page.locator('#no-alerts').innerText(), /ran with a tool the run spec's tool table does not have/);
+  assert.ok(!/null/.test(await page.locator('main').innerText()), 'no stray null on the page');
+  // The 3-D view draws the tool of each stretch: T1 (D 8) and T2 (D 6); T7's stretch shows the
+  // table's first tool, as a run without tools would.
+  await page.locator('#view3d').scrollIntoViewIfNeeded();
+  await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
+  assert.deepEqual(await page.evaluate(() => document.getElementById('view3d').view3d.tools.map((t) => t.tool.diameter_mm)), [8, 6]);
   // All tools again: the whole run.
   await page.locator('#tool-filter').selectOption('');
   assert.equal(await page.locator('#block-table tbody tr').count(), 3);

@@ -136,6 +136,13 @@ function measurementSection(id, plot) {
 
 // What the alerts box says when the run raised none.
 function noAlertsText(run) {
+  const flags = run.summary?.flags || {};
+  const unknownTool = flags.unknown_tool || 0;
+  const limitFlags = Object.entries(flags).some(([k, n]) => k !== 'unknown_tool' && n > 0);
+  if (unknownTool && !limitFlags) {
+    return `${unknownTool} block(s) ran with a tool the run spec's tool table does not have: no forces were predicted there. `
+      + 'That is not a limit, so it raises no alert unless a threshold on it (Tool not in the run spec) applies to this run.';
+  }
   if (run.summary?.flagged_blocks) {
     return `${run.summary.flagged_blocks} block(s) exceed the run's limits (see Worst blocks first), but no alert was raised: `
       + 'this server raises none for a run\'s own limits (cutload serve --no-limit-alerts) and no threshold in the libraries applies to this run.';
@@ -412,7 +419,7 @@ async function showResults(body, run, lib, disposers) {
   const alertsBox = h('section', { class: 'run-alerts', 'aria-labelledby': 'run-alerts-title' },
     h('h2', { id: 'run-alerts-title' }, 'Alerts'));
   problemsBox.append(problems.section);
-  restBox.append(threeD.section, tableBox, program ? programSection(run, program) : null,
+  restBox.append(threeD.section, tableBox, program ? programSection(run, program) : '',
     optimizer?.section || '', measurementBox.section, alertsBox);
 
   await plotReady;
