@@ -6,8 +6,9 @@
 //   C. with a table of three entries that are all that end mill: B's physics with A's switching,
 // so C / B is the cost of the switching itself (tool plan, the flush and removal at each change,
 // per-tool tables) and A / B what the real tools change (a 50.8 mm face mill and a drill cut other
-// material than the end mill would). Prints the median wall and CPU time of each, the ratios, the
-// angle steps and the load average (the machine is shared: CPU time per run is the steadier figure).
+// material than the end mill would). The runs take turns (A B C A B C ...). Prints the median wall
+// and CPU time of each, the ratios, the angle steps and the load average (the machine is shared:
+// CPU time per run is the steadier figure).
 #include "force_model/engine_settings.hpp"
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
@@ -50,29 +51,38 @@ struct Result {
     std::string device;
 };
 
-Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec, force_model::Device d, int runs) {
+// One run of each configuration in turn, `runs` times, so a change of load on the shared machine
+// falls on all of them alike; medians per configuration.
+struct Config {
+    const motion_io::MotionModel* motion;
+    const force_model::RunSpec* spec;
     std::vector<double> walls, cpus, setups;
     Result r;
-    for (int i = 0; i < runs; ++i) {
-        force_model::PredictOptions o;
-        o.device = d;
-        force_model::EnginePhases ph;
-        const double cpu0 = cpu_seconds();
-        const auto p = force_model::predict_with(m, spec, o, force_model::EngineSettings{}, &ph);
-        cpus.push_back(cpu_seconds() - cpu0);
-        walls.push_back(p.stats.wall_s);
-        setups.push_back(ph.setup_s);
-        r.steps = p.stats.steps;
-        r.cutting = p.stats.cutting_steps;
-        r.unknown = p.stats.unknown_tool_samples;
-        r.device = p.stats.device;
-        r.removed_mm3 = 0;
-        for (const auto& b : p.blocks) r.removed_mm3 += b.removed_mm3;
+};
+
+void measure(std::vector<Config>& configs, force_model::Device d, int runs) {
+    for (int i = 0; i < runs; ++i)
+        for (Config& c : configs) {
+            force_model::PredictOptions o;
+            o.device = d;
+            force_model::EnginePhases ph;
+            const double cpu0 = cpu_seconds();
+            const auto p = force_model::predict_with(*c.motion, *c.spec, o, force_model::EngineSettings{}, &ph);
+            c.cpus.push_back(cpu_seconds() - cpu0);
+            c.walls.push_back(p.stats.wall_s);
+            c.setups.push_back(ph.setup_s);
+            c.r.steps = p.stats.steps;
+            c.r.cutting = p.stats.cutting_steps;
+            c.r.unknown = p.stats.unknown_tool_samples;
+            c.r.device = p.stats.device;
+            c.r.removed_mm3 = 0;
+            for (const auto& b : p.blocks) c.r.removed_mm3 += b.removed_mm3;
+        }
+    for (Config& c : configs) {
+        c.r.wall_s = median(c.walls);
+        c.r.cpu_s = median(c.cpus);
+        c.r.setup_s = median(c.setups);
     }
-    r.wall_s = median(walls);
-    r.cpu_s = median(cpus);
-    r.setup_s = median(setups);
-    return r;
 }
 
 void print(const char* name, const Result& r) {
@@ -115,11 +125,14 @@ int main(int argc, char** argv) {
                 m.t_s.back() - m.t_s.front(), m.size(), changes, table.resolution.angle_step_deg, table.resolution.axial_step_mm,
                 table.resolution.grid_mm, runs, device.c_str());
     std::printf("  load average at start: %s\n", load_average().c_str());
-    const Result a = measure(m, table, d, runs);
     motion_io::MotionModel untooled = m;
     untooled.tool.clear();
-    const Result b = measure(untooled, one, d, runs);
-    const Result c = measure(m, same, d, runs);
+    std::vector<Config> configs(3);
+    configs[0].motion = &m, configs[0].spec = &table;
+    configs[1].motion = &untooled, configs[1].spec = &one;
+    configs[2].motion = &m, configs[2].spec = &same;
+    measure(configs, d, runs);
+    const Result &a = configs[0].r, &b = configs[1].r, &c = configs[2].r;
     std::printf("  device: %s\n", a.device.c_str());
     print("A tool table (face mill, end mill, drill)", a);
     print("B one tool (the end mill) for every sample", b);
