@@ -102,3 +102,45 @@ TEST_CASE("optimizer: rewriting feeds inserts and restores modal F words, packed
     CHECK(q.blocks[2].feed_mm_min == 600);
     CHECK(q.blocks[5].feed_mm_min == 900);   // N6 keeps the feed it inherited from N4
 }
+
+TEST_CASE("optimizer: with a tool table, a block is held to its tool's own limits", "[optimizer][tools]") {
+    CornerCase c = corner_case();
+    const force_model::Prediction base = force_model::predict(c.actual, c.spec, predict_options(c));
+    const auto n20 = std::find_if(base.blocks.begin(), base.blocks.end(), [](const auto& b) { return b.block == "N20"; });
+    REQUIRE(n20 != base.blocks.end());
+    // The program runs T5 throughout (as after a T5 M06), the log names it; the run's own limits
+    // check nothing, T5's force limit puts the straight cut at 90 % of it.
+    for (auto& b : c.program.blocks) b.tool = 5;
+    c.actual.tool.assign(c.actual.size(), 5);
+    force_model::RunSpec spec = c.spec;
+    spec.limits = force_model::Limits{};
+    force_model::NumberedTool t5{5, c.spec.tool, {}};
+    t5.limits.force_N = n20->peak_force_N / 0.9;
+    spec.tools = {t5};
+    force_model::FeedOptimizerOptions o;
+    o.target = 0.8;
+    o.commanded.step_s = c.actual.step_s;
+    o.commanded.rapid_mm_min = c.dry_run.machine.rapid_mm_min;
+    o.max_feed_mm_min = 12000;
+    const force_model::FeedOptimization r = force_model::optimize_feeds(c.program, c.actual, spec, predict_options(c), o);
+    REQUIRE(!r.blocks.empty());
+    CHECK(r.target_met);
+    const force_model::Limits t5_limits = force_model::limits_for(spec.limits, t5.limits);
+    for (const auto& b : r.blocks) {
+        INFO(b.block << ": " << b.ratio_before << " -> " << b.ratio_after << " of T5's limits");
+        CHECK(b.binding == "force");
+        CHECK(b.ratio_after <= o.target + 1e-9);
+        if (!b.at_feed_limit) CHECK(b.ratio_after >= o.target * (1 - o.tolerance));
+    }
+    for (const auto& b : r.after.blocks) {
+        CHECK(load_ratio(b, t5_limits) <= o.target + 1e-9);
+        if (b.peak_force_N > 0) CHECK(b.tool == 5);
+    }
+    // The run's own limits (none) would have left nothing to optimise.
+    CHECK_THROWS_AS(force_model::optimize_feeds(c.program, c.actual, [&] {
+                        force_model::RunSpec none = spec;
+                        none.tools[0].limits = {};
+                        return none;
+                    }(), predict_options(c), o),
+                    force_model::SpecError);
+}
