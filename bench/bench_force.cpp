@@ -5,6 +5,7 @@
 // wall second, median of several runs) for each device, their ratio, peak memory, the median time
 // of each engine phase, the process CPU time per run (all threads; steadier than wall time on a
 // shared machine) and the load average when the runs started.
+#include "bench_util.hpp"
 #include "force_model/engine_settings.hpp"
 #include "motion_io/commanded.hpp"
 #include "motion_io/nc_program.hpp"
@@ -20,6 +21,8 @@
 #include <vector>
 
 using namespace cutload;
+
+using namespace cutload::bench;
 
 namespace {
 
@@ -64,30 +67,6 @@ force_model::RunSpec seed_spec() {
     s.offset_mm[2] = 350;
     s.resolution = {2, 0.1, 0.1};
     return s;
-}
-
-double peak_rss_mb() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return double(u.ru_maxrss) / 1024.0;
-}
-
-double cpu_seconds() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-std::string load_average() {
-    std::ifstream in("/proc/loadavg");
-    std::string one, five, fifteen;
-    in >> one >> five >> fifteen;
-    return one.empty() ? "unknown" : one + " " + five + " " + fifteen;
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
 struct Result {

@@ -1,6 +1,7 @@
 // Ingest + repair of a 1,000,000-row CSV log in the seed's sampling pattern.
 // Targets (issue 2): under 2 s and under 300 MB peak on the 2-core CI machine.
-// Prints rows/s, the median of several runs, and the peak resident memory (VmHWM).
+// Prints rows/s, the median of several runs, and the peak resident memory.
+#include "bench_util.hpp"
 #include "motion_io/motion_io.hpp"
 #include "motion_io/synth.hpp"
 
@@ -15,42 +16,7 @@
 #include <sys/resource.h>
 
 using namespace cutload::motion_io;
-
-namespace {
-
-double peak_rss_mb() {
-    std::ifstream status("/proc/self/status");
-    for (std::string line; std::getline(status, line);)
-        if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-    return 0;
-}
-
-double cpu_seconds() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-struct Timing {
-    double wall_s, cpu_s;   // medians; CPU time shows the cost when the shared machine is busy
-};
-
-template <class F>
-Timing median_seconds(int runs, F&& f) {
-    std::vector<double> wall, cpu;
-    for (int i = 0; i < runs; ++i) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const double c0 = cpu_seconds();
-        f();
-        cpu.push_back(cpu_seconds() - c0);
-        wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    }
-    std::sort(wall.begin(), wall.end());
-    std::sort(cpu.begin(), cpu.end());
-    return {wall[wall.size() / 2], cpu[cpu.size() / 2]};
-}
-
-}  // namespace
+using namespace cutload::bench;
 
 int main() {
     constexpr std::size_t kRows = 1'000'000;

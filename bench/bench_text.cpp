@@ -3,6 +3,7 @@
 // same bytes, all ASCII and with every tenth line holding a Latin-1 byte (decoded on the way).
 // Prints medians of 5 runs (wall and CPU seconds, MB/s) and the load average: wall times on the
 // shared machine mean little when it is busy, CPU times still do.
+#include "bench_util.hpp"
 #include "force_model/measurement.hpp"
 
 #if __has_include("textio/csv.hpp")
@@ -21,39 +22,9 @@
 
 #include <sys/resource.h>
 
+using namespace cutload::bench;
+
 namespace {
-
-double cpu_seconds() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-struct Timing {
-    double wall_s, cpu_s;
-};
-
-template <class F>
-Timing median_seconds(int runs, F&& f) {
-    std::vector<double> wall, cpu;
-    for (int i = 0; i < runs; ++i) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const double c0 = cpu_seconds();
-        f();
-        cpu.push_back(cpu_seconds() - c0);
-        wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    }
-    std::sort(wall.begin(), wall.end());
-    std::sort(cpu.begin(), cpu.end());
-    return {wall[wall.size() / 2], cpu[cpu.size() / 2]};
-}
-
-std::string load_average() {
-    std::ifstream in("/proc/loadavg");
-    std::string a;
-    in >> a;
-    return a;
-}
 
 // A DynoWare export at 50 kHz; `latin1` puts a Latin-1 degree sign into every tenth line's Mz unit.
 void write_dynoware(const std::string& path, std::size_t rows, bool latin1) {

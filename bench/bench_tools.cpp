@@ -9,6 +9,7 @@
 // material than the end mill would). The runs take turns (A B C A B C ...). Prints the median wall
 // and CPU time of each, the ratios, the angle steps and the load average (the machine is shared:
 // CPU time per run is the steadier figure).
+#include "bench_util.hpp"
 #include "force_model/engine_settings.hpp"
 #include "force_model/force_model.hpp"
 #include "motion_io/motion_io.hpp"
@@ -24,25 +25,9 @@
 
 using namespace cutload;
 
+using namespace cutload::bench;
+
 namespace {
-
-double cpu_seconds() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
-
-std::string load_average() {
-    std::ifstream in("/proc/loadavg");
-    std::string one, five, fifteen;
-    in >> one >> five >> fifteen;
-    return one.empty() ? "unknown" : one + " " + five + " " + fifteen;
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[v.size() / 2];
-}
 
 struct Result {
     double wall_s = 0, cpu_s = 0, setup_s = 0;
