@@ -73,8 +73,26 @@ void add_serve(CLI::App& app) {
     sub->add_option("--device", a->device, "Force engine device")
         ->check(CLI::IsMember({"opencl", "cpu"}))
         ->capture_default_str();
-    sub->add_option("--http-threads", a->opt.http_threads, "HTTP worker threads (bounds concurrent connections)")
+    sub->add_option("--http-threads", a->opt.http_threads, "Requests processed at once (idle and slow connections hold none)")
         ->check(CLI::Range(4, 1024))
+        ->capture_default_str();
+    sub->add_option("--header-timeout-s", a->opt.header_timeout_s,
+                    "Seconds a connection may take to send its request line and headers (408 beyond)")
+        ->check(CLI::Range(0.1, 3600.0))
+        ->capture_default_str();
+    sub->add_option("--keep-alive-s", a->opt.keep_alive_s, "Seconds an idle keep-alive connection is kept")
+        ->check(CLI::Range(0.1, 3600.0))
+        ->capture_default_str();
+    sub->add_option("--body-read-timeout-s", a->opt.body_read_timeout_s,
+                    "Seconds a request body may pause between bytes")
+        ->check(CLI::Range(0.1, 3600.0))
+        ->capture_default_str();
+    sub->add_option("--body-timeout-s", a->opt.body_timeout_s, "Seconds a request body may take in all")
+        ->check(CLI::Range(1.0, 86400.0))
+        ->capture_default_str();
+    sub->add_option("--max-waiting-connections", a->opt.max_waiting_connections,
+                    "Connections waiting for their headers or idle; beyond, the longest waiting is closed")
+        ->check(CLI::Range(8, 100000))
         ->capture_default_str();
     sub->add_option("--max-body-mb", a->max_body_mb, "Largest request body, MiB (413 beyond)")
         ->check(CLI::Range(0.001, 4096.0))
@@ -90,7 +108,7 @@ void add_serve(CLI::App& app) {
         ->check(CLI::Range(0.0, 65536.0))
         ->capture_default_str();
     sub->add_flag("--anonymous-loopback-reads", a->opt.anonymous_loopback_reads,
-                  "Allow GET requests without an API key from 127.0.0.1 / ::1");
+                  "Allow GET requests without an API key from 127.0.0.1 / ::1 addressed to localhost, 127.0.0.1 or [::1]");
     sub->add_flag("!--no-limit-alerts", a->opt.limit_alerts,
                   "Do not raise an alert for blocks over the run's own limits (only thresholds raise alerts)");
     sub->add_option("--drain-s", a->opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")

@@ -7,6 +7,7 @@
 #include "app/calibrate.hpp"
 #include "app/inputs.hpp"
 #include "core.hpp"
+#include "json_in.hpp"
 #include "library.hpp"
 
 #include <fmt/format.h>
@@ -28,11 +29,7 @@ std::optional<std::string> part(const httplib::Request& req, const char* name) {
 }
 
 json json_part(const char* name, const std::string& text) {
-    try {
-        return json::parse(text);
-    } catch (const json::parse_error& e) {
-        bad_request(fmt::format("part {}: not valid JSON ({})", name, e.what()));
-    }
+    return parse_client_json(text, fmt::format("part {}", name), "bad_request");
 }
 
 // The `tool` part (the run spec's tool object) or `tool_id` (a library tool), checked by the engine.

@@ -3,6 +3,7 @@
 #include "app/ingest.hpp"
 #include "app/program_source.hpp"
 #include "core.hpp"
+#include "json_in.hpp"
 #include "db/optimizations.hpp"
 #include "db/runs.hpp"
 #include "durable_file.hpp"
@@ -206,11 +207,7 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     }
     json options = json::object();
     if (auto o = part(req, "nc_options")) {
-        try {
-            options = json::parse(*o);
-        } catch (const json::parse_error& e) {
-            throw ApiError(400, "bad_request", fmt::format("part nc_options is not valid JSON: byte {}: {}", e.byte, e.what()));
-        }
+        options = parse_client_json(*o, "part nc_options", "bad_request");
     }
     app::ProgramSource source;
     source.settings = program_settings(options);
@@ -248,12 +245,7 @@ void create_run(Core& core, Ctx& x) {
                                    core.opt.max_pending_jobs));
     }
 
-    json spec_json;
-    try {
-        spec_json = json::parse(*spec_text);
-    } catch (const json::parse_error& e) {
-        throw ApiError(400, "bad_spec", fmt::format("spec is not valid JSON: byte {}: {}", e.byte, e.what()));
-    }
+    json spec_json = parse_client_json(*spec_text, "part spec", "bad_spec");
     Resolved r = resolve_spec(*s, std::move(spec_json), req);
 
     json log{{"filename", log_part.filename}, {"bytes", log_part.content.size()}};

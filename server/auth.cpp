@@ -1,4 +1,5 @@
 #include "auth.hpp"
+#include "json_in.hpp"
 
 #include "db/api_keys.hpp"
 
@@ -47,13 +48,7 @@ double unix_now_s() {
     return duration<double>(system_clock::now().time_since_epoch()).count();
 }
 
-json parse_json_body(const std::string& body, const char* what) {
-    try {
-        return json::parse(body);
-    } catch (const json::parse_error& e) {
-        throw ApiError(400, "bad_json", fmt::format("{} is not valid JSON: byte {}: {}", what, e.byte, e.what()));
-    }
-}
+json parse_json_body(const std::string& body, const char* what) { return parse_client_json(body, what, "bad_json"); }
 
 Role parse_role(const std::string& s) {
     if (s == "read") return Role::Read;

@@ -27,9 +27,9 @@ public:
 [[noreturn]] inline void not_found(const std::string& what) { throw ApiError(404, "not_found", what); }
 [[noreturn]] inline void bad_request(const std::string& what) { throw ApiError(400, "bad_request", what); }
 
-inline json error_body(const std::string& code, const std::string& message) {
-    return json{{"error", {{"code", code}, {"message", message}}}};
-}
+// The error answer. The message may carry bytes from an exception's text (a client's file name, a
+// line of a log): a byte that is not UTF-8 is decoded as textio does or written as \xNN, never thrown.
+json error_body(const std::string& code, const std::string& message);
 
 // A JSON body as text. Every string the service puts into one is valid UTF-8 (client text goes
 // through client_text(), logs and records through textio's readers); should one slip through, it

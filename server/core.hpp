@@ -4,6 +4,7 @@
 #pragma once
 
 #include "common.hpp"
+#include "http_gate.hpp"
 #include "metrics.hpp"
 #include "route.hpp"
 #include "series.hpp"
@@ -60,7 +61,7 @@ struct Core {
     ServerOptions opt;
     std::filesystem::path data_dir;
     std::unique_ptr<db::Store> store;   // opened by the Server (after the lock), absent otherwise
-    httplib::Server http;
+    GatedHttpServer http;
     Metrics metrics;
     SeriesCache series_cache;
     std::unique_ptr<Jobs> jobs;
@@ -74,8 +75,20 @@ struct Core {
     // Declares a route and binds its handler.
     void route(RouteSpec spec, Handler h);
 
+    // Decides on a request from its headers alone, before any body is read: the route it is for,
+    // the key and role that route needs, the announced body's size. False when refused (`res`
+    // then holds the answer and the connection closes without reading the body).
+    bool admit(const httplib::Request& req, httplib::Response& res);
+
 private:
     Role authorize(const httplib::Request& req, Role need, std::string* actor);
+
+    struct Matcher {
+        std::shared_ptr<const RouteSpec> spec;
+        std::string literal;   // the path up to its first parameter: a cheap test before the regex
+        std::regex pattern;
+    };
+    std::vector<Matcher> matchers_;   // the routes as httplib matches them, in the same order
 };
 
 // Every route group, in the order they are declared.

@@ -5,6 +5,7 @@
 #include "core.hpp"
 #include "db/runs.hpp"
 #include "gzip.hpp"
+#include "http_guard.hpp"
 #include "jobs.hpp"
 #include "webhooks.hpp"
 
@@ -16,6 +17,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <charconv>
 #include <chrono>
 #include <regex>
 
@@ -37,10 +39,6 @@ const char* status_code_name(int status) {
         case 429: return "too_many_requests";
         default: return status >= 500 ? "internal" : "bad_request";
     }
-}
-
-bool is_loopback(const std::string& addr) {
-    return addr == "::1" || addr.rfind("127.", 0) == 0 || addr.rfind("::ffff:127.", 0) == 0;
 }
 
 fs::path default_data_dir(const ServerOptions& o) {
@@ -140,15 +138,21 @@ Core::~Core() {
 }
 
 Role Core::authorize(const httplib::Request& req, Role need, std::string* actor) {
-    const std::string auth = req.get_header_value("Authorization");
     *actor = "anonymous";
-    if (auth.empty()) {
-        if (need == Role::Read && opt.anonymous_loopback_reads && is_loopback(req.remote_addr)) return Role::Read;
+    const auto auth_headers = req.get_header_value_count("Authorization");
+    if (auth_headers == 0) {
+        // Loopback peers only, and only when the browser says it asked for this machine: a page of
+        // another origin whose name was rebound to 127.0.0.1 sends its own name as Host.
+        if (need == Role::Read && opt.anonymous_loopback_reads && is_loopback_peer(req.remote_addr) &&
+            req.get_header_value_count("Host") == 1 && is_loopback_host_header(req.get_header_value("Host")))
+            return Role::Read;
         throw ApiError(401, "unauthorized", "missing API key: send 'Authorization: Bearer <key>'");
     }
-    if (auth.rfind("Bearer ", 0) != 0)
-        throw ApiError(401, "unauthorized", "Authorization header must be 'Bearer <key>'");
-    const std::string key = auth.substr(7);
+    if (auth_headers > 1) throw ApiError(401, "unauthorized", "send one Authorization header, not several");
+    std::string why;
+    const auto token = bearer_token(req.get_header_value("Authorization"), &why);
+    if (!token) throw ApiError(401, "unauthorized", why);
+    const std::string& key = *token;
     auto s = session();
     auto found = lookup_api_key(*s, key);
     if (!found) throw ApiError(401, "unauthorized", "unknown API key");
@@ -162,16 +166,87 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
     return found->role;
 }
 
+namespace {
+
+// What admission decided for the request being processed on this thread.
+struct Admitted {
+    std::uint64_t serial = 0;   // current_request_serial() of that request
+    Role role = Role::Read;
+    std::string actor;
+};
+thread_local Admitted tl_admitted;
+
+// A body on a route that takes none (curl's -d '' or -d '{}' is fine): beyond this it is refused
+// unread, so a route that needs no key never buffers a large body.
+constexpr std::size_t kIgnoredBodyBytes = 64u << 10;
+
+}  // namespace
+
+bool Core::admit(const httplib::Request& req, httplib::Response& res) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::uint64_t serial = current_request_serial();
+    if (serial != 0 && tl_admitted.serial == serial) return true;   // the Expect: 100-continue hook admitted it
+    const bool body = announces_body(req);
+    const std::string method = req.method == "HEAD" ? "GET" : req.method;
+    const Matcher* m = nullptr;
+    for (const Matcher& x : matchers_)
+        if (x.spec->method == method && req.path.compare(0, x.literal.size(), x.literal) == 0 &&
+            std::regex_match(req.path, x.pattern)) {
+            m = &x;
+            break;
+        }
+    auto refuse = [&](int status, const std::string& code, const std::string& message) {
+        res.status = status;
+        res.set_content(body_text(error_body(code, message)), "application/json");
+        if (body) close_after_response(req);
+        metrics.request(req.method, m ? m->spec->path : "unmatched", status,
+                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        return false;
+    };
+    // A body for no route (static files take none) is never read.
+    if (!m) return body ? refuse(404, "not_found", fmt::format("no such resource: {} {}", req.method, req.path)) : true;
+    std::uint64_t length = 0;
+    if (const std::string text = req.get_header_value("Content-Length"); !text.empty()) {
+        const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), length);
+        if (ec != std::errc() || end != text.data() + text.size())
+            return refuse(400, "bad_request", "Content-Length is not a number");
+    }
+    const bool chunked = req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
+    Admitted a{serial, Role::Read, "anonymous"};
+    try {
+        if (m->spec->role) a.role = authorize(req, *m->spec->role, &a.actor);
+    } catch (const ApiError& e) {
+        return refuse(e.status, e.code, e.what());
+    } catch (const std::exception& e) {
+        spdlog::error("{} {}: {}", req.method, req.path, textio::printable(e.what()));
+        return refuse(500, "internal", "database error");
+    }
+    if (length > opt.max_body_bytes)
+        return refuse(413, "payload_too_large",
+                      fmt::format("request body of {} bytes exceeds the limit of {} bytes", length, opt.max_body_bytes));
+    if (m->spec->body == Body::None && (chunked || length > kIgnoredBodyBytes))
+        return refuse(413, "payload_too_large", fmt::format("{} {} takes no request body", m->spec->method, m->spec->path));
+    tl_admitted = std::move(a);
+    return true;
+}
+
 void Core::route(RouteSpec spec, Handler h) {
     const std::string pattern = route_pattern(spec);   // also checks every {name} is declared
     routes.push_back(spec);
     auto r = std::make_shared<const RouteSpec>(std::move(spec));
+    matchers_.push_back({r, r->path.substr(0, r->path.find('{')), std::regex(pattern)});
     const std::string method = r->method;
     auto wrapped = [this, r, h](const httplib::Request& req, httplib::Response& res) {
         const auto t0 = std::chrono::steady_clock::now();
         try {
             std::string actor = "anonymous";
-            const Role role = r->role ? authorize(req, *r->role, &actor) : Role::Read;
+            Role role = Role::Read;
+            if (const auto serial = current_request_serial(); serial != 0 && tl_admitted.serial == serial) {
+                role = tl_admitted.role;   // checked before the body was read
+                actor = tl_admitted.actor;
+            } else if (r->role) {
+                role = authorize(req, *r->role, &actor);
+            }
             std::vector<std::string> path_values;
             for (std::size_t i = 1; i < req.matches.size(); ++i) path_values.push_back(req.matches[i].str());
             auto query = [&req](const std::string& name) -> std::optional<std::string> {
@@ -244,9 +319,16 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
     c.jobs = std::make_unique<Jobs>(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); });
 
-    const int threads = std::max(4, c.opt.http_threads);
-    c.http.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
-    c.http.set_payload_max_length(c.opt.max_body_bytes);
+    GateLimits limits;
+    limits.threads = std::max(4, c.opt.http_threads);
+    limits.header_timeout_s = c.opt.header_timeout_s;
+    limits.idle_timeout_s = c.opt.keep_alive_s;
+    limits.read_timeout_s = c.opt.body_read_timeout_s;
+    limits.body_timeout_s = c.opt.body_timeout_s;
+    limits.max_header_bytes = c.opt.max_header_bytes;
+    limits.max_waiting = c.opt.max_waiting_connections;
+    limits.max_body_bytes = c.opt.max_body_bytes;
+    c.http.set_limits(limits);
     c.http.set_keep_alive_max_count(100000);
     // Without it, Nagle's algorithm and delayed ACKs hold small responses for ~40 ms.
     c.http.set_tcp_nodelay(true);
@@ -254,7 +336,14 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     // (measured: 1.7-2.0 s for a 627 KB forces window, against 0.05 s with gzip), and every
     // browser offers it. Drop "br" from the offer before routing so large answers go out gzipped.
     // The request object is httplib's own mutable local; only the handler signature is const.
-    c.http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response&) {
+    // Keys before bodies: a request is admitted (route, key, role, announced size) on its headers,
+    // before httplib reads its body; a client that asks "Expect: 100-continue" hears the refusal
+    // before it sends the body.
+    c.http.set_expect_100_continue_handler([&c](const httplib::Request& req, httplib::Response& res) {
+        return c.admit(req, res) ? 100 : res.status;
+    });
+    c.http.set_pre_routing_handler([&c](const httplib::Request& req, httplib::Response& res) {
+        if (!c.admit(req, res)) return httplib::Server::HandlerResponse::Handled;
         auto it = req.headers.find("Accept-Encoding");
         if (it != req.headers.end() && it->second.find("br") != std::string::npos) {
             auto& headers = const_cast<httplib::Headers&>(req.headers);

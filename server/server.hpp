@@ -18,8 +18,19 @@ struct ServerOptions {
     std::string data_dir;                  // uploads; empty: "<db_path>.data" next to the db
     std::string web_dir;                   // static files at "/"; empty: none
     int workers = 2;                       // prediction jobs run at once
-    int http_threads = 64;                 // must exceed the concurrent keep-alive connections
+    int http_threads = 64;                 // requests processed at once (idle or slow connections hold none)
     std::size_t max_body_bytes = 256u << 20;
+    // Slow clients: a connection's request line and headers must arrive within header_timeout_s of
+    // its first byte (of the connection, for a new one), else 408; an idle keep-alive connection is
+    // closed after keep_alive_s; a body may pause body_read_timeout_s between bytes and take
+    // body_timeout_s in all. Connections waiting for headers or idle are at most
+    // max_waiting_connections: beyond, the one waiting longest is closed.
+    double header_timeout_s = 10;
+    double keep_alive_s = 5;
+    double body_read_timeout_s = 10;
+    double body_timeout_s = 600;
+    int max_waiting_connections = 512;
+    std::size_t max_header_bytes = 64u << 10;   // request line + headers; 431 beyond
     std::size_t max_log_rows = 20'000'000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429
     int max_points = 20000;                // cap of forces/motion max_points

@@ -9,10 +9,13 @@
 #include <netinet/in.h>
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <chrono>
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <regex>
+#include <vector>
 
 namespace cutload::server {
 
@@ -28,15 +31,49 @@ bool split_http_url(const std::string& url, std::string* origin, std::string* pa
 
 namespace {
 
+std::string refused_v4(const std::uint8_t* b) {
+    const std::uint32_t ip = (std::uint32_t{b[0]} << 24) | (std::uint32_t{b[1]} << 16) | (std::uint32_t{b[2]} << 8) | b[3];
+    const std::string text = fmt::format("{}.{}.{}.{}", b[0], b[1], b[2], b[3]);
+    if ((ip >> 16) == 0xA9FE) return fmt::format("{} is a link-local address (cloud metadata services answer there)", text);
+    if (ip == 0) return fmt::format("{} is the unspecified address", text);
+    if ((ip >> 28) == 0xE) return fmt::format("{} is a multicast address", text);
+    return "";
+}
+
+// The IPv4 addresses an IPv6 address carries, by the forms that route (or translate) to them:
+// v4-mapped ::ffff:a.b.c.d, v4-compatible ::a.b.c.d, SIIT-translated ::ffff:0:a.b.c.d, NAT64
+// 64:ff9b::/96 and the local-use 64:ff9b:1::/48 (RFC 8215, /96 layout), 6to4 2002:AABB:CCDD::/16,
+// Teredo 2001:0::/32 (server, and the client XOR 0xff) and ISATAP interface ids (::[02]00:5efe:a.b.c.d).
+std::vector<std::array<std::uint8_t, 4>> embedded_v4(const std::uint8_t* x) {
+    std::vector<std::array<std::uint8_t, 4>> out;
+    auto at = [&](int i, std::uint8_t mask = 0) {
+        out.push_back({static_cast<std::uint8_t>(x[i] ^ mask), static_cast<std::uint8_t>(x[i + 1] ^ mask),
+                       static_cast<std::uint8_t>(x[i + 2] ^ mask), static_cast<std::uint8_t>(x[i + 3] ^ mask)});
+    };
+    auto zero = [&](int from, int to) {
+        for (int i = from; i < to; ++i)
+            if (x[i] != 0) return false;
+        return true;
+    };
+    const bool last32_nonzero = !zero(12, 16);
+    if (zero(0, 10) && x[10] == 0xff && x[11] == 0xff) at(12);                            // ::ffff:a.b.c.d
+    if (zero(0, 12) && last32_nonzero) at(12);                                            // ::a.b.c.d (::1 is 0.0.0.1)
+    if (zero(0, 8) && x[8] == 0xff && x[9] == 0xff && zero(10, 12)) at(12);               // ::ffff:0:a.b.c.d
+    if (x[0] == 0x00 && x[1] == 0x64 && x[2] == 0xff && x[3] == 0x9b) at(12);             // 64:ff9b::/96, 64:ff9b:1::/48
+    if (x[0] == 0x20 && x[1] == 0x02) at(2);                                              // 6to4
+    if (x[0] == 0x20 && x[1] == 0x01 && x[2] == 0x00 && x[3] == 0x00) {                   // Teredo
+        at(4);
+        at(12, 0xff);
+    }
+    if ((x[8] & 0xfd) == 0x00 && x[9] == 0x00 && x[10] == 0x5e && x[11] == 0xfe) at(12);  // ISATAP
+    return out;
+}
+
 std::string refused_address(const sockaddr* a) {
     char text[INET6_ADDRSTRLEN] = "";
     if (a->sa_family == AF_INET) {
         const auto* in = reinterpret_cast<const sockaddr_in*>(a);
-        const std::uint32_t ip = ntohl(in->sin_addr.s_addr);
-        inet_ntop(AF_INET, &in->sin_addr, text, sizeof text);
-        if ((ip >> 16) == 0xA9FE) return fmt::format("{} is a link-local address (cloud metadata services answer there)", text);
-        if (ip == 0) return fmt::format("{} is the unspecified address", text);
-        if ((ip >> 28) == 0xE) return fmt::format("{} is a multicast address", text);
+        return refused_v4(reinterpret_cast<const std::uint8_t*>(&in->sin_addr.s_addr));
     } else if (a->sa_family == AF_INET6) {
         const auto* in6 = reinterpret_cast<const sockaddr_in6*>(a);
         const in6_addr& x = in6->sin6_addr;
@@ -44,12 +81,11 @@ std::string refused_address(const sockaddr* a) {
         if (IN6_IS_ADDR_LINKLOCAL(&x)) return fmt::format("{} is a link-local address", text);
         if (IN6_IS_ADDR_UNSPECIFIED(&x)) return fmt::format("{} is the unspecified address", text);
         if (IN6_IS_ADDR_MULTICAST(&x)) return fmt::format("{} is a multicast address", text);
-        if (IN6_IS_ADDR_V4MAPPED(&x)) {
-            sockaddr_in v4{};
-            v4.sin_family = AF_INET;
-            std::memcpy(&v4.sin_addr, x.s6_addr + 12, 4);
-            return refused_address(reinterpret_cast<const sockaddr*>(&v4));
-        }
+        // An address that carries an IPv4 address reaches it (through the host's stack, a NAT64
+        // gateway or a tunnel): it is refused as that IPv4 address would be.
+        for (const auto& v4 : embedded_v4(x.s6_addr))
+            if (std::string why = refused_v4(v4.data()); !why.empty())
+                return fmt::format("{} carries the IPv4 address {}.{}.{}.{}: {}", text, v4[0], v4[1], v4[2], v4[3], why);
     }
     return "";
 }

@@ -39,7 +39,8 @@ bool split_http_url(const std::string& url, std::string* origin, std::string* pa
 
 // Why a webhook may not be sent to `host`, or "" when it may. Link-local addresses (169.254/16,
 // fe80::/10: where cloud metadata services answer), unspecified and multicast addresses are
-// refused. Loopback and private networks are allowed: MES and alerting hosts live there. Without
+// refused, and so is an IPv6 address that carries such an IPv4 address (v4-mapped, v4-compatible,
+// NAT64 64:ff9b::/96, SIIT, 6to4, Teredo, ISATAP). Loopback and private networks are allowed: MES and alerting hosts live there. Without
 // `resolve` only address literals are checked (at registration); with it, every address the name
 // resolves to (before each delivery, so a name cannot be pointed there later).
 std::string refused_webhook_host(const std::string& host, bool resolve);

@@ -68,3 +68,38 @@ TEST_CASE("webhooks: host names are checked by what they resolve to") {
     REQUIRE(refused_webhook_host("169.254.0.1", true).find("link-local") != std::string::npos);
     REQUIRE(refused_webhook_host("fe80::1", false).find("link-local") != std::string::npos);
 }
+
+TEST_CASE("webhooks: an IPv6 address carrying a refused IPv4 address is refused as that address") {
+    TestServer ts;
+    auto admin = ts.admin();
+    auto post = [&](const std::string& url) { return admin.Post("/api/v1/webhooks", json{{"url", url}}.dump(), "application/json"); };
+    for (const char* url : {"http://[::169.254.169.254]/",                 // v4-compatible
+                            "http://[::a9fe:a9fe]/latest",                 // the same, in hex
+                            "http://[64:ff9b::a9fe:a9fe]/",                // NAT64 (RFC 6052)
+                            "http://[64:ff9b::169.254.169.254]:80/",
+                            "http://[64:ff9b:1::a9fe:a9fe]/",              // local-use NAT64 (RFC 8215)
+                            "http://[::ffff:0:169.254.169.254]/",          // SIIT translated
+                            "http://[::FFFF:A9FE:0101]/",                  // v4-mapped, in hex and capitals
+                            "http://[2002:a9fe:a9fe::1]/",                 // 6to4
+                            "http://[fd00::5efe:169.254.169.254]/",        // ISATAP interface id
+                            "http://[::224.0.0.1]/", "http://[64:ff9b::]/"}) {
+        INFO(url);
+        const auto r = post(url);
+        REQUIRE(r);
+        INFO(r->body);
+        REQUIRE(r->status == 400);
+        const std::string message = json::parse(r->body)["error"]["message"];
+        REQUIRE(message.find("carries the IPv4 address") != std::string::npos);
+    }
+    // Embedded private and public addresses are as fine as the addresses themselves; ::1 stays loopback.
+    for (const char* ok : {"http://[::ffff:10.0.0.5]/hook", "http://[64:ff9b::c0a8:14]/hook", "http://[2002:c0a8:0001::1]/hook",
+                           "https://[::1]/hook", "http://[2001:db8::1]/hook"}) {
+        INFO(ok);
+        REQUIRE(post(ok)->status == 201);
+    }
+    using cutload::server::refused_webhook_host;
+    REQUIRE(refused_webhook_host("64:ff9b::a9fe:a9fe", false).find("169.254.169.254") != std::string::npos);
+    // Teredo: the client's address is stored inverted.
+    REQUIRE(refused_webhook_host("2001:0:4136:e378:8000:63bf:5601:5601", false).find("169.254.169.254 is a link-local") !=
+            std::string::npos);
+}
