@@ -425,6 +425,12 @@ GatedHttpServer::Counters GatedHttpServer::counters() const {
     return {impl_->header_timeouts.load(), impl_->header_too_large.load(), impl_->evicted.load()};
 }
 
+void GatedHttpServer::widen_backlog(int connections) {
+    // listen() again on a listening socket sets its backlog anew.
+    if (svr_sock_ != INVALID_SOCKET && ::listen(svr_sock_, connections) != 0)
+        spdlog::warn("http: listen backlog {}: {}", connections, std::strerror(errno));
+}
+
 bool GatedHttpServer::process_and_close_socket(socket_t sock) {
     auto c = std::make_unique<Conn>();
     c->fd = sock;

@@ -44,6 +44,11 @@ public:
     };
     Counters counters() const;
 
+    // After binding: the listen backlog. Debian's httplib listens with a backlog of 5, so a burst of
+    // connections (a page's parallel requests, a crowd of slow clients) overflows it and the
+    // kernel makes the overflow retry their handshakes after 1, 2, 4... s, before the gate sees them.
+    void widen_backlog(int connections);
+
     struct Impl;
 
 private:

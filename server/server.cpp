@@ -144,13 +144,15 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
         // Loopback peers only, and only when the browser says it asked for this machine: a page of
         // another origin whose name was rebound to 127.0.0.1 sends its own name as Host.
         if (need == Role::Read && opt.anonymous_loopback_reads && is_loopback_peer(req.remote_addr) &&
-            req.get_header_value_count("Host") == 1 && is_loopback_host_header(req.get_header_value("Host")))
+            req.get_header_value_count("Host") == 1 && is_loopback_host_header(req.headers.find("Host")->second))
             return Role::Read;
         throw ApiError(401, "unauthorized", "missing API key: send 'Authorization: Bearer <key>'");
     }
     if (auth_headers > 1) throw ApiError(401, "unauthorized", "send one Authorization header, not several");
     std::string why;
-    const auto token = bearer_token(req.get_header_value("Authorization"), &why);
+    // The stored value whole: httplib's get_header_value() goes through a C string, so a %00 in the
+    // header (httplib decodes it) would cut the value short there and "<key>%00abc" pass as the key.
+    const auto token = bearer_token(req.headers.find("Authorization")->second, &why);
     if (!token) throw ApiError(401, "unauthorized", why);
     const std::string& key = *token;
     auto s = session();
@@ -377,6 +379,7 @@ void Server::start() {
     auto& c = *impl_;
     c.bound_port = c.opt.port == 0 ? c.http.bind_to_any_port(c.opt.host) : (c.http.bind_to_port(c.opt.host, c.opt.port) ? c.opt.port : -1);
     if (c.bound_port < 0) throw std::runtime_error(fmt::format("cannot listen on {}:{}", c.opt.host, c.opt.port));
+    c.http.widen_backlog(std::max(128, c.opt.max_waiting_connections));
     c.jobs->start();
     c.hooks->start();
     c.listener = std::thread([&c] { c.http.listen_after_bind(); });

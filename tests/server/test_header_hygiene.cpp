@@ -22,13 +22,13 @@ json error_of(const std::string& answer) {
 TEST_CASE("hygiene: anonymous loopback reads answer only requests addressed to a loopback host") {
     TestServer ts([](cutload::server::ServerOptions& o) { o.anonymous_loopback_reads = true; });
     const int port = ts.srv->port();
-    for (const std::string host : {"localhost", "localhost:8080", "LOCALHOST:1", "127.0.0.1", "127.0.0.1:" + std::to_string(port),
+    for (const std::string& host : std::vector<std::string>{"localhost", "localhost:8080", "LOCALHOST:1", "127.0.0.1", "127.0.0.1:" + std::to_string(port),
                                    "[::1]", "[::1]:8080"}) {
         INFO("Host: " << host);
         REQUIRE(status_of(raw_request(port, get_runs("Host: " + host + "\r\n"))) == 200);
     }
     // A page on another origin whose name was rebound to 127.0.0.1 says its own name.
-    for (const std::string host : {"attacker.example", "attacker.example:8080", "localhost.attacker.example",
+    for (const std::string& host : std::vector<std::string>{"attacker.example", "attacker.example:8080", "localhost.attacker.example",
                                    "127.0.0.1.nip.io", "127.0.0.1:80@evil", "[::1]x", "[::2]:80", "localhost:", "localhost:99999x"}) {
         INFO("Host: " << host);
         const std::string answer = raw_request(port, get_runs("Host: " + host + "\r\n"));
@@ -51,7 +51,7 @@ TEST_CASE("hygiene: a bearer token is the key exactly: trailing bytes, NUL, whit
     };
     REQUIRE(status_of(with_auth("Bearer " + key)) == 200);
     REQUIRE(status_of(with_auth("bearer " + key)) == 200);   // the scheme is case-insensitive (RFC 7235)
-    for (const std::string bad : {"Bearer " + key + "%00abc", "Bearer " + key + std::string("\0abc", 4), "Bearer " + key + " abc",
+    for (const std::string& bad : std::vector<std::string>{"Bearer " + key + "%00abc", "Bearer " + key + std::string("\0abc", 4), "Bearer " + key + " abc",
                                   "Bearer " + key + "\tabc", "Bearer " + key + "x", "Bearer  " + key, "Bearer " + key.substr(0, 40),
                                   "Bearer %20" + key, "Bearer " + key.substr(0, key.size() - 1) + "%00",
                                   "Bearer " + key + "%0d%0aX-Injected: 1", "Basic " + key, "Bearer", key}) {
@@ -111,7 +111,7 @@ TEST_CASE("hygiene: bytes that are not UTF-8 in an error's text are escaped in a
     auto c = ts.admin();
     // nlohmann's message quotes the bytes it read: 0x81 is no character in any encoding textio
     // reads, 0xE4 is a Latin-1 "ä".
-    for (const std::string bad : {std::string("{\"name\": \"Fr\xE4sen\", \"limit\": }"), std::string("{\"name\": \"\x81\x81\"}")}) {
+    for (const std::string& bad : std::vector<std::string>{std::string("{\"name\": \"Fr\xE4sen\", \"limit\": }"), std::string("{\"name\": \"\x81\x81\"}")}) {
         auto r = c.Post("/api/v1/thresholds", bad, "application/json");
         REQUIRE(r);
         INFO(r->body);
