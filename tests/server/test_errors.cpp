@@ -60,8 +60,10 @@ TEST_CASE("errors: authentication and roles") {
     TestServer ts;
     auto anon = ts.client("");
     require_error(anon.Get("/api/v1/runs"), 401, "unauthorized", "Bearer");
-    auto wrong = ts.client("clk_0000");
+    auto wrong = ts.client("clk_" + std::string(48, '0'));
     require_error(wrong.Get("/api/v1/runs"), 401, "unauthorized", "unknown");
+    auto malformed = ts.client("clk_0000");
+    require_error(malformed.Get("/api/v1/runs"), 401, "unauthorized", "malformed");
     auto reader = ts.client(ts.read_key);
     REQUIRE(reader.Get("/api/v1/runs")->status == 200);
     require_error(upload(reader, slot_log_csv(0.2), slot_spec()), 403, "forbidden", "write");
