@@ -1,9 +1,9 @@
 #include "app/inputs.hpp"
 
+#include "textio/json.hpp"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-
-#include <fstream>
 
 namespace cutload::app {
 
@@ -58,13 +58,11 @@ force_model::ToolSpec parse_tool(const nlohmann::json& tool) {
 }
 
 force_model::ToolSpec load_tool(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw force_model::SpecError(path + ": cannot open the tool file");
     nlohmann::json j;
     try {
-        j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
-        throw force_model::SpecError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+        j = textio::read_json_file(path, "tool file");
+    } catch (const textio::TextError& e) {
+        throw force_model::SpecError(e.what());   // "path:line:column: key: why"
     }
     try {
         return parse_tool(j.is_object() && j.contains("tool") ? j["tool"] : j);

@@ -108,6 +108,9 @@ const NumberedTool* find_tool(const RunSpec& spec, int number);
 // The most flutes of any tool the spec names (the tooth period a log's sampling must resolve).
 int max_flutes(const RunSpec& spec);
 RunSpec load_run_spec(const std::string& path);      // file errors are SpecError too
+// A run spec's JSON text (an upload, a fuzzer's input); `source` starts every SpecError, and a
+// text that is not JSON names line, column and key (textio/json.hpp).
+RunSpec parse_run_spec_text(std::string_view text, const std::string& source);
 nlohmann::json to_json(const RunSpec& spec);
 
 // The in-process workpiece: a multi-interval Z-map (dexel) over the stock box. Opaque; it can be

@@ -2,12 +2,15 @@
 // says what was expected, because the person reading it is fixing a file by hand.
 #include "force_model/force_model.hpp"
 
+#include "motion_io/nc_program.hpp"
+#include "textio/json.hpp"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include <cmath>
-#include <fstream>
 #include <algorithm>
+#include <cmath>
+#include <functional>
 #include <initializer_list>
 #include <numbers>
 #include <set>
@@ -18,6 +21,10 @@ namespace cutload::force_model {
 namespace {
 
 using nlohmann::json;
+
+// Stock corners and the setup offset are machine-sized: as far from zero as an NC coordinate may be
+// (100 m). Beyond that the engine's geometry loses its precision and no part is that large.
+const double kMaxAbsCoordinateMm = motion_io::NcLimits{}.max_abs_position_mm;
 
 // Above this many dexel cells the stock alone would exceed about 1 GB: refuse rather than swap.
 constexpr double kMaxStockCells = 60e6;
@@ -83,6 +90,16 @@ public:
             out[i] = v[i].get<double>();
             if (!std::isfinite(out[i])) fail(join(path_, key) + "[" + std::to_string(i) + "]", "must be finite");
         }
+    }
+
+    // Each of a vec3's numbers (already read) within +-limit.
+    void vec3_within(const std::string& key, const double v[3], double limit, const char* unit) const {
+        for (int i = 0; i < 3; ++i)
+            if (!(std::fabs(v[i]) <= limit)) {
+                std::ostringstream msg;
+                msg << "must be within +-" << limit << " " << unit << ", got " << v[i];
+                fail(join(path_, key) + "[" + std::to_string(i) + "]", msg.str());
+            }
     }
 
     std::string key_path(const std::string& key) const { return join(path_, key); }
@@ -250,6 +267,8 @@ StockBox parse_stock(ObjectReader& r) {
     ObjectReader box(r.object("box_mm"), r.key_path("box_mm"));
     box.vec3("min", b.min_mm, true);
     box.vec3("max", b.max_mm, true);
+    box.vec3_within("min", b.min_mm, kMaxAbsCoordinateMm, "mm");
+    box.vec3_within("max", b.max_mm, kMaxAbsCoordinateMm, "mm");
     static const char* axis[3] = {"x", "y", "z"};
     for (int i = 0; i < 3; ++i)
         require(b.max_mm[i] > b.min_mm[i], box.key_path("max"),
@@ -368,6 +387,7 @@ RunSpec parse_run_spec(const json& j) {
     if (root.has("setup")) {
         ObjectReader r(root.object("setup"), "setup");
         r.vec3("offset_mm", spec.offset_mm, false);
+        r.vec3_within("offset_mm", spec.offset_mm, kMaxAbsCoordinateMm, "mm");
         r.reject_unknown();
     } else {
         root.accept_null("setup");
@@ -398,21 +418,31 @@ RunSpec parse_run_spec(const json& j) {
     return spec;
 }
 
-RunSpec load_run_spec(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw SpecError(path + ": cannot open run spec");
+namespace {
+
+// The document's errors and the spec's, both as SpecError starting with the source.
+RunSpec parse_document(const std::function<json()>& parse, const std::string& source) {
     json j;
     try {
-        j = json::parse(in);
-    } catch (const json::parse_error& e) {
-        // nlohmann reports the byte offset; that is what a person needs to find the typo.
-        throw SpecError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+        j = parse();
+    } catch (const textio::TextError& e) {
+        throw SpecError(e.what());   // "source:line:column: key: why"
     }
     try {
         return parse_run_spec(j);
     } catch (const SpecError& e) {
-        throw SpecError(path + ": " + e.what());
+        throw SpecError(source + ": " + e.what());
     }
+}
+
+}  // namespace
+
+RunSpec load_run_spec(const std::string& path) {
+    return parse_document([&] { return textio::read_json_file(path, "run spec"); }, path);
+}
+
+RunSpec parse_run_spec_text(std::string_view text, const std::string& source) {
+    return parse_document([&] { return textio::parse_json(text, source); }, source);
 }
 
 namespace {

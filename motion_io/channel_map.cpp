@@ -1,6 +1,7 @@
 // Channel maps: built-in defaults per format, JSON map files and the bundled presets.
 #include "channel_map.hpp"
 
+#include "textio/json.hpp"
 #include "textio/text.hpp"
 
 #include <fmt/format.h>
@@ -8,9 +9,7 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <map>
-#include <sstream>
 
 namespace cutload::motion_io::detail {
 
@@ -63,20 +62,21 @@ void check_applies(const std::string& key, Format format, const std::string& ori
                                       "columns with x, y, z", origin));
 }
 
-std::string read_map_text(const std::string& spec, std::string& origin) {
+// The map document named by `spec`: a JSON file, or a bundled preset.
+nlohmann::json read_map(const std::string& spec, std::string& origin) {
     std::error_code ec;
-    if (std::filesystem::is_regular_file(spec, ec)) {
-        std::ifstream in(spec, std::ios::binary);
-        if (!in) throw IngestError(fmt::format("{}: cannot open the map file", spec));
-        std::ostringstream s;
-        s << in.rdbuf();
-        origin = spec;
-        return s.str();
-    }
-    const auto& presets = bundled_map_presets();
-    if (const auto it = presets.find(spec); it != presets.end()) {
-        origin = "map preset " + spec;
-        return it->second;
+    try {
+        if (std::filesystem::is_regular_file(spec, ec)) {
+            origin = spec;
+            return textio::read_json_file(spec, "map file");
+        }
+        const auto& presets = bundled_map_presets();
+        if (const auto it = presets.find(spec); it != presets.end()) {
+            origin = "map preset " + spec;
+            return textio::parse_json(it->second, origin);
+        }
+    } catch (const textio::TextError& e) {
+        throw IngestError(e.what());
     }
     throw IngestError(fmt::format("{}: no such map file, and not a bundled preset ({})", textio::printable(spec),
                                   fmt::join(map_preset_names(), ", ")));
@@ -93,18 +93,25 @@ std::vector<std::string> map_preset_names() {
 }
 
 ChannelMap load_channel_map(const std::string& spec, Format format) {
-    ChannelMap m = format == Format::Shdr ? shdr_defaults() : csv_defaults();
-    if (spec.empty()) return m;
+    if (spec.empty()) return format == Format::Shdr ? shdr_defaults() : csv_defaults();
     std::string origin;
-    const std::string text = read_map_text(spec, origin);
-    m.origin = origin;
+    const nlohmann::json j = read_map(spec, origin);
+    return apply_channel_map(j, origin, format);
+}
+
+ChannelMap parse_channel_map(std::string_view text, const std::string& origin, Format format) {
     nlohmann::json j;
     try {
-        j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error& e) {
-        // nlohmann's message may quote the offending bytes: make it printable.
-        throw IngestError(fmt::format("{}: not valid JSON: {}", origin, textio::printable(e.what())));
+        j = textio::parse_json(text, origin);
+    } catch (const textio::TextError& e) {
+        throw IngestError(e.what());
     }
+    return apply_channel_map(j, origin, format);
+}
+
+ChannelMap apply_channel_map(const nlohmann::json& j, const std::string& origin, Format format) {
+    ChannelMap m = format == Format::Shdr ? shdr_defaults() : csv_defaults();
+    m.origin = origin;
     if (!j.is_object()) throw IngestError(fmt::format("{}: expected a JSON object mapping channels to columns or keys", origin));
     auto string_of = [&](const nlohmann::json& v, const std::string& key) {
         if (!v.is_string()) throw IngestError(fmt::format("{}: key '{}': expected a string", origin, key));

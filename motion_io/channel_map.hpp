@@ -7,9 +7,12 @@
 #include "motion_io/motion_io.hpp"
 #include "motion_io/shdr.hpp"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <array>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace cutload::motion_io::detail {
@@ -42,6 +45,10 @@ struct ChannelMap {
 // The built-in defaults of a format (Csv or Shdr) with the map `spec` laid over them: a file path,
 // or the name of a bundled preset; empty: defaults only. Throws IngestError naming the file and key.
 ChannelMap load_channel_map(const std::string& spec, Format format);
+// The same for a map's JSON text in memory; `origin` names it in errors.
+ChannelMap parse_channel_map(std::string_view text, const std::string& origin, Format format);
+// The same for a parsed document.
+ChannelMap apply_channel_map(const nlohmann::json& map, const std::string& origin, Format format);
 
 // Names of the bundled presets (data/maps/*.json without the extension), sorted.
 std::vector<std::string> map_preset_names();

@@ -67,3 +67,43 @@ TEST_CASE("--help and --version exit 0", "[cli]") {
     CHECK(v.exit_code == 0);
     CHECK(v.output.find("cutload 0.1.0") != std::string::npos);
 }
+
+TEST_CASE("issue 19: 1e400 in a run spec, tool or map file is one line naming file, place and key", "[cli]") {
+    const fs::path dir = scratch("json_overflow");
+    auto write = [&](const std::string& name, const std::string& text) {
+        const fs::path p = dir / name;
+        FILE* f = std::fopen(p.c_str(), "w");
+        REQUIRE(f != nullptr);
+        std::fputs(text.c_str(), f);
+        std::fclose(f);
+        return p.string();
+    };
+    // The demo spec with one coefficient beyond a double (line 6 of the file).
+    std::string spec;
+    {
+        FILE* f = std::fopen(source("data/demo_run.json").c_str(), "r");
+        REQUIRE(f != nullptr);
+        for (int c; (c = std::fgetc(f)) != EOF;) spec += static_cast<char>(c);
+        std::fclose(f);
+    }
+    const auto at = spec.find("767.0");
+    REQUIRE(at != std::string::npos);
+    spec.replace(at, 5, "1e400");
+    const std::string spec_path = write("run.json", spec);
+    const fs::path forces = dir / "forces.csv";
+    for (const std::string cmd : {"predict", "optimize"}) {
+        const Result r = run(cmd + " " + source("data/demo_dryrun.csv") + " --spec " + spec_path + " --out " +
+                             forces.string() + (cmd == "optimize" ? " --program " + source("data/demo_program.nc") : ""));
+        require_one_error_line(r, spec_path + ":6:");
+        CHECK(r.output.find("material.Ktc_N_mm2: the number 1e400 is out of range") != std::string::npos);
+        CHECK(r.output.find("number overflow") == std::string::npos);
+        CHECK_FALSE(fs::exists(forces));
+    }
+    const std::string tool = write("tool.json", R"({"shape": "flat", "diameter_mm": -1E+400, "flutes": 2})");
+    const Result t = run("calibrate --tool " + tool + " --test " + source("data/demo_dryrun.csv") +
+                         ":10000:1200:3:8:slot --out " + (dir / "material.json").string());
+    require_one_error_line(t, tool + ":1:34: diameter_mm: the number -1E+400 is out of range");
+    const std::string map = write("map.json", "{\"x\": \"x\",\n \"sample_period_ms\": 1e400}");
+    require_one_error_line(run("inspect " + source("data/demo_dryrun.csv") + " --map " + map),
+                           map + ":2:22: sample_period_ms: the number 1e400 is out of range");
+}

@@ -153,7 +153,8 @@ TEST_CASE("run spec: file errors name the file", "[spec][errors]") {
         cutload::force_model::load_run_spec(path);
         FAIL("expected SpecError");
     } catch (const SpecError& e) {
-        CHECK_THAT(e.what(), Catch::StartsWith(path + ": not valid JSON"));
+        // "file:line:column: key: not valid JSON: ..." (textio/json.hpp)
+        CHECK_THAT(e.what(), Catch::StartsWith(path + ":1:") && Catch::Contains("not valid JSON"));
     }
     std::remove(path.c_str());
     CHECK_THROWS_WITH(cutload::force_model::load_run_spec("no_such_spec.json"),
@@ -275,4 +276,45 @@ TEST_CASE("run spec: drills and chamfer tools are cones with a point angle", "[s
               k["tool"] = seed_spec()["tool"];
               k["tool"]["point_angle_deg"] = 118;
           }) == "tool.point_angle_deg: only for a drill or chamfer tool");
+}
+
+TEST_CASE("run spec: 1e400 anywhere names file, line, column and key (issue 19)", "[spec][errors]") {
+    using cutload::force_model::parse_run_spec_text;
+    // Each key of the seed spec in turn, the number replaced by one beyond a double.
+    for (const std::string key : {"tool.diameter_mm", "material.Ktc_N_mm2", "limits.force_N", "resolution.grid_mm"}) {
+        json j = seed_spec();
+        const auto dot = key.find('.');
+        j[key.substr(0, dot)][key.substr(dot + 1)] = 12345.678;
+        std::string text = j.dump(2);
+        const auto at = text.find("12345.678");
+        REQUIRE(at != std::string::npos);
+        text.replace(at, 9, "1e400");
+        try {
+            parse_run_spec_text(text, "RUN.json");
+            FAIL("parsed " << key);
+        } catch (const SpecError& e) {
+            INFO(e.what());
+            CHECK_THAT(e.what(), Catch::StartsWith("RUN.json:") && Catch::Contains(": " + key + ": the number 1e400 is out of range"));
+            CHECK(std::string(e.what()).find('\n') == std::string::npos);
+        }
+    }
+    json j = seed_spec();
+    std::string text = j.dump();
+    text.replace(text.find("[105,90,30]"), 11, "[105,-1e999,30]");
+    CHECK_THROWS_WITH(parse_run_spec_text(text, "RUN.json"), Catch::Contains("stock.box_mm.max[1]: the number -1e999"));
+    // The text and the parsed document give the same spec.
+    CHECK(cutload::force_model::to_json(parse_run_spec_text(seed_spec().dump(), "RUN.json")) ==
+          cutload::force_model::to_json(parse_run_spec(seed_spec())));
+}
+
+TEST_CASE("run spec: stock corners and the setup offset lie within 100 m of machine zero", "[spec][errors]") {
+    json j = seed_spec();
+    j["setup"]["offset_mm"] = {-200, 1e300, 350};
+    CHECK(error_of(j) == "setup.offset_mm[1]: must be within +-100000 mm, got 1e+300");
+    j = seed_spec();
+    j["stock"]["box_mm"]["min"] = {-1e6, 0, 0};
+    CHECK(error_of(j) == "stock.box_mm.min[0]: must be within +-100000 mm, got -1e+06");
+    j = seed_spec();
+    j["setup"]["offset_mm"] = {-99999, 99999, 0};
+    CHECK(error_of(j).empty());
 }

@@ -238,6 +238,12 @@ TEST_CASE("controller export: map files for CSV name their mistakes", "[csv][map
                               "units": {"length": "furlong"}})"),
                Catch::Contains("unknown length unit 'furlong'"));
     CHECK_THAT(error_with(R"({"sample_period_ms": -1})"), Catch::Contains("sample_period_ms"));
+    // A number beyond a double names the map's line, column and key (issue 19), not the JSON
+    // library's bare "number overflow".
+    CHECK_THAT(error_with("{\"x\": \"X1_ActualPosition\",\n \"sample_period_ms\": 1e400}"),
+               Catch::Contains("csv_map.json:2:22: sample_period_ms: the number 1e400 is out of range") &&
+                   !Catch::Contains("overflow"));
+    CHECK_THAT(error_with(R"({"x": ["X1", )"), Catch::Contains("csv_map.json:1:") && Catch::Contains("not valid JSON"));
     // A preset name that does not exist lists the ones that do.
     ReadOptions opt;
     opt.map_file = "no_such_preset";
