@@ -52,7 +52,10 @@ void run_predict(const PredictArgs& a) {
     for (const std::vector<motion_io::IngestWarning>* list :
          std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&r.ingest.warnings, &r.sampling.warnings})
         for (const auto& w : *list)
-            if (w.code == "position_quantized" || w.code == "sampling_coarse")
+            // What changes what was predicted from: coarse data, and readings dropped as glitches or
+            // kept although out of range (a run is never made from them silently).
+            if (w.code == "position_quantized" || w.code == "sampling_coarse" || w.code == "glitch_dropped" ||
+                w.code == "out_of_range")
                 std::fprintf(stderr, "cutload: warning: %s: %s\n", w.code.c_str(), w.message.c_str());
     for (const std::string& w : r.warnings) std::fprintf(stderr, "cutload: warning: %s\n", w.c_str());
     const force_model::Prediction& p = r.prediction;

@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -33,6 +34,14 @@ void check_inputs(const motion_io::MotionModel& m, const RunSpec& spec) {
     if (m.block.size() != n) throw std::invalid_argument("predict: motion model block channel has a different length");
     if (!m.tool.empty() && m.tool.size() != n)
         throw std::invalid_argument("predict: motion model tool channel has a different length");
+    // The readers and the validate stage drop every non-finite reading (issue 19); a model built
+    // another way must not carry one into the engine, where one NaN spoils every row after it.
+    for (std::size_t i = 0; i < n; ++i)
+        for (const double v : {m.t_s[i], m.x_mm[i], m.y_mm[i], m.z_mm[i], m.vx_mm_s[i], m.vy_mm_s[i], m.vz_mm_s[i],
+                               m.spindle_rpm[i], m.spindle_angle_deg[i]})
+            if (!std::isfinite(v))
+                throw std::invalid_argument("predict: motion model sample " + std::to_string(i) +
+                                            " holds a non-finite value (NaN or infinity)");
     if (!(spec.resolution.angle_step_deg > 0) || !(spec.resolution.axial_step_mm > 0) || !(spec.resolution.grid_mm > 0))
         throw SpecError("resolution: steps must be > 0");
     for (std::size_t s = 0; s < m.session_start.size(); ++s) {
@@ -52,6 +61,30 @@ void check_plan(const ToolPlan& plan) {
         }
 }
 
+// No NaN or infinity reaches FORCES.csv, BLOCKS.csv or a JSON answer: a row or summary that holds
+// one is an engine fault, reported as one rather than written.
+void check_outputs(const Prediction& p) {
+    for (const ForceSample& s : p.samples)
+        for (const double v : {s.t_s, s.spindle_angle_deg, double(s.fx_N), double(s.fy_N), double(s.fz_N),
+                               double(s.torque_Nm), double(s.power_kW), double(s.chip_mm), double(s.bending_MPa),
+                               double(s.radial_engagement_mm), double(s.axial_engagement_mm), double(s.removed_mm3)})
+            if (!std::isfinite(v))
+                throw std::runtime_error("predict: the engine computed a non-finite value at t = " +
+                                         std::to_string(s.t_s) + " s; nothing is written");
+    for (const BlockSummary& b : p.blocks)
+        for (const double v : {b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N, b.peak_torque_Nm, b.peak_power_kW,
+                               b.max_chip_mm, b.max_bending_MPa, b.max_radial_engagement_mm, b.max_axial_engagement_mm,
+                               b.removed_mm3})
+            if (!std::isfinite(v))
+                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
+                                         "; nothing is written");
+    for (const BlockSummary& b : p.blocks)
+        for (const FlagHit& f : b.flags)
+            if (!std::isfinite(f.value) || !std::isfinite(f.t_s))
+                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
+                                         "; nothing is written");
+}
+
 Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup) {
     setup.backend->download(*setup.stock);
     Prediction p;
@@ -69,6 +102,7 @@ Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, E
     for (const RowExtra& x : rows.extra) p.stats.cutting_steps += x.engaged > 0 ? 1 : 0;
     p.stats.device = setup.backend->name();
     setup.backend.reset();
+    check_outputs(p);
     return p;
 }
 

@@ -279,7 +279,7 @@ private:
                 const auto i = static_cast<std::size_t>(col(pos_[k]).index);
                 diag_.facts().resolution.add(k, textio::trim_blanks(csv[i]), col(pos_[k]).factor);
                 if (std::fabs(r.v[k]) > limits_.max_abs_position_mm)
-                    diag_.warn("out_of_range", line_no, fmt::format("position {:.3f} mm beyond +-{} mm", r.v[k],
+                    diag_.warn("out_of_range", line_no, fmt::format("position {:.10g} mm beyond +-{} mm", r.v[k],
                                                                     limits_.max_abs_position_mm));
             }
             row_records_.push_back(r);
@@ -291,14 +291,13 @@ private:
         if (const auto f = number(MC::Feed, csv)) {
             Record fr{time_of(time_of_feed_, csv), line_no, Chan::Feed, {*f, 0, 0}, -1};
             if (*f < 0 || *f > limits_.max_feed_mm_min)
-                diag_.warn("out_of_range", line_no, fmt::format("feed {:.1f} mm/min outside 0..{}", *f, limits_.max_feed_mm_min));
+                diag_.warn("out_of_range", line_no, fmt::format("feed {:.10g} mm/min outside 0..{}", *f, limits_.max_feed_mm_min));
             row_records_.push_back(fr);
         }
         if (const auto s = number(MC::Spindle, csv)) {
             Record sr{time_of(time_of_spindle_, csv), line_no, Chan::Spindle, {*s, 0, 0}, -1};
             if (std::fabs(*s) > limits_.max_abs_spindle_rpm)
-                diag_.warn("out_of_range", line_no, fmt::format("spindle {:.0f} rpm beyond +-{}", *s, limits_.max_abs_spindle_rpm));
-            diag_.facts().spindle_max_abs_rpm = std::max(diag_.facts().spindle_max_abs_rpm, std::fabs(*s));
+                diag_.warn("out_of_range", line_no, fmt::format("spindle {:.10g} rpm beyond +-{}", *s, limits_.max_abs_spindle_rpm));
             row_records_.push_back(sr);
         }
         if (col(MC::Block).index >= 0) {

@@ -28,6 +28,9 @@ struct Record {
     Chan ch = Chan::Pos;
     double v[3] = {0, 0, 0};
     std::int32_t block = -1;
+    // The reading of this channel before it was dropped as a glitch (validate, drop_jumps): the
+    // silence before this one is a lost reading, not a value held (stage hold).
+    bool after_glitch = false;
 };
 
 // The step positions are written to, from the text of each value (docs/formats.md, "Coarse data"):
@@ -66,7 +69,7 @@ private:
 // What the readers learn besides the records: handed on to the report.
 struct ReaderFacts {
     PositionResolution resolution;
-    double spindle_max_abs_rpm = 0;
+    double spindle_max_abs_rpm = 0;     // set by the validate stage: the fastest reading it passed on
     bool commanded_positions = false;   // commanded positions besides the actual ones
 };
 

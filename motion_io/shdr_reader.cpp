@@ -184,7 +184,6 @@ private:
         } else {
             const double factor = ch == Chan::Feed ? feed_mm_min_ : ch == Chan::Spindle ? spindle_rpm_ : length_mm_;
             r.v[0] = number(key, value, line_no, "a number") * factor;
-            if (ch == Chan::Spindle) diag_.facts().spindle_max_abs_rpm = std::max(diag_.facts().spindle_max_abs_rpm, std::fabs(r.v[0]));
             if (const auto axis = axis_of_key_.find(key); axis != axis_of_key_.end())
                 diag_.facts().resolution.add(axis->second, textio::trim_blanks(value), length_mm_);
         }
@@ -215,15 +214,15 @@ private:
 
     void check_range(const Record& r, std::string_view key) {
         if (r.ch == Chan::Feed && (r.v[0] < 0 || r.v[0] > limits_.max_feed_mm_min))
-            diag_.warn("out_of_range", r.line, fmt::format("key '{}': feed {:.0f} mm/min outside 0..{} (declared unit "
+            diag_.warn("out_of_range", r.line, fmt::format("key '{}': feed {:.10g} mm/min outside 0..{} (declared unit "
                                                            "wrong? see --feed-units)", key, r.v[0], limits_.max_feed_mm_min));
         if (r.ch == Chan::Spindle && std::fabs(r.v[0]) > limits_.max_abs_spindle_rpm)
-            diag_.warn("out_of_range", r.line, fmt::format("key '{}': spindle {:.0f} rpm beyond +-{}", key, r.v[0],
+            diag_.warn("out_of_range", r.line, fmt::format("key '{}': spindle {:.10g} rpm beyond +-{}", key, r.v[0],
                                                            limits_.max_abs_spindle_rpm));
         if (r.ch != Chan::Feed && r.ch != Chan::Spindle)
             for (int k = 0; k < (r.ch == Chan::Pos ? 3 : 1); ++k)
                 if (std::fabs(r.v[k]) > limits_.max_abs_position_mm)
-                    diag_.warn("out_of_range", r.line, fmt::format("key '{}': position {:.3f} mm beyond +-{} mm", key, r.v[k],
+                    diag_.warn("out_of_range", r.line, fmt::format("key '{}': position {:.10g} mm beyond +-{} mm", key, r.v[k],
                                                                    limits_.max_abs_position_mm));
     }
 

@@ -20,7 +20,8 @@ void HoldValues::record(const Record& r) {
             const std::size_t n = std::min(h.n_intervals, kIntervalRing);
             std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(n / 2), sorted.begin() + static_cast<long>(n));
             const double usual = sorted[n / 2];
-            if (dt > 2 * usual) {
+            // A silence that a dropped glitch left is a lost reading: the interpolant bridges it.
+            if (dt > 2 * usual && !r.after_glitch) {
                 Record hold = h.last;
                 hold.t_s = r.t_s - usual;
                 hold.line = r.line;

@@ -11,7 +11,8 @@ namespace cutload::motion_io::detail {
 // MTConnect) sends a value only when it changes, so silence means "unchanged". The next value
 // after a silence longer than twice the usual update interval (the median of the last 15)
 // started to change at most one interval earlier: a copy of the held value there keeps the
-// resampling from smearing the move over the whole silence.
+// resampling from smearing the move over the whole silence. A silence left by a reading dropped as
+// a glitch (Record::after_glitch) is no hold: the value went on changing.
 class HoldValues final : public Stage {
 public:
     HoldValues() : Stage("hold") {}

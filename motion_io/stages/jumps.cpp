@@ -72,7 +72,9 @@ void DropJumps::follow(const Record& r) {
     if (from_anchor && !from_last) {   // away and back: the excursion was a glitch
         drop(held_, *anchor_, "the log comes back");
         held_.clear();
-        accept(r);
+        Record back = r;
+        back.after_glitch = true;
+        accept(back);
     } else if (from_anchor) {          // the log goes on from where the excursion went
         accept_excursion();
         accept(r);

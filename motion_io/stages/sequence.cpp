@@ -69,6 +69,7 @@ void Sequence::release(const Record& r) {
         case Chan::AxisX: case Chan::AxisY: case Chan::AxisZ: {
             const int k = static_cast<int>(r.ch) - static_cast<int>(Chan::AxisX);
             axes_.v[k] = r.v[0];
+            axes_.after_glitch = axes_.after_glitch || r.after_glitch;
             axes_known_ |= 1u << k;
             axes_.line = r.line;
             axis_t_ = r.t_s;
@@ -87,6 +88,7 @@ void Sequence::flush_axes() {
         return;
     }
     Record p = axes_;
+    axes_.after_glitch = false;
     p.ch = Chan::Pos;
     p.t_s = axis_t_;
     emit(Flow::Positions, p);

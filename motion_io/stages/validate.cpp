@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace cutload::motion_io::detail {
@@ -21,6 +22,11 @@ const char* channel_name(Chan ch) {
     return "?";
 }
 
+// Which readings stand in for each other when one is lost: positions (3-D or per axis), spindle, the rest.
+int group_of(Chan ch) {
+    return ch == Chan::Pos || ch == Chan::AxisX || ch == Chan::AxisY || ch == Chan::AxisZ ? 0 : ch == Chan::Spindle ? 1 : 2;
+}
+
 int values_of(Chan ch) { return ch == Chan::Pos ? 3 : (ch == Chan::Block || ch == Chan::Tool) ? 0 : 1; }
 
 }  // namespace
@@ -28,11 +34,44 @@ int values_of(Chan ch) { return ch == Chan::Pos ? 3 : (ch == Chan::Block || ch =
 Validate::Validate(Diagnostics& diag, PhysicalLimits limits) : Stage("validate"), diag_(diag), limits_(limits) {}
 
 void Validate::record(const Record& r) {
+    bool& dropped_since = dropped_since_[group_of(r.ch)];
     if (glitch(r)) {
         drop(r);
+        dropped_since = true;
         return;
     }
-    emit(Flow::Checked, r);
+    if (r.ch == Chan::Spindle) {
+        if (spike(r)) {
+            drop_spike(r);
+            dropped_since = true;
+            return;
+        }
+        last_spindle_rpm_ = r.v[0];
+        spike_run_ = 0;
+        double& max_rpm = diag_.facts().spindle_max_abs_rpm;
+        max_rpm = std::max(max_rpm, std::fabs(r.v[0]));
+    }
+    Record out = r;
+    out.after_glitch = r.after_glitch || dropped_since;
+    dropped_since = false;
+    emit(Flow::Checked, out);
+}
+
+bool Validate::spike(const Record& r) {
+    const double rpm = std::fabs(r.v[0]);
+    // Without a reading before it there is nothing to jump from: the first reading stands.
+    if (!last_spindle_rpm_ || rpm <= limits_.plausible_spindle_rpm) return false;
+    if (!(rpm > limits_.spike_ratio * std::fabs(*last_spindle_rpm_))) return false;
+    return spike_run_ < limits_.max_spike_readings;
+}
+
+void Validate::drop_spike(const Record& r) {
+    ++dropped_;
+    ++spike_run_;
+    diag_.warn("glitch_dropped", r.line,
+               fmt::format("spindle {:g} rpm, a jump from {:g} rpm beyond the plausible {:g} rpm: no spindle "
+                           "accelerates so and a unit mix-up moves every reading; a glitch, dropped",
+                           r.v[0], *last_spindle_rpm_, limits_.plausible_spindle_rpm));
 }
 
 double Validate::limit_for(Chan ch) const {

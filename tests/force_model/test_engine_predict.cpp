@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 
 using namespace cutload;
 using namespace cutload::enginetest;
@@ -202,4 +203,19 @@ TEST_CASE("the rapid threshold comes from the run spec's limits") {
     REQUIRE(has_flag(b, "rapid_in_material"));
     for (const auto& f : b.flags)
         if (f.flag == "rapid_in_material") CHECK(f.value == Approx(6000).epsilon(0.01));
+}
+
+TEST_CASE("issue 19: a motion model holding NaN or infinity never reaches the engine") {
+    const auto spec = base_spec();
+    const auto clean = legs_motion({-10, 10, 7}, {{{15, 10, 7}, 3000, "N10"}});
+    const double bad[] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()};
+    for (const double v : bad)
+        for (int channel = 0; channel < 4; ++channel) {
+            auto m = clean;
+            std::vector<double>& target = channel == 0 ? m.x_mm : channel == 1 ? m.vz_mm_s : channel == 2 ? m.spindle_rpm
+                                                                                                             : m.spindle_angle_deg;
+            target[target.size() / 2] = v;
+            CHECK_THROWS_WITH(run(m, spec), Catch::Contains("sample " + std::to_string(target.size() / 2)) &&
+                                                Catch::Contains("non-finite"));
+        }
 }

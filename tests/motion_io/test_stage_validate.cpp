@@ -79,3 +79,43 @@ TEST_CASE("validate: the limits are tunable", "[validate]") {
     CHECK(rig.out->records.size() == 1);
     CHECK_THAT(warning_of(diag, "glitch_dropped").message, Catch::Contains("beyond +-50000 rpm"));
 }
+
+TEST_CASE("validate: a spindle spike beyond the plausible speed is dropped, a ramp or a held level is kept", "[validate]") {
+    SECTION("a jump from cutting speed to 5e6 rpm and back: a glitch (issue 19)") {
+        ValidateRig v;
+        v.push(value(Chan::Spindle, 0.000, 10000, 2));
+        v.push(value(Chan::Spindle, 0.006, 5e6, 3));
+        v.push(value(Chan::Spindle, 0.012, -5e6, 4));
+        v.push(value(Chan::Spindle, 0.018, 10002, 5));
+        REQUIRE(v.rig.out->records.size() == 2);
+        CHECK(v.rig.out->records[1].line == 5);
+        const IngestWarning w = warning_of(v.diag, "glitch_dropped");
+        CHECK(w.count == 2);
+        CHECK_THAT(w.message, Catch::Contains("log.csv:3") && Catch::Contains("spindle 5e+06 rpm, a jump from 10000 rpm"));
+        // The tooth period the sampling check judges by comes from what passed.
+        CHECK(v.diag.facts().spindle_max_abs_rpm == 10002);
+    }
+    SECTION("a ramp past the plausible speed (a unit mix-up) moves in steps a spindle can take: kept") {
+        ValidateRig v;
+        for (const double rpm : {0.0, 30000.0, 60000.0, 95000.0, 140000.0, 600000.0})
+            v.push(value(Chan::Spindle, rpm / 1e7, rpm, 2));
+        CHECK(v.rig.out->records.size() == 6);
+        CHECK(v.diag.warnings().empty());
+        CHECK(v.diag.facts().spindle_max_abs_rpm == 600000);
+    }
+    SECTION("a level held longer than a spike is the channel's own, after max_spike_readings readings") {
+        ValidateRig v;
+        v.push(value(Chan::Spindle, 0, 0, 2));
+        const std::size_t held = detail::PhysicalLimits{}.max_spike_readings + 8;
+        for (std::size_t i = 0; i < held; ++i) v.push(value(Chan::Spindle, 0.006 * double(i + 1), 600000, 3 + i));
+        CHECK(v.rig.out->records.size() == 1 + 8);
+        CHECK(warning_of(v.diag, "glitch_dropped").count == detail::PhysicalLimits{}.max_spike_readings);
+    }
+    SECTION("a spike never touches another channel") {
+        ValidateRig v;
+        v.push(value(Chan::Spindle, 0, 8000, 2));
+        v.push(value(Chan::Feed, 0, 5e5, 2));   // beyond the plausible feed, within the physical one
+        v.push(pos(0, 2e5, 0, 0, 2));
+        CHECK(v.rig.out->records.size() == 3);
+    }
+}
