@@ -72,7 +72,9 @@ Regressors closed_form_regressors(const ToolSpec& tool, const CutTest& test) {
         throw SpecError("closed-form regressors hold for flat end mills only: use the engine model");
     validate_cut_test(test, tool);
     const double c = feed_per_tooth_mm(test, tool.flutes);
-    const auto [p0, p1] = immersion_window(test, tool.diameter_mm);
+    // Not a structured binding: clang before 16 cannot capture one in a lambda (the fuzz build).
+    const std::array<double, 2> window = immersion_window(test, tool.diameter_mm);
+    const double p0 = window[0], p1 = window[1];
     auto span = [&](auto g) { return g(p1) - g(p0); };
     const double sin_cos = span([](double p) { return -std::cos(2 * p) / 4; });
     const double sin_sq = span([](double p) { return (2 * p - std::sin(2 * p)) / 4; });

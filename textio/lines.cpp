@@ -1,11 +1,15 @@
 #include "textio/lines.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 namespace cutload::textio {
 
 LineReader::LineReader(std::istream& in, std::string source, std::size_t max_line_bytes)
-    : in_(in), source_(std::move(source)), max_(max_line_bytes), buf_(std::max<std::size_t>(max_line_bytes + 2, 1 << 16)) {}
+    : in_(in), source_(std::move(source)), max_(max_line_bytes),
+      // 64 KiB to start, grown to the line limit only for a line that needs it: a reader made for
+      // a small file (an upload, a map, a fuzzer's input) must not allocate and zero 1 MiB.
+      buf_(std::min<std::size_t>(max_line_bytes + 2, 1 << 16)) {}
 
 // Moves the unread bytes to the front and reads more; false when nothing more came.
 bool LineReader::fill() {
@@ -15,7 +19,11 @@ bool LineReader::fill() {
         end_ -= begin_;
         begin_ = 0;
     }
-    if (end_ == buf_.size()) return false;
+    if (end_ == buf_.size()) {
+        const std::size_t cap = max_ + 2;   // a full line, its '\r' and the byte that proves it too long
+        if (buf_.size() >= cap) return false;
+        buf_.resize(std::min(cap, 2 * buf_.size()));
+    }
     const std::streamsize got = in_.rdbuf() ? in_.rdbuf()->sgetn(buf_.data() + end_, static_cast<std::streamsize>(buf_.size() - end_)) : 0;
     if (got <= 0) {
         eof_ = true;
