@@ -41,8 +41,8 @@ constexpr std::size_t kTrustedPairs = 40;   // moving pairs from which a scanned
 // makes a wrong period look best.
 constexpr int kFinePhases = 256;
 constexpr std::size_t kTrackChunk = 64;   // readings per phase estimate, as the repair uses them
-// Fewer readings than this span too few chunks for the phase drift to refine the period.
-constexpr std::size_t kShortStretchReads = 4 * kTrackChunk;
+// Fewer readings than kShortStretchReads span too few chunks for the phase drift to refine the period.
+static_assert(kShortStretchReads == 4 * kTrackChunk);
 
 // Roughness with the phase re-chosen for every chunk of readings, as the repair tracks it: a
 // slightly wrong period or a drifting client clock then costs nothing, a wrong period a lot.
@@ -276,14 +276,7 @@ UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
         }
         return T;
     };
-    const double raw = tracked_roughness(reads.data(), reads.size(), 0, 1);
-    // Accept only a clear improvement over the readings' own time stamps, and only when they
-    // show a beat at all. A "grid" as fine as the reads themselves would merely erase their
-    // jitter and rescale the velocity: the time stamps are then the better clock.
-    auto accepted = [&](double T) {
-        return raw >= 1e-3 && std::fabs(T / med - 1.0) >= 0.05 &&
-               tracked_roughness(reads.data(), reads.size(), T, 32) < 0.3 * raw;
-    };
+    auto accepted = [&](double T) { return period_fits(reads, T); };
     // A stretch too short for the phase drift: the nominal period the time stamps allow, if any
     // (per cent closer than the scan there), and if it fits the readings.
     if (reads.size() <= kShortStretchReads) {
@@ -302,6 +295,17 @@ UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
     out.period_s = drift_T > 0 ? drift_T : T;
     if (!accepted(out.period_s)) return {};
     return out;
+}
+
+bool period_fits(const std::vector<PosRead>& reads, double period_s) {
+    if (!(period_s > 0)) return false;
+    const double med = median_interval(reads);
+    const double raw = tracked_roughness(reads.data(), reads.size(), 0, 1);
+    // Accept only a clear improvement over the readings' own time stamps, and only when they
+    // show a beat at all. A "grid" as fine as the reads themselves would merely erase their
+    // jitter and rescale the velocity: the time stamps are then the better clock.
+    return raw >= 1e-3 && std::fabs(period_s / med - 1.0) >= 0.05 &&
+           tracked_roughness(reads.data(), reads.size(), period_s, 32) < 0.3 * raw;
 }
 
 double best_phase(const PosRead* r, std::size_t n, double period_s, double fallback_s, int phases) {

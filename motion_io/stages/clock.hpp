@@ -43,6 +43,15 @@ struct UpdatePeriod {
 // event-driven logs, or already uniform sampling).
 UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads);
 
+// Whether a period explains the readings clearly better than their own time stamps: the test
+// estimate_update_period() accepts a found period by. Cheap (no scan): for a period known from
+// another stretch of the same log.
+bool period_fits(const std::vector<PosRead>& reads, double period_s);
+
+// Readings from which a scan for the period is made at the fine phase resolution (a stretch too
+// short to show the phase drift); such a scan costs the most per reading.
+inline constexpr std::size_t kShortStretchReads = 256;
+
 // Tick phase (s, in [0, period)) that best explains reads[0..n); `fallback` when they barely move.
 // The chosen phase is the middle of the range of equally good phases, far from read times.
 // `phases` trial phases are compared.

@@ -14,6 +14,10 @@ constexpr std::size_t kCalibrationMaxWait = 16384; // readings held while waitin
 constexpr std::size_t kCalibrationReads = 2048;
 constexpr std::size_t kMinMovingPairs = 40;
 constexpr int kCalibrationAttempts = 3;
+// Period scans per log. A scan costs about as much as timing 10^5 readings, and a log of many
+// short sessions would pay one per session (1000 sessions of 30 rows: 3 minutes for 1 MB); one
+// CNC keeps its update period, so later sessions take the period an earlier one found.
+constexpr std::size_t kMaxPeriodScans = 8;
 
 bool same_position(const PosRead& a, const PosRead& b) {
     return a.p_mm[0] == b.p_mm[0] && a.p_mm[1] == b.p_mm[1] && a.p_mm[2] == b.p_mm[2];
@@ -69,10 +73,27 @@ bool ClockRecovery::calibrate(bool final) {
         std::size_t first = 1;
         while (first < pending_.size() && same_position(pending_[first - 1], pending_[first])) ++first;
         const std::size_t begin = first - 1, end = std::min(pending_.size(), begin + kCalibrationReads);
-        const UpdatePeriod found = estimate_update_period(
-            std::vector<PosRead>(pending_.begin() + static_cast<long>(begin), pending_.begin() + static_cast<long>(end)));
-        period_s_ = found.period_s;
-        if (period_s_ > 0 && found.nominal) warn_short_stretch(found, end - begin);
+        const std::vector<PosRead> stretch(pending_.begin() + static_cast<long>(begin),
+                                           pending_.begin() + static_cast<long>(end));
+        // A short stretch (the costliest scan, and the least precise) or a spent scan budget
+        // first tries the period an earlier session of this log found.
+        const bool scan_allowed = scans_ < kMaxPeriodScans;
+        if (known_period_s_ > 0 && (stretch.size() <= kShortStretchReads || !scan_allowed) &&
+            period_fits(stretch, known_period_s_)) {
+            period_s_ = known_period_s_;
+        } else if (scan_allowed) {
+            ++scans_;
+            const UpdatePeriod found = estimate_update_period(stretch);
+            period_s_ = found.period_s;
+            if (period_s_ > 0) known_period_s_ = period_s_;
+            if (period_s_ > 0 && found.nominal) warn_short_stretch(found, end - begin);
+        } else {
+            diag_.warn("period_not_estimated", first_line_,
+                       fmt::format("CNC update period not searched for this session: {} sessions of the log were "
+                                   "searched already{}; its readings keep their time stamps",
+                                   kMaxPeriodScans, known_period_s_ > 0 ? " and the period found does not fit it" : ""));
+            calibration_attempts_ = kCalibrationAttempts;   // not again for this session
+        }
     }
     return true;
 }

@@ -24,7 +24,11 @@ struct ClockLimits {
 // calibrated at its end from as few as 12), the tick phase per chunk of 64 readings
 // (best_phase), each reading is put at the tick it shows on a reference grid that follows the
 // chunk phases slowly, and two readings on one tick are moved apart. Event-driven logs, or no
-// period found: each reading keeps its time stamp. Fills the session summary's period.
+// period found: each reading keeps its time stamp. Fills the session summary's period. At most 8
+// scans for the period per log: a short session, or any session once they are spent, takes the
+// period an earlier session found when it fits (period_fits), so a log of many short sessions
+// costs no more per reading than one long session; a session left without one is warned
+// (`period_not_estimated`).
 class ClockRecovery final : public Stage {
 public:
     ClockRecovery(Diagnostics& diag, bool event_driven, ClockLimits limits = {});
@@ -52,6 +56,9 @@ private:
     double period_s_ = 0, phase_s_ = 0, ref_phase_s_ = 0;
     bool have_ref_phase_ = false;
     int calibration_attempts_ = 0;
+    // Across the sessions of one log: the period found last and the scans made (bounded work).
+    double known_period_s_ = 0;
+    std::size_t scans_ = 0;
     std::optional<PosRead> last_committed_;
     std::optional<Tick> last_tick_;
     std::size_t first_line_ = 0;
