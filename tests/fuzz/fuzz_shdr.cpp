@@ -1,0 +1,6 @@
+// Fuzz target: an MTConnect SHDR log, read through every ingest stage (docs/fuzzing.md).
+#include "log_check.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    return cutload::fuzz::run_log(data, size, cutload::motion_io::Format::Shdr);
+}
