@@ -160,7 +160,7 @@ private:
             if (number(fields[0]))
                 fail(fmt::format("data row before the column names row (found `{}`; expected a row such as "
                                  "`Time,Fx,Fy,Fz`)",
-                                 record_text(fields).substr(0, 60)));
+                                 textio::first_characters(record_text(fields), 60)));
             read_metadata(fields);
             ++metadata_lines;
         }

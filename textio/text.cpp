@@ -136,6 +136,13 @@ std::string printable(std::string_view bytes) {
     return out;
 }
 
+std::string_view first_characters(std::string_view utf8, std::size_t n) {
+    std::size_t chars = 0;
+    for (std::size_t i = 0; i < utf8.size(); ++i)
+        if (!is_cont(static_cast<unsigned char>(utf8[i])) && chars++ == n) return utf8.substr(0, i);
+    return utf8;
+}
+
 std::size_t characters(std::string_view utf8) {
     std::size_t n = 0;
     for (const char c : utf8) n += !is_cont(static_cast<unsigned char>(c));

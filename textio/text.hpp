@@ -63,4 +63,8 @@ std::string printable(std::string_view bytes);
 // Number of characters (UTF-8 code points) in valid UTF-8 text.
 std::size_t characters(std::string_view utf8);
 
+// The first `n` characters of valid UTF-8 text (all of it when shorter), never a part of one:
+// for quoting a line in a message without cutting a character in two.
+std::string_view first_characters(std::string_view utf8, std::size_t n);
+
 }  // namespace cutload::textio

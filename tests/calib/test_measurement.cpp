@@ -3,6 +3,7 @@
 #include "force_model/measurement.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <sstream>
 #include <string>
@@ -121,6 +122,15 @@ TEST_CASE("bad files name the line, the column and the reason", "[calib][measure
     SECTION("wrong header: data before any names row") {
         const std::string e = error_of("DynoWare,Version 3\n0.0,1,2,3\n");
         CHECK_THAT(e, Catch::Contains("test.csv:2:") && Catch::Contains("data row before the column names"));
+    }
+    SECTION("a data row quoted in the message is cut between characters, never inside one") {
+        // Found by the dyno_csv fuzz target: 0x99 is a trade-mark sign in Windows-1252 (3 bytes in
+        // UTF-8); the quote was cut at 60 bytes, leaving half a character, and the service's JSON
+        // error body threw on it.
+        const std::string e = error_of("DynoWare,Version 3\n0.0,00," + std::string(60, '\x99') + "\n");
+        CHECK_THAT(e, Catch::Contains("data row before the column names") && Catch::Contains("0.0,00,\u2122\u2122"));
+        CHECK_NOTHROW(nlohmann::json(e).dump());
+        CHECK(e.find("\u2122`") != std::string::npos);   // the quote ends after a whole character
     }
     SECTION("no names row at all") {
         CHECK_THAT(error_of("DynoWare,Version 3\nSampling rate [Hz]:,1000\n"), Catch::Contains("no column names row"));

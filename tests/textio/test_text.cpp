@@ -119,6 +119,18 @@ TEST_CASE("text: lines are decoded, bounded and numbered", "[text]") {
     CHECK_THROWS_WITH(bounded.next(), Catch::StartsWith("b.bin:2: line longer than 16 bytes"));
 }
 
+TEST_CASE("text: the first characters of a text are whole characters", "[text]") {
+    const std::string s = "a\u00e4\u2122\U0001F600z";   // 1, 2, 3 and 4 bytes
+    CHECK(first_characters(s, 0).empty());
+    CHECK(first_characters(s, 1) == "a");
+    CHECK(first_characters(s, 2) == "a\u00e4");
+    CHECK(first_characters(s, 3) == "a\u00e4\u2122");
+    CHECK(first_characters(s, 4) == "a\u00e4\u2122\U0001F600");
+    CHECK(first_characters(s, 5) == s);
+    CHECK(first_characters(s, 99) == s);
+    for (std::size_t n = 0; n < 7; ++n) CHECK(valid_utf8(first_characters(s, n)));
+}
+
 TEST_CASE("text: the line buffer grows to the limit only for a line that needs it", "[text]") {
     // The buffer starts at 64 KiB (a reader per small upload must not zero 1 MiB; the fuzz targets
     // found it, 75 % of a dynamometer record's read time): lines longer than that still read
