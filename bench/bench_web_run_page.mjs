@@ -1,7 +1,7 @@
 // Run page timings in headless Chromium (software rendering, as on the development machine and
 // in CI), against a real `cutload serve`. Prints medians; asserts nothing.
 //
-//   node bench/bench_web_run_page.mjs [--build build] [--repeat 5] [--zooms 30] [--orbit-frames 120]
+//   node bench/bench_web_run_page.mjs [--build build] [--repeat 5] [--zooms 30] [--orbit-frames 120] [--only-3d]
 //
 // - first plot: a fresh page load of a run with 10^6 force samples, from navigation start to the
 //   first frame painted with the plot drawn (performance.mark 'plot-drawn' + the frame after it);
@@ -9,7 +9,9 @@
 //   wheel zooms over the plot of that run;
 // - 3-D view: the demo run's final stock and path, from its data arriving to the first frame
 //   (data-first-draw-ms), and orbiting: frames per second over --orbit-frames frames, each a turn
-//   of the camera and a render, paced by requestAnimationFrame.
+//   of the camera and a render, paced by requestAnimationFrame; with the triangles, lines and
+//   draw calls of the first frame (three.js's renderer.info) and the time to build the scene.
+//   --only-3d skips the 10^6-sample run.
 import { createRequire } from 'node:module';
 import { execFileSync, spawn } from 'node:child_process';
 import fs from 'node:fs';
@@ -27,6 +29,7 @@ const build = path.resolve(opt('build', path.join(root, 'build')));
 const repeat = Number(opt('repeat', 5));
 const zooms = Number(opt('zooms', 30));
 const orbitFrames = Number(opt('orbit-frames', 120));
+const only3d = args.includes('--only-3d');
 
 const bin = path.join(build, 'cli', 'cutload');
 const site = path.join(build, 'web', 'site');
@@ -80,15 +83,15 @@ const server = await serve();
 const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', headless: true,
   args: ['--no-sandbox', '--disable-gpu', '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run'] });
 try {
-  const big = await submit(server, { fine: true });
+  const big = only3d ? null : await submit(server, { fine: true });
   const demo = await submit(server, { fine: false });
-  console.log(`runs: ${big.summary.samples} force samples (fine demo), ${demo.summary.samples} (demo); load average ${os.loadavg().map((l) => l.toFixed(2)).join(' ')}`);
+  console.log(`runs: ${big ? big.summary.samples : '-'} force samples (fine demo), ${demo.summary.samples} (demo); load average ${os.loadavg().map((l) => l.toFixed(2)).join(' ')}`);
   const context = await browser.newContext({ viewport: { width: 1400, height: 900 } });
   await context.addInitScript((k) => localStorage.setItem('cutload.apiKey', k), server.key);
 
   const firstPlot = [];
   const wheel = [];
-  for (let r = 0; r < repeat; r++) {
+  for (let r = 0; r < (big ? repeat : 0); r++) {
     const page = await context.newPage();
     await page.goto(`${server.url}/#/runs/${big.id}`);
     const t = await page.evaluate(() => new Promise((resolve) => {
@@ -114,11 +117,15 @@ try {
     wheel.push(...await page.evaluate(() => performance.getEntriesByName('plot-paint').map((e) => e.duration)));
     await page.close();
   }
-  console.log(`first plot of ${big.summary.samples} samples, navigation to painted: ${fmt(firstPlot)}`);
-  console.log(`wheel zoom to the painted frame: ${fmt(wheel)}`);
+  if (big) {
+    console.log(`first plot of ${big.summary.samples} samples, navigation to painted: ${fmt(firstPlot)}`);
+    console.log(`wheel zoom to the painted frame: ${fmt(wheel)}`);
+  }
 
   const draws = [];
+  const builds = [];
   const fps = [];
+  let scene = null;
   for (let r = 0; r < repeat; r++) {
     const page = await context.newPage();
     await page.goto(`${server.url}/#/runs/${demo.id}`);
@@ -126,6 +133,15 @@ try {
     await page.locator('#path-title').scrollIntoViewIfNeeded();   // the view loads once in view
     await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
     draws.push(Number(await page.locator('#view3d').getAttribute('data-first-draw-ms')));
+    builds.push(Number(await page.locator('#view3d').getAttribute('data-build-ms')));
+    scene = await page.evaluate(() => {
+      const view = document.getElementById('view3d').view3d;
+      view.render();
+      const { render } = view.renderer.info;
+      return { triangles: render.triangles, lines: render.lines, points: render.points, calls: render.calls,
+        stockTriangles: Number(document.getElementById('view3d').dataset.stockTriangles),
+        canvas: `${view.canvas.width}x${view.canvas.height}` };
+    });
     await page.locator('#view3d canvas').scrollIntoViewIfNeeded();
     fps.push(await page.evaluate(async (frames) => {
       const view = document.getElementById('view3d').view3d;
@@ -141,6 +157,8 @@ try {
     await page.close();
   }
   console.log(`3-D view, demo final stock and path, data to first frame: ${fmt(draws)}`);
+  console.log(`3-D view, data to scene built: ${fmt(builds)}`);
+  console.log(`3-D view scene: ${scene.triangles} triangles (stock top ${scene.stockTriangles}), ${scene.lines} line segments, ${scene.points} points, ${scene.calls} draw calls, canvas ${scene.canvas} px`);
   console.log(`3-D view orbit: median ${median(fps).toFixed(1)} frames/s (n=${fps.length}, min ${Math.min(...fps).toFixed(1)}, max ${Math.max(...fps).toFixed(1)})`);
   console.log(`load average after: ${os.loadavg().map((l) => l.toFixed(2)).join(' ')}`);
 } finally {

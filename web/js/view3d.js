@@ -110,21 +110,24 @@ function toolMeshes(tool) {
 const KEY_LIGHT = new THREE.Vector3(-0.45, -0.6, 0.66).normalize();
 const FILL_LIGHT = new THREE.Vector3(0.6, 0.3, 0.2).normalize();
 const BASE = new THREE.Color(STOCK_COLOUR);
-function shade(pos) {
-  const col = new Float32Array(pos.length);
-  const u = new THREE.Vector3();
-  const v = new THREE.Vector3();
-  const n = new THREE.Vector3();
-  for (let t = 0; t < pos.length; t += 9) {
-    u.set(pos[t + 3] - pos[t], pos[t + 4] - pos[t + 1], pos[t + 5] - pos[t + 2]);
-    v.set(pos[t + 6] - pos[t], pos[t + 7] - pos[t + 1], pos[t + 8] - pos[t + 2]);
-    n.crossVectors(u, v).normalize();
-    if (n.z < 0 || (n.z === 0 && n.dot(KEY_LIGHT) < 0)) n.negate();
-    const light = Math.min(1.12, 0.62 + 0.4 * Math.max(0, n.dot(KEY_LIGHT)) + 0.12 * Math.abs(n.dot(FILL_LIGHT)));
-    for (let k = 0; k < 3; k++) {
-      col[t + 3 * k] = BASE.r * light;
-      col[t + 3 * k + 1] = BASE.g * light;
-      col[t + 3 * k + 2] = BASE.b * light;
+function shade(pos, length, col) {
+  for (let t = 0; t < length; t += 9) {
+    const ux = pos[t + 3] - pos[t], uy = pos[t + 4] - pos[t + 1], uz = pos[t + 5] - pos[t + 2];
+    const vx = pos[t + 6] - pos[t], vy = pos[t + 7] - pos[t + 1], vz = pos[t + 8] - pos[t + 2];
+    let nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+    const len = Math.hypot(nx, ny, nz) || 1;
+    nx /= len; ny /= len; nz /= len;
+    const key = nx * KEY_LIGHT.x + ny * KEY_LIGHT.y + nz * KEY_LIGHT.z;
+    if (nz < 0 || (nz === 0 && key < 0)) {
+      nx = -nx; ny = -ny; nz = -nz;
+    }
+    const keyUp = nx * KEY_LIGHT.x + ny * KEY_LIGHT.y + nz * KEY_LIGHT.z;
+    const fill = nx * FILL_LIGHT.x + ny * FILL_LIGHT.y + nz * FILL_LIGHT.z;
+    const light = Math.min(1.12, 0.62 + 0.4 * Math.max(0, keyUp) + 0.12 * Math.abs(fill));
+    for (let k = 0; k < 9; k += 3) {
+      col[t + k] = BASE.r * light;
+      col[t + k + 1] = BASE.g * light;
+      col[t + k + 2] = BASE.b * light;
     }
   }
   return col;
@@ -187,7 +190,6 @@ export class View3D {
         this.pointTool[i] = seen.get(t);
       }
     }
-    this.shownTool = 0;
     this.mode = 'classes';
     this.time = null;          // cursor time; null: the final stock, no tool
     this.measuring = false;
@@ -221,9 +223,9 @@ export class View3D {
     this.buildStock();
     this.buildPath();
     this.buildAxes();
-    this.toolGroup = toolMeshes(tool);
-    this.toolGroup.visible = false;
-    this.scene.add(this.toolGroup);
+    // The tool is built when the cursor first places it (the final stock is drawn without it).
+    this.toolGroup = null;
+    this.shownTool = -1;
     this.selectionLine = null;
     this.measureGroup = new THREE.Group();
     this.scene.add(this.measureGroup);
@@ -276,7 +278,12 @@ export class View3D {
     });
   }
 
+  // Draws now; a render still queued for the next frame would draw the same picture again.
   render() {
+    if (this.raf) {
+      cancelAnimationFrame(this.raf);
+      this.raf = 0;
+    }
     this.renderer.render(this.scene, this.camera);
     this.frames += 1;
     this.updateOverlay();
@@ -299,18 +306,36 @@ export class View3D {
     this.showHeights(this.finalTop);
   }
 
-  // Puts heights (per cell, NaN: empty) on the stock mesh. Between two rows of cell centres, a
-  // flat run (all corners at one height) is one quad, anything else two triangles per cell: most
-  // of a stock's top and a pocket's floor are flat.
+  // Puts heights (per cell, NaN: empty) on the stock mesh. Between cell centres, flat
+  // rectangles (all corners at one height) are merged greedily, first along X, then with the same
+  // run in the next row, into one quad each; anything else is two triangles per cell. Most of a
+  // stock's top and a pocket's floor are flat, and software rendering pays per triangle set up as
+  // well as per pixel.
   showHeights(top) {
     const f = this.field;
     const { nx, ny } = f;
     const { cx, cy } = this;
     const bottom = f.box_mm.min[2];
-    const pos = [];
+    // Triangles into a scratch array as large as the grid can need (kept for the next call).
+    const capacity = 9 * (2 * (nx - 1) * (ny - 1) + 4 * (nx + ny));
+    if (!this.scratch || this.scratch.length < capacity) this.scratch = new Float32Array(capacity);
+    const pos = this.scratch;
+    let n = 0;
+    const tri = (x0, y0, z0, x1, y1, z1, x2, y2, z2) => {
+      pos[n] = x0; pos[n + 1] = y0; pos[n + 2] = z0;
+      pos[n + 3] = x1; pos[n + 4] = y1; pos[n + 5] = z1;
+      pos[n + 6] = x2; pos[n + 7] = y2; pos[n + 8] = z2;
+      n += 9;
+    };
+    const quad = (i0, j0, i1, j1, zz) => {
+      tri(cx[i0], cy[j0], zz, cx[i1], cy[j0], zz, cx[i1], cy[j1], zz);
+      tri(cx[i0], cy[j0], zz, cx[i1], cy[j1], zz, cx[i0], cy[j1], zz);
+    };
     const z = (k) => (Number.isNaN(top[k]) ? bottom : top[k]);
-    const tri = (x0, y0, z0, x1, y1, z1, x2, y2, z2) => pos.push(x0, y0, z0, x1, y1, z1, x2, y2, z2);
+    // Flat rectangles still open: key "i0,i1,z" -> first row j0; rebuilt row by row.
+    let open = new Map();
     for (let j = 0; j + 1 < ny; j++) {
+      const next = new Map();
       let i = 0;
       while (i + 1 < nx) {
         const a = j * nx + i;
@@ -320,36 +345,78 @@ export class View3D {
           i += 1;
           continue;
         }
-        let k = i + 1;
         if (za === top[a + 1] && za === top[d] && za === top[d + 1]) {
+          let k = i + 1;
           while (k + 1 < nx && top[j * nx + k + 1] === za && top[(j + 1) * nx + k + 1] === za) k += 1;
+          const key = `${i},${k},${za}`;
+          next.set(key, open.has(key) ? open.get(key) : j);
+          i = k;
+          continue;
         }
-        const e = j * nx + k;
-        tri(cx[i], cy[j], za, cx[k], cy[j], z(e), cx[k], cy[j + 1], z(e + nx));
-        tri(cx[i], cy[j], za, cx[k], cy[j + 1], z(e + nx), cx[i], cy[j + 1], z(d));
-        i = k;
+        const e = a + 1;
+        tri(cx[i], cy[j], za, cx[i + 1], cy[j], z(e), cx[i + 1], cy[j + 1], z(e + nx));
+        tri(cx[i], cy[j], za, cx[i + 1], cy[j + 1], z(e + nx), cx[i], cy[j + 1], z(d));
+        i += 1;
       }
+      // Rectangles that do not go on into this row end below it.
+      for (const [key, j0] of open) {
+        if (next.get(key) === j0) continue;
+        const [i0, i1, zz] = key.split(',').map(Number);
+        quad(i0, j0, i1, j, zz);
+      }
+      open = next;
     }
-    const topCount = pos.length / 9;
+    for (const [key, j0] of open) {
+      const [i0, i1, zz] = key.split(',').map(Number);
+      quad(i0, j0, i1, ny - 1, zz);
+    }
+    const topCount = n / 9;
     // The sides: from the edge cells' heights down to the box bottom, at the box's faces.
     const b = f.box_mm;
-    const side = (cells, fixed, alongX) => {
-      for (let q = 0; q + 1 < cells.length; q++) {
-        const [k0, c0] = cells[q];
-        const [k1, c1] = cells[q + 1];
-        const P = (c, zz) => (alongX ? [c, fixed, zz] : [fixed, c, zz]);
-        tri(...P(c0, bottom), ...P(c1, bottom), ...P(c1, z(k1)));
-        tri(...P(c0, bottom), ...P(c1, z(k1)), ...P(c0, z(k0)));
+    const side = (count, cell, coord, fixed, alongX) => {
+      for (let q = 0; q + 1 < count; q++) {
+        const k0 = cell(q);
+        const k1 = cell(q + 1);
+        const c0 = coord[q];
+        const c1 = coord[q + 1];
+        if (alongX) {
+          tri(c0, fixed, bottom, c1, fixed, bottom, c1, fixed, z(k1));
+          tri(c0, fixed, bottom, c1, fixed, z(k1), c0, fixed, z(k0));
+        } else {
+          tri(fixed, c0, bottom, fixed, c1, bottom, fixed, c1, z(k1));
+          tri(fixed, c0, bottom, fixed, c1, z(k1), fixed, c0, z(k0));
+        }
       }
     };
-    side(Array.from({ length: nx }, (_, i) => [i, cx[i]]), b.min[1], true);
-    side(Array.from({ length: nx }, (_, i) => [(ny - 1) * nx + i, cx[i]]), b.max[1], true);
-    side(Array.from({ length: ny }, (_, j) => [j * nx, cy[j]]), b.min[0], false);
-    side(Array.from({ length: ny }, (_, j) => [j * nx + nx - 1, cy[j]]), b.max[0], false);
-    const positions = Float32Array.from(pos);
-    this.stockGeometry.setAttribute('position', new THREE.BufferAttribute(positions, 3));
-    this.stockGeometry.setAttribute('color', new THREE.BufferAttribute(shade(positions), 3));
-    this.stockGeometry.computeBoundingSphere();
+    side(nx, (i) => i, cx, b.min[1], true);
+    side(nx, (i) => (ny - 1) * nx + i, cx, b.max[1], true);
+    side(ny, (j) => j * nx, cy, b.min[0], false);
+    side(ny, (j) => j * nx + nx - 1, cy, b.max[0], false);
+    // The GPU buffers: reused while the triangles fit, else replaced by ones a quarter larger
+    // than needed (the in-process stock changes its count with the cursor). Uploading only what
+    // is drawn: the first frame pays for every byte sent to the GPU.
+    let g = this.stockGeometry;
+    if (!g.attributes.position || g.attributes.position.array.length < n) {
+      const size = g.attributes.position ? Math.min(capacity, Math.ceil((n * 1.25) / 9) * 9) : n;
+      g.dispose();
+      g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(size), 3));
+      g.setAttribute('color', new THREE.BufferAttribute(new Float32Array(size), 3));
+      this.stockGeometry = g;
+      this.stockMesh.geometry = g;
+    }
+    g.attributes.position.array.set(pos.subarray(0, n));
+    shade(pos, n, g.attributes.color.array);
+    for (const attr of [g.attributes.position, g.attributes.color]) {
+      attr.clearUpdateRanges();
+      attr.addUpdateRange(0, n);
+      attr.needsUpdate = true;
+    }
+    g.setDrawRange(0, n / 3);
+    // The stock box bounds every vertex (the buffer past the draw range holds stale ones).
+    const box = new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max));
+    g.boundingBox = box;
+    g.boundingSphere = box.getBoundingSphere(new THREE.Sphere());
     this.container.dataset.stockTriangles = String(topCount);
   }
 
@@ -452,18 +519,20 @@ export class View3D {
 
   placeTool(i) {
     if (i == null) {
-      this.toolGroup.visible = false;
+      if (this.toolGroup) this.toolGroup.visible = false;
       return;
     }
     const { x, y, z } = this.path;
     if (this.pointTool[i] !== this.shownTool) {
       // A tool change: the mesh of the tool in the spindle there.
       this.shownTool = this.pointTool[i];
-      this.scene.remove(this.toolGroup);
-      this.toolGroup.traverse((o) => {
-        o.geometry?.dispose();
-        o.material?.dispose?.();
-      });
+      if (this.toolGroup) {
+        this.scene.remove(this.toolGroup);
+        this.toolGroup.traverse((o) => {
+          o.geometry?.dispose();
+          o.material?.dispose?.();
+        });
+      }
       this.toolGroup = toolMeshes(this.tools[this.shownTool].tool);
       this.scene.add(this.toolGroup);
     }
@@ -473,61 +542,108 @@ export class View3D {
 
   // ---- path -------------------------------------------------------------------------------------
 
-  // One line object per class. GL lines are one pixel wide, so a class is told by its dash and
-  // its markers as well as its colour: dashed 80-100 %, square markers over the limit.
-  // (Screen-space wide lines cost software rendering several times the whole scene.)
+  // The path, the stock box's edges and the axes as one LineSegments (one draw call, one
+  // shader): a colour per vertex, and a dash pattern per class through the line distance: dashed
+  // classes carry their distance along the path, solid ones zero (always inside a dash). GL lines
+  // are one pixel wide, so a class is told by its dash and its markers as well as its colour:
+  // dashed 80-100 %, square markers over the limit. (Screen-space wide lines cost software
+  // rendering several times the whole scene.)
   buildPath() {
     const { x, y, z } = this.path;
     const n = x.length;
-    this.pathGroup = new THREE.Group();
-    this.scene.add(this.pathGroup);
-    const perClass = LOAD_CLASSES.map(() => []);
+    const b = this.field.box_mm;
+    const [x0, y0, z0] = b.min;
+    const [x1, y1, z1] = b.max;
+    const len = this.size * 0.25;
+    // Box edges, then the axes from the box's min corner.
+    const fixed = [
+      [x0, y0, z0, x1, y0, z0], [x1, y0, z0, x1, y1, z0], [x1, y1, z0, x0, y1, z0], [x0, y1, z0, x0, y0, z0],
+      [x0, y0, z1, x1, y0, z1], [x1, y0, z1, x1, y1, z1], [x1, y1, z1, x0, y1, z1], [x0, y1, z1, x0, y0, z1],
+      [x0, y0, z0, x0, y0, z1], [x1, y0, z0, x1, y0, z1], [x1, y1, z0, x1, y1, z1], [x0, y1, z0, x0, y1, z1],
+    ].map((seg) => [seg, new THREE.Color(0x4b5563)]);
+    fixed.push([[x0, y0, z0, x0 + len, y0, z0], new THREE.Color(0xa50f15)]);
+    fixed.push([[x0, y0, z0, x0, y0 + len, z0], new THREE.Color(0x047857)]);
+    fixed.push([[x0, y0, z0, x0, y0, z0 + len], new THREE.Color(0x1d4ed8)]);
+    const segments = (n - 1) + fixed.length;
+    const pos = new Float32Array(6 * segments);
+    const col = new Float32Array(6 * segments);
+    const dist = new Float32Array(2 * segments);
+    this.segmentClass = new Uint8Array(n - 1);
+    const classColours = LOAD_CLASSES.map((c) => new THREE.Color(c.colour));
+    const dashedTravel = LOAD_CLASSES.map(() => 0);
+    const markers = [];
+    const over = LOAD_CLASSES.findIndex((c) => c.marker);
     for (let i = 1; i < n; i++) {
-      const r = Math.max(this.ratio[i - 1], this.ratio[i]);
-      perClass[loadClass(r)].push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
-    }
-    this.classLines = LOAD_CLASSES.map((cls, k) => {
-      if (!perClass[k].length) return null;
-      const g = new THREE.BufferGeometry();
-      g.setAttribute('position', new THREE.Float32BufferAttribute(perClass[k], 3));
-      const m = cls.dashed ? new THREE.LineDashedMaterial({ color: cls.colour, dashSize: 1.5, gapSize: 1 })
-        : new THREE.LineBasicMaterial({ color: cls.colour });
-      const group = new THREE.Group();
-      const line = new THREE.LineSegments(g, m);
-      if (cls.dashed) line.computeLineDistances();
-      group.add(line);
-      if (cls.marker) {
-        group.add(new THREE.Points(g, new THREE.PointsMaterial({ color: cls.colour, size: cls.marker, sizeAttenuation: false })));
+      const k = loadClass(Math.max(this.ratio[i - 1], this.ratio[i]));
+      const s = i - 1;
+      this.segmentClass[s] = k;
+      pos[6 * s] = x[i - 1]; pos[6 * s + 1] = y[i - 1]; pos[6 * s + 2] = z[i - 1];
+      pos[6 * s + 3] = x[i]; pos[6 * s + 4] = y[i]; pos[6 * s + 5] = z[i];
+      const c = classColours[k];
+      col[6 * s] = col[6 * s + 3] = c.r;
+      col[6 * s + 1] = col[6 * s + 4] = c.g;
+      col[6 * s + 2] = col[6 * s + 5] = c.b;
+      if (LOAD_CLASSES[k].dashed) {
+        // Each dashed class measures its own distance, as its own dashed line would.
+        const d0 = dashedTravel[k];
+        dashedTravel[k] = d0 + Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
+        dist[2 * s] = d0;
+        dist[2 * s + 1] = dashedTravel[k];
       }
-      this.pathGroup.add(group);
-      return group;
-    });
-  }
-
-  // Continuous: one line with a colour per segment, built when first shown.
-  buildContinuous() {
-    const { x, y, z } = this.path;
-    const n = x.length;
-    const pos = new Float32Array(6 * (n - 1));
-    const col = new Float32Array(6 * (n - 1));
-    for (let i = 1; i < n; i++) {
-      const r = Math.max(this.ratio[i - 1], this.ratio[i]);
-      pos.set([x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]], 6 * (i - 1));
-      const cc = r > 0 ? continuousColour(r) : new THREE.Color(LOAD_CLASSES[0].colour);
-      col.set([cc.r, cc.g, cc.b, cc.r, cc.g, cc.b], 6 * (i - 1));
+      if (k === over) markers.push(x[i - 1], y[i - 1], z[i - 1], x[i], y[i], z[i]);
     }
+    fixed.forEach(([seg, c], q) => {
+      const s = n - 1 + q;
+      pos.set(seg, 6 * s);
+      col.set([c.r, c.g, c.b, c.r, c.g, c.b], 6 * s);
+    });
+    this.classColourArray = col.slice();
+    this.classDistArray = dist.slice();
     const g = new THREE.BufferGeometry();
     g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
     g.setAttribute('color', new THREE.BufferAttribute(col, 3));
-    this.continuousLine = new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true }));
-    this.pathGroup.add(this.continuousLine);
+    g.setAttribute('lineDistance', new THREE.BufferAttribute(dist, 1));
+    this.lines = new THREE.LineSegments(g, new THREE.LineDashedMaterial({ vertexColors: true, dashSize: 1.5, gapSize: 1 }));
+    this.scene.add(this.lines);
+    this.pathGroup = new THREE.Group();
+    this.scene.add(this.pathGroup);
+    this.markers = null;
+    if (markers.length) {
+      const mg = new THREE.BufferGeometry();
+      mg.setAttribute('position', new THREE.BufferAttribute(Float32Array.from(markers), 3));
+      this.markers = new THREE.Points(mg, new THREE.PointsMaterial({ color: LOAD_CLASSES[over].colour, size: LOAD_CLASSES[over].marker, sizeAttenuation: false }));
+      this.pathGroup.add(this.markers);
+    }
+  }
+
+  // Continuous: the same lines with a colour per segment on the 0-120 % scale and no dashes,
+  // computed when first shown.
+  continuousArrays() {
+    if (this.contColourArray) return;
+    const n = this.path.x.length;
+    const col = this.classColourArray.slice();
+    const air = new THREE.Color(LOAD_CLASSES[0].colour);
+    for (let i = 1; i < n; i++) {
+      const r = Math.max(this.ratio[i - 1], this.ratio[i]);
+      const cc = r > 0 ? continuousColour(r) : air;
+      const s = i - 1;
+      col[6 * s] = col[6 * s + 3] = cc.r;
+      col[6 * s + 1] = col[6 * s + 4] = cc.g;
+      col[6 * s + 2] = col[6 * s + 5] = cc.b;
+    }
+    this.contColourArray = col;
+    this.contDistArray = new Float32Array(this.classDistArray.length);
   }
 
   setColourMode(mode) {
     this.mode = mode;
-    if (mode === 'continuous' && !this.continuousLine) this.buildContinuous();
-    for (const l of this.classLines) if (l) l.visible = mode === 'classes';
-    if (this.continuousLine) this.continuousLine.visible = mode === 'continuous';
+    if (mode === 'continuous') this.continuousArrays();
+    const g = this.lines.geometry;
+    g.attributes.color.array.set(mode === 'continuous' ? this.contColourArray : this.classColourArray);
+    g.attributes.lineDistance.array.set(mode === 'continuous' ? this.contDistArray : this.classDistArray);
+    g.attributes.color.needsUpdate = true;
+    g.attributes.lineDistance.needsUpdate = true;
+    if (this.markers) this.markers.visible = mode === 'classes';
     this.requestRender();
   }
 
@@ -625,20 +741,11 @@ export class View3D {
     this.controls.update();
   }
 
+  // The axes' and the box corners' labels (their lines are part of this.lines).
   buildAxes() {
     const b = this.field.box_mm;
-    const box = new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max));
-    const helper = new THREE.Box3Helper(box, 0x4b5563);
-    this.scene.add(helper);
     const len = this.size * 0.25;
     const o = new THREE.Vector3(...b.min);
-    const axis = (dir, colour) => {
-      const g = new THREE.BufferGeometry().setFromPoints([o, o.clone().add(dir.clone().multiplyScalar(len))]);
-      this.scene.add(new THREE.Line(g, new THREE.LineBasicMaterial({ color: colour })));
-    };
-    axis(new THREE.Vector3(1, 0, 0), 0xa50f15);
-    axis(new THREE.Vector3(0, 1, 0), 0x047857);
-    axis(new THREE.Vector3(0, 0, 1), 0x1d4ed8);
     // Labels in HTML over the canvas: the axis names and the box corners' coordinates.
     this.labels = [
       { at: o.clone().add(new THREE.Vector3(len * 1.1, 0, 0)), text: 'X' },
