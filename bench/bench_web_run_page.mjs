@@ -8,7 +8,8 @@
 // - wheel zoom: from the wheel event to the frame painted after the redraw ('plot-paint'), for
 //   wheel zooms over the plot of that run;
 // - 3-D view: the demo run's final stock and path, from its data arriving to the first frame
-//   (data-first-draw-ms), and orbiting: frames per second over --orbit-frames frames, each a turn
+//   (data-first-draw-ms) and from the start of its loading once in view (data-load-to-first-draw-ms:
+//   three.js and the fetches of stock and path, beside the page's other loads), and orbiting: frames per second over --orbit-frames frames, each a turn
 //   of the camera and a render, paced by requestAnimationFrame; with the triangles, lines and
 //   draw calls of the first frame (three.js's renderer.info) and the time to build the scene.
 //   --only-3d skips the 10^6-sample run.
@@ -123,6 +124,7 @@ try {
   }
 
   const draws = [];
+  const loads = [];
   const builds = [];
   const fps = [];
   let scene = null;
@@ -134,6 +136,7 @@ try {
     await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
     draws.push(Number(await page.locator('#view3d').getAttribute('data-first-draw-ms')));
     builds.push(Number(await page.locator('#view3d').getAttribute('data-build-ms')));
+    loads.push(Number(await page.locator('#view3d').getAttribute('data-load-to-first-draw-ms')));
     scene = await page.evaluate(() => {
       const view = document.getElementById('view3d').view3d;
       view.render();
@@ -158,6 +161,7 @@ try {
   }
   console.log(`3-D view, demo final stock and path, data to first frame: ${fmt(draws)}`);
   console.log(`3-D view, data to scene built: ${fmt(builds)}`);
+  if (loads.every(Number.isFinite)) console.log(`3-D view, in view (fetches, three.js) to first frame: ${fmt(loads)}`);
   console.log(`3-D view scene: ${scene.triangles} triangles (stock top ${scene.stockTriangles}), ${scene.lines} line segments, ${scene.points} points, ${scene.calls} draw calls, canvas ${scene.canvas} px`);
   console.log(`3-D view orbit: median ${median(fps).toFixed(1)} frames/s (n=${fps.length}, min ${Math.min(...fps).toFixed(1)}, max ${Math.max(...fps).toFixed(1)})`);
   console.log(`load average after: ${os.loadavg().map((l) => l.toFixed(2)).join(' ')}`);

@@ -217,6 +217,7 @@ function view3dSection(run, disposers, blocks = []) {
   const pending = { time: undefined, block: undefined };
   async function load({ plot, onPick }) {
     try {
+      const loadStarted = performance.now();
       const [{ View3D, webglAvailable, fieldHeights, LOAD_CLASSES, CONTINUOUS_STOPS }, motion, field, baseField] = await Promise.all([
         import('./view3d.js'),
         api.motion(run.id, { max_points: PATH_POINTS }),
@@ -243,6 +244,7 @@ function view3dSection(run, disposers, blocks = []) {
       // To the frame painted with it (the render only queues the drawing).
       await new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)));
       box.dataset.firstDrawMs = String(performance.now() - started);
+      box.dataset.loadToFirstDrawMs = String(performance.now() - loadStarted);
       box.dataset.ready = 'true';
       const btn = (label, fn, attrs = {}) => h('button', { type: 'button', onclick: fn, ...attrs }, label);
       const measure = btn('Measure', () => {

@@ -151,6 +151,21 @@ function litMaterial(geometry, colour, extra = {}) {
   return new THREE.MeshBasicMaterial({ vertexColors: true, ...extra });
 }
 
+// The scene's three materials (three shaders in all): the stock (baked light in vertex colours,
+// both sides), the lines (vertex colours, dashes through the line distance) and the
+// over-the-limit markers. Software rendering pays for each shader and each draw call the first
+// time it draws with it.
+function stockMaterial() {
+  return new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide });
+}
+function lineMaterial() {
+  return new THREE.LineDashedMaterial({ vertexColors: true, dashSize: 1.5, gapSize: 1 });
+}
+function markerMaterial() {
+  const over = LOAD_CLASSES.find((c) => c.marker);
+  return new THREE.PointsMaterial({ color: over.colour, size: over.marker, sizeAttenuation: false });
+}
+
 // The height field answer of /stock as heights per cell centre (NaN: no material).
 export function fieldHeights(field) {
   return Float32Array.from(field.top_mm, (v) => (v == null ? NaN : v));
@@ -301,7 +316,7 @@ export class View3D {
     this.cx = Float32Array.from({ length: nx }, (_, i) => f.x0_mm + (i + 0.5) * f.cell_mm);
     this.cy = Float32Array.from({ length: ny }, (_, j) => f.y0_mm + (j + 0.5) * f.cell_mm);
     this.stockGeometry = new THREE.BufferGeometry();
-    this.stockMesh = new THREE.Mesh(this.stockGeometry, new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide }));
+    this.stockMesh = new THREE.Mesh(this.stockGeometry, stockMaterial());
     this.scene.add(this.stockMesh);
     this.showHeights(this.finalTop);
   }
@@ -603,7 +618,7 @@ export class View3D {
     g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
     g.setAttribute('color', new THREE.BufferAttribute(col, 3));
     g.setAttribute('lineDistance', new THREE.BufferAttribute(dist, 1));
-    this.lines = new THREE.LineSegments(g, new THREE.LineDashedMaterial({ vertexColors: true, dashSize: 1.5, gapSize: 1 }));
+    this.lines = new THREE.LineSegments(g, lineMaterial());
     this.scene.add(this.lines);
     this.pathGroup = new THREE.Group();
     this.scene.add(this.pathGroup);
@@ -611,7 +626,7 @@ export class View3D {
     if (markers.length) {
       const mg = new THREE.BufferGeometry();
       mg.setAttribute('position', new THREE.BufferAttribute(Float32Array.from(markers), 3));
-      this.markers = new THREE.Points(mg, new THREE.PointsMaterial({ color: LOAD_CLASSES[over].colour, size: LOAD_CLASSES[over].marker, sizeAttenuation: false }));
+      this.markers = new THREE.Points(mg, markerMaterial());
       this.pathGroup.add(this.markers);
     }
   }
