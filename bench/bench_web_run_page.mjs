@@ -136,7 +136,8 @@ try {
     await page.locator('#view3d[data-ready="true"]').waitFor({ timeout: 60000 });
     draws.push(Number(await page.locator('#view3d').getAttribute('data-first-draw-ms')));
     builds.push(Number(await page.locator('#view3d').getAttribute('data-build-ms')));
-    loads.push(Number(await page.locator('#view3d').getAttribute('data-load-to-first-draw-ms')));
+    const loaded = await page.locator('#view3d').getAttribute('data-load-to-first-draw-ms');
+    if (loaded != null) loads.push(Number(loaded));
     scene = await page.evaluate(() => {
       const view = document.getElementById('view3d').view3d;
       view.render();
@@ -161,7 +162,7 @@ try {
   }
   console.log(`3-D view, demo final stock and path, data to first frame: ${fmt(draws)}`);
   console.log(`3-D view, data to scene built: ${fmt(builds)}`);
-  if (loads.every(Number.isFinite)) console.log(`3-D view, in view (fetches, three.js) to first frame: ${fmt(loads)}`);
+  if (loads.length) console.log(`3-D view, in view (fetches, three.js) to first frame: ${fmt(loads)}`);
   console.log(`3-D view scene: ${scene.triangles} triangles (stock top ${scene.stockTriangles}), ${scene.lines} line segments, ${scene.points} points, ${scene.calls} draw calls, canvas ${scene.canvas} px`);
   console.log(`3-D view orbit: median ${median(fps).toFixed(1)} frames/s (n=${fps.length}, min ${Math.min(...fps).toFixed(1)}, max ${Math.max(...fps).toFixed(1)})`);
   console.log(`load average after: ${os.loadavg().map((l) => l.toFixed(2)).join(' ')}`);
