@@ -261,6 +261,38 @@ test('3-D view: the final stock and the path, the tool at the cursor, orbit, pre
   // The stock is the API's height field: its cells and the box.
   const field = await server.api('GET', `runs/${demo.id}/stock?max_cells=40000`);
   assert.ok(field.top_mm.some((v) => v !== null && v < field.box_mm.max[2] - 1), 'the final stock has cuts below the box top');
+  // The drawn top (flat rectangles merged, the rest two triangles per cell) is that height field:
+  // every vertex of the final stock's top lies on a cell centre at that cell's height, and the
+  // triangles cover exactly the cells whose four corners hold material, once.
+  const drawn = await page.evaluate((f) => {
+    const view = document.getElementById('view3d').view3d;
+    view.setTime(null);
+    const pos = view.stockGeometry.attributes.position.array;
+    const count = Number(view.container.dataset.stockTriangles);
+    let area = 0;
+    let worst = 0;
+    for (let t = 0; t < count; t++) {
+      const p = pos.subarray(9 * t, 9 * t + 9);
+      area += Math.abs((p[3] - p[0]) * (p[7] - p[1]) - (p[6] - p[0]) * (p[4] - p[1])) / 2;
+      for (let k = 0; k < 3; k++) {
+        const i = Math.round((p[3 * k] - f.x0_mm) / f.cell_mm - 0.5);
+        const j = Math.round((p[3 * k + 1] - f.y0_mm) / f.cell_mm - 0.5);
+        const v = f.top_mm[j * f.nx + i];
+        worst = Math.max(worst, v == null ? Infinity : Math.abs(v - p[3 * k + 2]));
+      }
+    }
+    return { count, area, worst };
+  }, field);
+  let quads = 0;
+  const has = (i, j) => field.top_mm[j * field.nx + i] !== null;
+  for (let j = 0; j + 1 < field.ny; j++) {
+    for (let i = 0; i + 1 < field.nx; i++) if (has(i, j) && has(i + 1, j) && has(i, j + 1) && has(i + 1, j + 1)) quads += 1;
+  }
+  const cellArea = field.cell_mm ** 2;
+  assert.ok(Math.abs(drawn.area - quads * cellArea) < 1e-4 * quads * cellArea, `top area ${drawn.area} mm² = ${quads} cells × ${cellArea} mm²`);
+  assert.ok(drawn.worst < 1e-3, `top vertices at the field's heights (worst ${drawn.worst} mm)`);
+  assert.ok(drawn.count < quads, `flat cells merged: ${drawn.count} triangles for ${quads} cells`);
+  console.log(`3-D stock top: ${drawn.count} triangles for ${quads} cells`);
 
   // Orbit: dragging turns the view.
   const box = await canvas.boundingBox();
