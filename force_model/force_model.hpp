@@ -112,6 +112,9 @@ RunSpec load_run_spec(const std::string& path);      // file errors are SpecErro
 // text that is not JSON names line, column and key (textio/json.hpp).
 RunSpec parse_run_spec_text(std::string_view text, const std::string& source);
 nlohmann::json to_json(const RunSpec& spec);
+// The run spec's JSON Schema as the parser reads it (every key, its type, whether required, a
+// tool key's shapes, x-unit from the key's name, a title); published in the OpenAPI document.
+nlohmann::json run_spec_schema();
 
 // The in-process workpiece: a multi-interval Z-map (dexel) over the stock box. Opaque; it can be
 // saved and loaded so a run can start from another run's final stock.

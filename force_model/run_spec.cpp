@@ -1,6 +1,7 @@
 // RUN.json: parsing and validation. Every error names the key path (e.g. "tool.diameter_mm") and
 // says what was expected, because the person reading it is fixing a file by hand.
 #include "force_model/force_model.hpp"
+#include "run_spec_reads.hpp"
 
 #include "motion_io/nc_program.hpp"
 #include "textio/json.hpp"
@@ -37,6 +38,23 @@ std::string join(const std::string& path, const std::string& key) {
     throw SpecError(path + ": " + what);
 }
 
+// The published schema (run_spec_schema.cpp) is the parser's own account of what it reads: while
+// a recorder is set, every key the readers below consume is noted with its type and whether it was
+// required. A key the parser reads is therefore in the schema, and nothing else is.
+thread_local std::vector<KeyRead>* t_reads = nullptr;
+
+void note(const std::string& path, const char* type, bool required, std::vector<std::string> options = {}) {
+    if (!t_reads) return;
+    std::string generic;
+    for (std::size_t i = 0; i < path.size(); ++i) {
+        generic += path[i];
+        if (path[i] == '[') {
+            while (i + 1 < path.size() && path[i + 1] != ']') ++i;
+        }
+    }
+    t_reads->push_back({generic, type, required, std::move(options)});
+}
+
 // Reads one JSON object, remembering which keys were consumed so that leftovers (typos such as
 // "diamter_mm") are reported instead of silently ignored.
 class ObjectReader {
@@ -52,6 +70,7 @@ public:
 
     const json& object(const std::string& key) {
         used_.insert(key);
+        note(join(path_, key), "object", true);
         if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
         const json& v = j_.at(key);
         if (!v.is_object()) fail(join(path_, key), "expected a JSON object");
@@ -60,18 +79,47 @@ public:
 
     double number(const std::string& key) {
         used_.insert(key);
+        note(join(path_, key), "number", true);
         if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
         return to_number(key, j_.at(key));
     }
 
     double number_or(const std::string& key, double fallback) {
         used_.insert(key);
+        note(join(path_, key), "number", false);
         return has(key) ? to_number(key, j_.at(key)) : fallback;
     }
 
-    std::string string(const std::string& key) {
+    std::string string(const std::string& key, std::vector<std::string> options = {}) {
         used_.insert(key);
+        note(join(path_, key), "string", true, std::move(options));
         if (!j_.contains(key)) fail(join(path_, key), "required key is missing");
+        const json& v = j_.at(key);
+        if (!v.is_string()) fail(join(path_, key), "expected a string");
+        return v.get<std::string>();
+    }
+
+    // An optional section: null or absent is no section.
+    const json* optional_object(const std::string& key) {
+        used_.insert(key);
+        note(join(path_, key), "object", false);
+        if (!has(key)) return nullptr;
+        const json& v = j_.at(key);
+        if (!v.is_object()) fail(join(path_, key), "expected a JSON object");
+        return &v;
+    }
+
+    std::optional<double> optional_number(const std::string& key) {
+        used_.insert(key);
+        note(join(path_, key), "number", false);
+        if (!has(key)) return std::nullopt;
+        return to_number(key, j_.at(key));
+    }
+
+    std::string string_or(const std::string& key, const std::string& fallback) {
+        used_.insert(key);
+        note(join(path_, key), "string", false);
+        if (!has(key)) return fallback;
         const json& v = j_.at(key);
         if (!v.is_string()) fail(join(path_, key), "expected a string");
         return v.get<std::string>();
@@ -79,6 +127,7 @@ public:
 
     void vec3(const std::string& key, double out[3], bool required) {
         used_.insert(key);
+        note(join(path_, key), "vec3", required);
         if (!has(key)) {
             if (required) fail(join(path_, key), "required key is missing");
             return;
@@ -130,23 +179,29 @@ void require(bool ok, const std::string& path, const std::string& what) {
     if (!ok) fail(path, what);
 }
 
+constexpr std::pair<const char*, ToolShape> kShapes[] = {{"flat", ToolShape::Flat},
+                                                         {"ball", ToolShape::Ball},
+                                                         {"bull", ToolShape::Bull},
+                                                         {"drill", ToolShape::Drill},
+                                                         {"chamfer", ToolShape::Chamfer}};
+
+std::vector<std::string> shape_names() {
+    std::vector<std::string> names;
+    for (const auto& [name, shape] : kShapes) names.emplace_back(name);
+    return names;
+}
+
 ToolShape parse_shape(const std::string& s, const std::string& path) {
-    if (s == "flat") return ToolShape::Flat;
-    if (s == "ball") return ToolShape::Ball;
-    if (s == "bull") return ToolShape::Bull;
-    if (s == "drill") return ToolShape::Drill;
-    if (s == "chamfer") return ToolShape::Chamfer;
-    fail(path, "expected one of \"flat\", \"ball\", \"bull\", \"drill\", \"chamfer\", got \"" + s + "\"");
+    for (const auto& [name, shape] : kShapes)
+        if (s == name) return shape;
+    std::string expected;
+    for (const auto& [name, shape] : kShapes) expected += std::string(expected.empty() ? "" : ", ") + "\"" + name + "\"";
+    fail(path, "expected one of " + expected + ", got \"" + s + "\"");
 }
 
 const char* shape_name(ToolShape s) {
-    switch (s) {
-        case ToolShape::Flat: return "flat";
-        case ToolShape::Ball: return "ball";
-        case ToolShape::Bull: return "bull";
-        case ToolShape::Drill: return "drill";
-        case ToolShape::Chamfer: return "chamfer";
-    }
+    for (const auto& [name, shape] : kShapes)
+        if (s == shape) return name;
     return "flat";
 }
 
@@ -157,7 +212,7 @@ constexpr double kMaxToolNumber = 99999999;
 
 ToolSpec parse_tool(ObjectReader& r) {
     ToolSpec t;
-    t.shape = parse_shape(r.string("shape"), r.key_path("shape"));
+    t.shape = parse_shape(r.string("shape", shape_names()), r.key_path("shape"));
     t.diameter_mm = r.number("diameter_mm");
     require(t.diameter_mm > 0 && t.diameter_mm <= 200, r.key_path("diameter_mm"), "must be in (0, 200] mm");
     const double R = t.diameter_mm / 2;
@@ -174,7 +229,8 @@ ToolSpec parse_tool(ObjectReader& r) {
     const double default_corner = t.shape == ToolShape::Bull ? -1.0 : t.shape == ToolShape::Ball ? R : 0.0;
     if (t.shape == ToolShape::Bull && !r.has("corner_radius_mm"))
         fail(r.key_path("corner_radius_mm"), "required for a bull-nose tool");
-    t.corner_radius_mm = r.number_or("corner_radius_mm", default_corner);
+    t.corner_radius_mm = t.shape == ToolShape::Bull ? r.number("corner_radius_mm")
+                                                    : r.number_or("corner_radius_mm", default_corner);
     const std::string cr = r.key_path("corner_radius_mm");
     switch (t.shape) {
         case ToolShape::Flat: require(t.corner_radius_mm == 0, cr, "must be 0 for a flat end mill"); break;
@@ -221,16 +277,14 @@ ToolSpec parse_tool(ObjectReader& r) {
     require(t.stickout_mm >= t.flute_length_mm && t.stickout_mm <= 1000, r.key_path("stickout_mm"),
             "must be at least flute_length_mm and at most 1000 mm");
 
-    if (r.has("holder")) {
-        ObjectReader h(r.object("holder"), r.key_path("holder"));
+    if (const json* holder = r.optional_object("holder")) {
+        ObjectReader h(*holder, r.key_path("holder"));
         t.holder.diameter_mm = h.number("diameter_mm");
         require(t.holder.diameter_mm >= t.diameter_mm && t.holder.diameter_mm <= 500, h.key_path("diameter_mm"),
                 "must be at least the tool diameter and at most 500 mm");
         t.holder.length_mm = h.number("length_mm");
         require(t.holder.length_mm > 0 && t.holder.length_mm <= 1000, h.key_path("length_mm"), "must be in (0, 1000] mm");
         h.reject_unknown();
-    } else {
-        r.accept_null("holder");
     }
     return t;
 }
@@ -243,7 +297,7 @@ ToolSpec parse_single_tool(ObjectReader& r) {
 
 Material parse_material(ObjectReader& r) {
     Material m;
-    m.name = r.has("name") ? r.string("name") : std::string();
+    m.name = r.string_or("name", "");
     m.Ktc_N_mm2 = r.number("Ktc_N_mm2");
     m.Krc_N_mm2 = r.number("Krc_N_mm2");
     m.Kac_N_mm2 = r.number("Kac_N_mm2");
@@ -297,12 +351,8 @@ Limits parse_limits(ObjectReader& r) {
 LimitOverrides parse_limit_overrides(ObjectReader& r) {
     LimitOverrides l;
     auto read = [&r](const char* key, std::optional<double>& out) {
-        if (!r.has(key)) {
-            r.accept_null(key);
-            return;
-        }
-        out = r.number(key);
-        require(*out >= 0, r.key_path(key), "must be >= 0 (0 disables the check for this tool)");
+        out = r.optional_number(key);
+        if (out) require(*out >= 0, r.key_path(key), "must be >= 0 (0 disables the check for this tool)");
     };
     read("force_N", l.force_N);
     read("torque_Nm", l.torque_Nm);
@@ -331,11 +381,9 @@ std::vector<NumberedTool> parse_tool_table(const json& j) {
             if (tools[e].number == t.number)
                 fail(r.key_path("number"), fmt::format("T{} is already tools[{}]", t.number, e));
         t.tool = parse_tool(r);
-        if (r.has("limits")) {
-            ObjectReader l(r.object("limits"), r.key_path("limits"));
+        if (const json* limits = r.optional_object("limits")) {
+            ObjectReader l(*limits, r.key_path("limits"));
             t.limits = parse_limit_overrides(l);
-        } else {
-            r.accept_null("limits");
         }
         r.reject_unknown();
         tools.push_back(std::move(t));
@@ -362,6 +410,9 @@ Resolution parse_resolution(ObjectReader& r) {
 RunSpec parse_run_spec(const json& j) {
     ObjectReader root(j, "");
     RunSpec spec;
+    // Either may be left out when the other is given; the schema lists both as optional.
+    note("tools", "array", false);
+    note("tool", "object", false);
     if (root.has("tools")) {
         root.accept_null("tools");
         spec.tools = parse_tool_table(j.at("tools"));
@@ -384,25 +435,19 @@ RunSpec parse_run_spec(const json& j) {
         ObjectReader r(root.object("stock"), "stock");
         spec.stock = parse_stock(r);
     }
-    if (root.has("setup")) {
-        ObjectReader r(root.object("setup"), "setup");
+    if (const json* section = root.optional_object("setup")) {
+        ObjectReader r(*section, "setup");
         r.vec3("offset_mm", spec.offset_mm, false);
         r.vec3_within("offset_mm", spec.offset_mm, kMaxAbsCoordinateMm, "mm");
         r.reject_unknown();
-    } else {
-        root.accept_null("setup");
     }
-    if (root.has("limits")) {
-        ObjectReader r(root.object("limits"), "limits");
+    if (const json* section = root.optional_object("limits")) {
+        ObjectReader r(*section, "limits");
         spec.limits = parse_limits(r);
-    } else {
-        root.accept_null("limits");
     }
-    if (root.has("resolution")) {
-        ObjectReader r(root.object("resolution"), "resolution");
+    if (const json* section = root.optional_object("resolution")) {
+        ObjectReader r(*section, "resolution");
         spec.resolution = parse_resolution(r);
-    } else {
-        root.accept_null("resolution");
     }
     root.reject_unknown();
 
@@ -436,6 +481,16 @@ RunSpec parse_document(const std::function<json()>& parse, const std::string& so
 }
 
 }  // namespace
+
+std::vector<KeyRead> keys_read(const json& spec) {
+    std::vector<KeyRead> reads;
+    struct Reset {
+        ~Reset() { t_reads = nullptr; }
+    } reset;
+    t_reads = &reads;
+    parse_run_spec(spec);
+    return reads;
+}
 
 RunSpec load_run_spec(const std::string& path) {
     return parse_document([&] { return textio::read_json_file(path, "run spec"); }, path);

@@ -170,6 +170,19 @@ Role Core::authorize(const httplib::Request& req, Role need, std::string* actor)
 
 namespace {
 
+// The document served: openapi.json's text, the parameters from the route declarations, and the
+// run spec's schemas from its parser (force_model::run_spec_schema), so none of them is a second
+// list to keep in step by hand.
+json full_openapi(const std::vector<RouteSpec>& routes) {
+    json doc = openapi_document(json::parse(openapi_base()), routes);
+    const json spec = force_model::run_spec_schema();
+    json& schemas = doc["components"]["schemas"];
+    schemas["RunSpec"] = spec;
+    schemas["Tool"] = spec["properties"]["tool"];
+    schemas["NumberedTool"] = spec["properties"]["tools"]["items"];
+    return doc;
+}
+
 // What admission decided for the request being processed on this thread.
 struct Admitted {
     std::uint64_t serial = 0;   // current_request_serial() of that request
@@ -370,7 +383,7 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     if (!c.opt.web_dir.empty() && fs::is_directory(c.opt.web_dir)) c.http.set_mount_point("/", c.opt.web_dir);
 
     add_all_routes(c);
-    c.openapi = openapi_document(json::parse(openapi_base()), c.routes).dump(1);
+    c.openapi = full_openapi(c.routes).dump(1);
 }
 
 Server::~Server() { stop(); }
@@ -439,7 +452,7 @@ const std::string& openapi_json() {
     static const std::string doc = [] {
         Core c{ServerOptions{}};
         add_all_routes(c);
-        return openapi_document(json::parse(openapi_base()), c.routes).dump(1);
+        return full_openapi(c.routes).dump(1);
     }();
     return doc;
 }

@@ -137,3 +137,20 @@ TEST_CASE("openapi: parameters and key requirements come from the route declarat
     }
     REQUIRE(with_params > 20);
 }
+
+TEST_CASE("openapi: the run spec's schemas are the parser's, not a hand-kept copy") {
+    const json base = json::parse(cutload::server::openapi_base());
+    const json doc = json::parse(cutload::server::openapi_json());
+    for (const char* name : {"RunSpec", "Tool", "NumberedTool"}) {
+        INFO(name);
+        REQUIRE_FALSE(base["components"]["schemas"].contains(name));
+        REQUIRE(doc["components"]["schemas"].contains(name));
+    }
+    const json& schemas = doc["components"]["schemas"];
+    // Every shape the parser takes, with the keys only some shapes read.
+    CHECK(schemas["Tool"]["properties"]["shape"]["enum"] == json({"flat", "ball", "bull", "drill", "chamfer"}));
+    CHECK(schemas["Tool"]["properties"]["point_angle_deg"]["x-tool-shapes"] == json({"chamfer", "drill"}));
+    CHECK(schemas["NumberedTool"]["properties"]["number"]["type"] == "integer");
+    CHECK(schemas["RunSpec"]["properties"]["tool"] == schemas["Tool"]);
+    CHECK(schemas["RunSpec"]["properties"]["limits"]["properties"]["force_N"]["x-unit"] == "N");
+}

@@ -123,3 +123,34 @@ test('a run with machine, tool and material from the libraries raises an alert t
   assert.ok(alerts[0].acked_at);
   assert.deepEqual(errors, []);
 });
+
+// The tool form is built from the run-spec schema the service publishes (derived from its parser):
+// the cone shapes' keys appear for those shapes only, and one a shape requires is asked for.
+test('the tool form follows the published schema: a drill asks for its point angle', async () => {
+  await page.goto(`${server.url}/#/libraries`);
+  const tools = page.locator('#lib-tools');
+  const pointAngle = tools.getByLabel('Point angle (deg)', { exact: true });
+  const tipDiameter = tools.getByLabel('Tip diameter (mm)', { exact: true });
+  await fill(tools, { Shape: 'flat' });
+  assert.equal(await pointAngle.isVisible(), false, 'a flat end mill has no point angle');
+  await fill(tools, { Shape: 'chamfer' });
+  assert.equal(await pointAngle.isVisible(), true);
+  assert.equal(await tipDiameter.isVisible(), true);
+  await fill(tools, { 'Tool name': 'drill D6.8', Shape: 'drill', 'Diameter (mm)': '6.8', Flutes: '2', 'Helix (deg)': '30',
+    'Flute length (mm)': '40', 'Stick-out (mm)': '55' });
+  assert.equal(await tipDiameter.isVisible(), false, 'a drill\'s point is sharp');
+  await tools.getByRole('button', { name: 'Create' }).click();
+  await page.waitForFunction(() => document.querySelector('#lib-tools [aria-invalid="true"]'));
+  const message = await pointAngle.evaluate((el) => document.getElementById(`${el.id}-err`).textContent);
+  console.log(`drill without point angle: ${message}`);
+  assert.match(message, /point angle/i);
+  await fill(tools, { 'Point angle (deg)': '118' });
+  await tools.getByRole('button', { name: 'Create' }).click();
+  await tools.locator('tbody tr', { hasText: 'drill D6.8' }).waitFor();
+  const all = await server.api('GET', 'tools');
+  const drill = all.items.find((t) => t.name === 'drill D6.8');
+  assert.equal(drill.tool.shape, 'drill');
+  assert.equal(drill.tool.point_angle_deg, 118);
+  assert.equal(drill.tool.tip_diameter_mm, undefined);
+  assert.deepEqual(errors, []);
+});

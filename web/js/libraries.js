@@ -4,7 +4,7 @@ import { api } from './api.js';
 import { h, clear, field, num, setFieldError, statusLine, errorText, errorSummary } from './dom.js';
 import { METRICS, metricLabel, flagLabel, QUANTITIES } from './labels.js';
 import { parseNumber } from './form_words.js';
-import { fieldGroup, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, LIMIT_FIELDS } from './spec_form.js';
+import { fieldGroup, loadSpecFields, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, LIMIT_FIELDS } from './spec_form.js';
 
 const nameField = (label) => [{ key: 'name', label, text: true, required: true }];
 
@@ -219,6 +219,12 @@ function section({ id, title, singular, columns, makeForm, list, create, update,
 }
 
 export async function renderLibraries(main) {
+  try {
+    await loadSpecFields();
+  } catch (e) {
+    main.append(h('p', { class: 'form-error', role: 'alert' }, `${e.message}: reload the page.`));
+    return;
+  }
   const lib = {};
   for (const k of ['machines', 'tools', 'materials']) {
     try {

@@ -6,7 +6,7 @@ import { h, clear, field, setFieldError, statusLine, errorSummary } from './dom.
 import { parseNumber, humanizeMessage } from './form_words.js';
 import { loadLibraries } from './runs.js';
 import {
-  fieldGroup, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, STOCK_FIELDS, SETUP_FIELDS, LIMIT_FIELDS, RESOLUTION_FIELDS,
+  fieldGroup, loadSpecFields, splitKeyMessage, TOOL_FIELDS, MATERIAL_FIELDS, STOCK_FIELDS, SETUP_FIELDS, LIMIT_FIELDS, RESOLUTION_FIELDS,
 } from './spec_form.js';
 
 const INLINE = 'inline';
@@ -115,6 +115,12 @@ function programOptions() {
 }
 
 export async function renderNewRun(main) {
+  try {
+    await loadSpecFields();
+  } catch (e) {
+    main.append(h('p', { class: 'form-error', role: 'alert' }, `${e.message}: reload the page.`));
+    return;
+  }
   const lib = await loadLibraries();
   let doneRuns = [];
   try {

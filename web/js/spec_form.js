@@ -1,53 +1,69 @@
 // Form fields for the parts of a run spec (docs/run_spec.md): tool, material, stock, setup,
 // limits, resolution. A field group reads to and fills from the spec's JSON shape, and shows the
 // server's "key.path: why" messages next to the matching field, with the field's label for the
-// key (form_words.js). These lists are the page's one copy of the spec's fields.
+// key (form_words.js).
 import { h, field, setFieldError } from './dom.js';
 import { labelParts, parseNumber, requiredMessage, humanizeMessage } from './form_words.js';
 
-export const TOOL_FIELDS = [
-  { key: 'shape', label: 'Shape', options: ['flat', 'ball', 'bull'], required: true },
-  { key: 'diameter_mm', label: 'Diameter (mm)', required: true },
-  { key: 'flutes', label: 'Flutes', required: true, step: 1 },
-  { key: 'helix_deg', label: 'Helix (deg)', required: true },
-  { key: 'corner_radius_mm', label: 'Corner radius (mm)' },
-  { key: 'flute_length_mm', label: 'Flute length (mm)', required: true },
-  { key: 'stickout_mm', label: 'Stick-out (mm)', required: true },
-  { key: 'holder.diameter_mm', label: 'Holder diameter (mm)' },
-  { key: 'holder.length_mm', label: 'Holder length (mm)' },
-];
+// The fields come from the run-spec schema the service publishes (OpenAPI components.RunSpec,
+// derived from the service's own parser): loadSpecFields() fills these lists once, before a page
+// builds a form. Labels are the schema's titles with its units; a tool field the schema limits to
+// some shapes (x-tool-shapes) shows only for them, and x-required-shapes marks it required there.
+export let TOOL_FIELDS = [];
+export let MATERIAL_FIELDS = [];
+export let STOCK_FIELDS = [];
+export let SETUP_FIELDS = [];
+export let LIMIT_FIELDS = [];
+export let RESOLUTION_FIELDS = [];
 
-export const MATERIAL_FIELDS = [
-  { key: 'name', label: 'Material name', text: true },
-  { key: 'Ktc_N_mm2', label: 'Ktc (N/mm²)', required: true },
-  { key: 'Krc_N_mm2', label: 'Krc (N/mm²)', required: true },
-  { key: 'Kac_N_mm2', label: 'Kac (N/mm²)', required: true },
-  { key: 'Kte_N_mm', label: 'Kte (N/mm)', required: true },
-  { key: 'Kre_N_mm', label: 'Kre (N/mm)', required: true },
-  { key: 'Kae_N_mm', label: 'Kae (N/mm)', required: true },
-];
+// Field definitions of an object schema, nested objects flattened to dotted keys. Arrays other
+// than x, y, z triples (the tool table) are not form fields: a table comes from a spec file.
+export function fieldsOf(objectSchema, prefix = '', parentRequired = true) {
+  const defs = [];
+  const required = new Set(objectSchema.required || []);
+  for (const [name, s] of Object.entries(objectSchema.properties || {})) {
+    const key = prefix ? `${prefix}.${name}` : name;
+    const isRequired = parentRequired && required.has(name);
+    if (s.type === 'object') {
+      defs.push(...fieldsOf(s, key, isRequired));
+      continue;
+    }
+    const vec3 = s.type === 'array' && s.minItems === 3 && s.maxItems === 3;
+    if (s.type === 'array' && !vec3) continue;
+    const def = { key, label: s['x-unit'] ? `${s.title} (${s['x-unit']})` : s.title, required: isRequired };
+    if (vec3) def.vec3 = true;
+    else if (s.enum) def.options = s.enum;
+    else if (s.type === 'string') def.text = true;
+    if (s.type === 'integer') def.step = 1;
+    if (s['x-tool-shapes']) def.shapes = s['x-tool-shapes'];
+    if (s['x-required-shapes']) def.requiredShapes = s['x-required-shapes'];
+    defs.push(def);
+  }
+  return defs;
+}
 
-export const STOCK_FIELDS = [
-  { key: 'box_mm.min', label: 'Stock min x, y, z (mm)', vec3: true, required: true },
-  { key: 'box_mm.max', label: 'Stock max x, y, z (mm)', vec3: true, required: true },
-];
-
-export const SETUP_FIELDS = [{ key: 'offset_mm', label: 'Offset x, y, z (mm)', vec3: true }];
-
-export const LIMIT_FIELDS = [
-  { key: 'force_N', label: 'Force (N)' },
-  { key: 'torque_Nm', label: 'Torque (N·m)' },
-  { key: 'power_kW', label: 'Power (kW)' },
-  { key: 'chip_mm', label: 'Chip thickness (mm)' },
-  { key: 'bending_MPa', label: 'Bending (MPa)' },
-  { key: 'rapid_feed_mm_min', label: 'Rapid feed (mm/min)' },
-];
-
-export const RESOLUTION_FIELDS = [
-  { key: 'angle_step_deg', label: 'Angle step (deg)' },
-  { key: 'axial_step_mm', label: 'Axial step (mm)' },
-  { key: 'grid_mm', label: 'Grid (mm)' },
-];
+let loading = null;
+export function loadSpecFields() {
+  loading ??= fetch('/api/v1/openapi.json')
+    .then((r) => {
+      if (!r.ok) throw new Error(`the run-spec schema could not be loaded (HTTP ${r.status})`);
+      return r.json();
+    })
+    .then((doc) => {
+      const spec = doc.components.schemas.RunSpec.properties;
+      TOOL_FIELDS = fieldsOf(spec.tool);
+      MATERIAL_FIELDS = fieldsOf(spec.material);
+      STOCK_FIELDS = fieldsOf(spec.stock);
+      SETUP_FIELDS = fieldsOf(spec.setup);
+      LIMIT_FIELDS = fieldsOf(spec.limits);
+      RESOLUTION_FIELDS = fieldsOf(spec.resolution);
+    })
+    .catch((e) => {
+      loading = null;   // the next page load tries again
+      throw e;
+    });
+  return loading;
+}
 
 function getPath(obj, path) {
   return path.split('.').reduce((o, k) => (o == null ? undefined : o[k]), obj);
@@ -69,6 +85,7 @@ function control(def, name) {
 // prefix: the spec key of the group ("tool", "limits"; "" for a bare material body).
 export function fieldGroup(prefix, defs) {
   const inputs = new Map();   // full key path -> control (vec3: the x control; all three in .parts)
+  const wrappers = new Map(); // full key path -> the field's element (label, control, error)
   const el = h('div', { class: 'field-grid' });
   for (const def of defs) {
     const path = prefix ? `${prefix}.${def.key}` : def.key;
@@ -79,13 +96,32 @@ export function fieldGroup(prefix, defs) {
       const group = h('div', { class: 'vec3', role: 'group', id: `${name}-group` }, parts);
       group.parts = parts;
       inputs.set(path, group);
-      el.append(field(def.label, group, null, group, { required: def.required }));
+      wrappers.set(path, el.appendChild(field(def.label, group, null, group, { required: def.required })));
     } else {
       const c = control(def, name);
       inputs.set(path, c);
-      el.append(field(def.label, c, null, c, { required: def.required }));
+      wrappers.set(path, el.appendChild(field(def.label, c, null, c, { required: def.required || !!def.requiredShapes })));
     }
   }
+  // A tool's shape decides which fields apply (a cone's point angle) and which are required.
+  const shapeControl = inputs.get(prefix ? `${prefix}.shape` : 'shape');
+  const currentShape = () => shapeControl?.value;
+  const applies = (def) => !def.shapes || !shapeControl || def.shapes.includes(currentShape());
+  const requiredNow = (def) => def.required || (!!def.requiredShapes && def.requiredShapes.includes(currentShape()));
+  function syncShape() {
+    for (const def of defs) {
+      const path = prefix ? `${prefix}.${def.key}` : def.key;
+      wrappers.get(path).hidden = !applies(def);
+      if (def.requiredShapes) {
+        const wrap = wrappers.get(path);
+        const star = wrap.querySelector('.req');
+        if (star) star.hidden = !requiredNow(def);
+        inputs.get(path).setAttribute('aria-required', String(requiredNow(def)));
+      }
+    }
+  }
+  shapeControl?.addEventListener('change', syncShape);
+  syncShape();
   const labelOf = new Map(defs.map((d) => [prefix ? `${prefix}.${d.key}` : d.key, d.label]));
 
   // Returns {value, errors: [[path, message]]}: value without the prefix ({diameter_mm: 8} for
@@ -95,6 +131,7 @@ export function fieldGroup(prefix, defs) {
     const value = {};
     const errors = [];
     for (const def of defs) {
+      if (!applies(def)) continue;
       const path = prefix ? `${prefix}.${def.key}` : def.key;
       const c = inputs.get(path);
       if (def.vec3) {
@@ -108,7 +145,7 @@ export function fieldGroup(prefix, defs) {
         if (bad) errors.push([path, bad.error]);
         else setPath(value, def.key, parsed.map((p) => p.value));
       } else if (c.value.trim() === '') {
-        if (def.required) errors.push([path, requiredMessage(def.label)]);
+        if (requiredNow(def)) errors.push([path, requiredMessage(def.label)]);
       } else if (def.options || def.text) {
         setPath(value, def.key, c.value);
       } else {
@@ -128,6 +165,7 @@ export function fieldGroup(prefix, defs) {
       if (def.vec3) c.parts.forEach((p, i) => { p.value = Array.isArray(v) ? String(v[i] ?? '') : ''; });
       else c.value = v === undefined || v === null ? (def.options ? def.options[0] : '') : String(v);
     }
+    syncShape();
   }
 
   // Shows message at the field whose key path starts the message ("tool.diameter_mm: ...");
