@@ -95,7 +95,7 @@ TEST_CASE("calibrate: four straight tests re-identify the coefficients within 2 
     CHECK(a == b);
 }
 
-TEST_CASE("calibrate: a bad record fails before any engine time; a cancel stops it", "[app][calibrate][cancel]") {
+TEST_CASE("calibrate: a bad record fails before any engine time, a cancel stops it", "[app][calibrate][cancel]") {
     const Scratch dir("calibrate_bad");
     const Records r = write_records(dir);
     app::CalibrationInput in = r.input;

@@ -9,7 +9,7 @@
 using namespace cutload;
 using namespace cutload::apptest;
 
-TEST_CASE("probe_spec is a valid run spec; parse_tool and parse_material check one part, naming the key", "[app][inputs]") {
+TEST_CASE("probe_spec is a valid run spec, parse_tool and parse_material check one part, naming the key", "[app][inputs]") {
     const force_model::RunSpec probe = force_model::parse_run_spec(app::probe_spec());
     CHECK(probe.tool.diameter_mm == 8);
 
@@ -31,7 +31,7 @@ TEST_CASE("probe_spec is a valid run spec; parse_tool and parse_material check o
     CHECK_THROWS_WITH(app::parse_material(bad_material), Catch::Contains("material.Ktc_N_mm2"));
 }
 
-TEST_CASE("load_tool takes a tool object or a whole run spec; its errors start with the path", "[app][inputs]") {
+TEST_CASE("load_tool takes a tool object or a whole run spec, its errors start with the path", "[app][inputs]") {
     const Scratch dir("load_tool");
     const force_model::RunSpec spec = force_model::load_run_spec(source_path("data/demo_run.json"));
     const force_model::ToolSpec whole = app::load_tool(source_path("data/demo_run.json"));

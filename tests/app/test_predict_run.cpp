@@ -131,7 +131,7 @@ TEST_CASE("predict_run: a step that fails after a cancel ends in the cancel", "[
     CHECK_THROWS_AS(app::predict_run(in, rec.control()), force_model::Cancelled);
 }
 
-TEST_CASE("predict_run: without a program, Predict is the whole bar; a log of one sample is refused naming it",
+TEST_CASE("predict_run: without a program, Predict is the whole bar, a log of one sample is refused naming it",
           "[app][predict]") {
     const Scratch dir("predict_slot");
     write_slot(dir);

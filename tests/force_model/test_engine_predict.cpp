@@ -124,7 +124,7 @@ TEST_CASE("holder touching the stock is flagged") {
     CHECK(row_flag);
 }
 
-TEST_CASE("a rapid through material is flagged; the same move above the stock is not") {
+TEST_CASE("a rapid through material is flagged, the same move above the stock is not") {
     const auto spec = base_spec();
     const auto m = legs_motion({-10, 10, 12}, {{{50, 10, 12}, 30000, "G0 above"},
                                                {{50, 10, 8}, 30000, "G0 down"},

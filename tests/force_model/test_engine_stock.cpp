@@ -90,7 +90,7 @@ TEST_CASE("pocket: plunge then a square leaves the floor at depth") {
     CHECK(p.blocks.size() == 7);
 }
 
-TEST_CASE("stock save and load round trip; corrupt files are rejected") {
+TEST_CASE("stock save and load round trip, corrupt files are rejected") {
     const auto spec = base_spec();
     const auto m = legs_motion({-10, 10, 7}, {{{50, 10, 7}, 3000, "N10"}});
     const auto p = run(m, spec);
@@ -151,7 +151,7 @@ TEST_CASE("a run can start from another run's stock") {
     CHECK(fresh.blocks[0].peak_force_N > 100);
 }
 
-TEST_CASE("a fresh stock is the full box without a fill; copies keep every ray") {
+TEST_CASE("a fresh stock is the full box without a fill, copies keep every ray") {
     const auto spec = base_spec();
     const auto fresh = force_model::make_stock(spec.stock, 0.1);
     // Untouched rays are stored as zero bytes and read back as the box's full column.

@@ -7,7 +7,7 @@
 using namespace cutload::motion_io;
 using namespace cutload::motion_io::test;
 
-TEST_CASE("blocks: the last block reading at or before each sample; before the first, the first", "[blocks]") {
+TEST_CASE("blocks: the last block reading at or before each sample, before the first, the first", "[blocks]") {
     StageRig rig{std::make_unique<detail::BlockAttribution>(), Flow::Sessions | Flow::Blocks | Flow::Grid,
                  Flow::Sessions | Flow::Grid};
     rig.feeder->begin();

@@ -96,7 +96,7 @@ TEST_CASE("chain: an optional stage is removed by name and the rest still fits",
     push_move(*chain, 50);   // still runs end to end
 }
 
-TEST_CASE("chain: an inserted stage gets only the kinds it accepts; the others bypass it", "[chain]") {
+TEST_CASE("chain: an inserted stage gets only the kinds it accepts, the others bypass it", "[chain]") {
     Fixture f;
     auto chain = standard(f, false);
     auto tap = std::make_unique<PositionTap>();

@@ -149,7 +149,7 @@ TEST_CASE("clock: the phase puts every reading on the tick it shows", "[clock]")
     CHECK(right == reads.size());
 }
 
-TEST_CASE("clock stage: readings are put on the recovered grid; constant feed is exact between ticks",
+TEST_CASE("clock stage: readings are put on the recovered grid, constant feed is exact between ticks",
           "[clock]") {
     CncReadSpec s;
     s.reads = 3000;
@@ -174,7 +174,7 @@ TEST_CASE("clock stage: readings are put on the recovered grid; constant feed is
     CHECK(ticks.front().period_s == summary.period_s);
 }
 
-TEST_CASE("clock stage: an event-driven log keeps its stamps; a duplicate stamp replaces the reading before",
+TEST_CASE("clock stage: an event-driven log keeps its stamps, a duplicate stamp replaces the reading before",
           "[clock]") {
     ClockRig c(true);
     c.run({pos(0.0, 0), pos(0.3, 1), pos(0.3, 2), pos(0.6, 3), pos(0.6, 3)});

@@ -69,7 +69,7 @@ TEST_CASE("sequence: single axes stamped alike make one position once all three 
     CHECK(warning_of(s.diag, "axis_incomplete").count == 1);
 }
 
-TEST_CASE("sequence: the end of the stream ends the session; records after it start another", "[sequence]") {
+TEST_CASE("sequence: the end of the stream ends the session, records after it start another", "[sequence]") {
     SequenceRig s;
     s.push(pos(0.0, 0));
     s.push(pos(0.1, 1));

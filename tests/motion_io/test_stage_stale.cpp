@@ -31,7 +31,7 @@ struct StaleRig {
 
 }  // namespace
 
-TEST_CASE("stale_repeats: a repeat while moving is dropped; the reading is held until the next decides",
+TEST_CASE("stale_repeats: a repeat while moving is dropped, the reading is held until the next decides",
           "[stale]") {
     StaleRig s;
     s.read({0.0, 0.4, 0.8, 0.8, 1.2});

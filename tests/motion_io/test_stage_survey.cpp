@@ -25,7 +25,7 @@ struct SurveyRig {
 
 }  // namespace
 
-TEST_CASE("survey: counts, intervals and the feed of plain differencing; the feed channel stops here", "[survey]") {
+TEST_CASE("survey: counts, intervals and the feed of plain differencing, the feed channel stops here", "[survey]") {
     SurveyRig s;
     s.rig.feeder->begin();
     // 3-4-5 steps of 5 mm every 10 ms: 500 mm/s = 30000 mm/min; then one step in 20 ms.
@@ -72,7 +72,7 @@ TEST_CASE("survey: the feed channel's integral against the path length tells a 6
     CHECK(s.survey().position_reads() == 101);
 }
 
-TEST_CASE("survey: a gap in a polled log is warned; an event-driven log's silences are not gaps", "[survey]") {
+TEST_CASE("survey: a gap in a polled log is warned, an event-driven log's silences are not gaps", "[survey]") {
     for (bool event_driven : {false, true}) {
         SurveyRig s(event_driven);
         s.rig.feeder->begin();

@@ -81,7 +81,7 @@ TEST_CASE("velocity: without a grid the window is the two neighbours (eqs. 4.1/4
     CHECK(v.knots()[0].v_mm_s[0] == Approx((x(t[1]) - x(t[0])) / (t[1] - t[0])).epsilon(1e-12));
 }
 
-TEST_CASE("velocity: a tick beyond 2T does not enter the fit; knots come out once their window is complete",
+TEST_CASE("velocity: a tick beyond 2T does not enter the fit, knots come out once their window is complete",
           "[velocity]") {
     // Times exact in binary (a 1/256 s period), so that "within 2T" has no rounding at its edge.
     const double T = 1.0 / 256;

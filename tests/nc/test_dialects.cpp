@@ -96,7 +96,7 @@ TEST_CASE("dialects: arc centres incremental (G91.1, default) or absolute (G90.1
                Catch::Contains("end point is not on the arc") && Catch::Contains("incremental (G91.1)"));
 }
 
-TEST_CASE("dialects: a program without G20/G21 takes the unit option; G20/G21 override it", "[dialects]") {
+TEST_CASE("dialects: a program without G20/G21 takes the unit option, G20/G21 override it", "[dialects]") {
     NcReadOptions o = options();
     o.program_units = ProgramUnits::Inch;
     const NcProgram p = parse("N1 G00 X1. Y0 Z0\nN2 G01 X2. F10.\nN3 G21 X50.\n", o);
@@ -158,7 +158,7 @@ TEST_CASE("dialects: absolute arcs of a 3-decimal inch post are accepted, a real
     CHECK_NOTHROW(parse("G90.1\nN1 G00 X100. Y0 Z0\nN2 G03 X0 Y100.01 I0 J0 F20.\n", o));
 }
 
-TEST_CASE("dialects: G81 and G82 drill to Z, G82 dwells; G98 returns to the initial level", "[dialects][cycles]") {
+TEST_CASE("dialects: G81 and G82 drill to Z, G82 dwells, G98 returns to the initial level", "[dialects][cycles]") {
     const NcProgram p = parse(
         "N1 G90 G00 X10. Y20. Z30.\n"
         "N2 G98 G81 X40. Y20. Z-5. R2. F100\n"
@@ -218,7 +218,7 @@ TEST_CASE("dialects: G85 and G89 feed out, G86 rapids out with the spindle stopp
     CHECK(named(p, "N5").front()->spindle_rpm == 1000);         // and it turns again after the hole
 }
 
-TEST_CASE("dialects: canned cycles in G91 and in inch; their errors", "[dialects][cycles]") {
+TEST_CASE("dialects: canned cycles in G91 and in inch, their errors", "[dialects][cycles]") {
     // G91: X/Y incremental, R from the initial level, Z from R (FANUC).
     const NcProgram inc = parse("N1 G90 G00 X10. Y20. Z30.\nN2 G91 G98 G81 X10. R-28. Z-7. F100\n");
     check_pieces(inc, "N2", {10, 20, 30}, {{R, 20, 20, 30}, {R, 20, 20, 2}, {L, 20, 20, -5}, {R, 20, 20, 30}}, 81);
@@ -312,7 +312,7 @@ TEST_CASE("dialects: comments and bytes that are not UTF-8 never fail a program"
     CHECK(out.find("N2 G01 X5.\xA0Y6. F200 ; Werkst\xFC" "ck") != std::string::npos);
 }
 
-TEST_CASE("dialects: T with M06 selects the tool; blocks and the commanded motion carry it", "[dialects][tools]") {
+TEST_CASE("dialects: T with M06 selects the tool, blocks and the commanded motion carry it", "[dialects][tools]") {
     const std::string text =
         "N1 G90 G00 X0 Y0 Z50.\nN2 T5\nN3 M06\nN4 G01 X10. F600\nN5 T7 M6\nN6 X20.\nN7 T8\nN8 X30.\nN9 M30\n";
     const NcProgram p = parse(text);

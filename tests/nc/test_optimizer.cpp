@@ -35,7 +35,7 @@ double load_ratio(const force_model::BlockSummary& b, const force_model::Limits&
 
 }  // namespace
 
-TEST_CASE("optimizer: feeds meet the target without exceeding a limit; only F words change", "[optimizer]") {
+TEST_CASE("optimizer: feeds meet the target without exceeding a limit, only F words change", "[optimizer]") {
     CornerCase c = corner_case();
     // Force limit: the straight finishing cut (N20) runs at 90 % of it, so N20 slows down a
     // little and the corner blocks, loaded more, slow down further. Chip and torque limits are

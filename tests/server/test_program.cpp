@@ -230,7 +230,7 @@ TEST_CASE("program api: bad programs and options are 400 naming line and word, l
     require_error(c.Post((base + "/optimizations").c_str(), "{}", "application/json"), 409, "no_program");
 }
 
-TEST_CASE("program api: nc_options for dialects, tools and the match; values out of range are 400 naming the key") {
+TEST_CASE("program api: nc_options for dialects, tools and the match, values out of range are 400 naming the key") {
     TestServer ts;
     auto c = ts.client(ts.write_key);
     const std::string log = slot_log_csv(1.0);

@@ -160,7 +160,7 @@ TEST_CASE("view api: blocks over the run's own limits raise an alert with no thr
     }
 }
 
-TEST_CASE("view api: compared blocks carry their NC line and spindle speed; optimizer shop options") {
+TEST_CASE("view api: compared blocks carry their NC line and spindle speed, optimizer shop options") {
     TestServer ts;
     auto c = ts.admin();
     // A force limit just under the slot's peak: both blocks are flagged, and a lower feed clears them.
