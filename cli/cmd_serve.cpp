@@ -114,6 +114,26 @@ void add_serve(CLI::App& app) {
     sub->add_option("--drain-s", a->opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")
         ->check(CLI::Range(0.0, 3600.0))
         ->capture_default_str();
+    sub->add_option("--max-attempts", a->opt.max_attempts,
+                    "Times one job may be claimed across server crashes before it is failed with the reason")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    sub->add_option_function<std::string>(
+           "--umask",
+           [a](const std::string& text) {
+               std::size_t used = 0;
+               unsigned long mask = 0;
+               try {
+                   mask = std::stoul(text, &used, 8);
+               } catch (const std::exception&) {
+                   used = 0;
+               }
+               if (used != text.size() || mask > 0777)
+                   throw CLI::ValidationError("--umask", "'" + text + "' is not an octal umask 000..777");
+               a->opt.file_umask = static_cast<unsigned>(mask);
+           },
+           "Permission bits the database, uploads and folders are created without (octal; default 077: owner only)")
+        ->default_str("077");
     sub->add_option("--webhook-backoff-s", a->opt.webhook_backoff_s, "First webhook retry delay (doubles per attempt)")
         ->check(CLI::Range(0.01, 3600.0))
         ->capture_default_str();

@@ -37,6 +37,12 @@ struct JobQueue {
 inline constexpr JobQueue kRunQueue{"runs"};
 inline constexpr JobQueue kOptimizationQueue{"optimizations"};
 
+// What requeue_interrupted did.
+struct Requeued {
+    int requeued = 0;
+    int failed = 0;   // at the attempt cap
+};
+
 // Queue operations shared by every job table. Claims are made by one server per store today (a
 // lock file guards it); a backend serving several servers claims with row locks and leases, so
 // these operations say what they guarantee, not how.
@@ -48,10 +54,14 @@ public:
     // id; nullopt when none is queued. Two claims never return the same job.
     virtual std::optional<std::int64_t> claim_oldest(const JobQueue& q, const std::string& now) = 0;
 
-    // Jobs left running by a server that is gone go back to queued (progress 0); returns how many.
-    virtual int requeue_interrupted(const JobQueue& q) = 0;
+    // Jobs left running by a server that is gone go back to queued (progress 0), except those
+    // already claimed max_attempts times: they fail with `error` (a job that kills the server
+    // would otherwise loop for ever). Returns how many of each.
+    virtual Requeued requeue_interrupted(const JobQueue& q, int max_attempts, const std::string& error,
+                                         const std::string& now) = 0;
 
-    // Ends a running job as failed, cancelled or queued (re-queued: progress 0, no finished_at);
+    // Ends a running job as failed, cancelled or queued (re-queued by a graceful stop: progress 0,
+    // no finished_at, and its claim given back so attempts count only crashes);
     // error is kept for failed. A job no longer running (cancelled, deleted) is left alone.
     virtual void finish(const JobQueue& q, std::int64_t id, JobState state, const std::optional<std::string>& error,
                         const std::string& now) = 0;

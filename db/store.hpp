@@ -56,6 +56,15 @@ public:
     virtual ApiKeyRepository& api_keys() = 0;
     virtual JobRepository& jobs() = 0;
 
+    // Gives the space that deletions freed back to the file system and empties the write-ahead
+    // log, so a DELETE shrinks what the store takes on disk. Outside any transaction; takes the
+    // write lock for as long as freeing takes (about proportional to what was freed). Returns
+    // the bytes the store's files took before and after.
+    struct Footprint {
+        std::int64_t before_bytes = 0, after_bytes = 0;
+    };
+    virtual Footprint reclaim_space() = 0;
+
 protected:
     friend class Transaction;
     // A write transaction; begun inside another one it is a nested savepoint of it.

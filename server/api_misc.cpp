@@ -38,11 +38,11 @@ void add_misc_routes(Core& core) {
     });
     core.route({"GET", "/metrics", Role::Read}, [&core](Ctx& x) {
         auto s = core.session();
-        const auto queued = s->jobs().count(db::kRunQueue, {db::JobState::Queued});
+        std::vector<Metrics::Queue> queues;
+        for (const JobKind& k : core.jobs->kinds())
+            queues.push_back({&k.metrics, static_cast<long>(s->jobs().count(k.queue, {db::JobState::Queued}))});
         const auto pending = s->webhooks().pending_count();
-        const auto optimizations = s->jobs().count(db::kOptimizationQueue, {db::JobState::Queued});
-        std::string text = core.metrics.render(static_cast<long>(queued), core.jobs->running(), static_cast<long>(pending),
-                                               static_cast<long>(optimizations));
+        std::string text = core.metrics.render(queues, core.jobs->running(), static_cast<long>(pending));
         text += series_cache_metrics(core.series_cache.stats());
         x.res.status = 200;
         x.res.set_content(text, "text/plain; version=0.0.4");

@@ -148,7 +148,7 @@ void cancel_optimization(Core& core, Ctx& x) {
     if (!s->jobs().cancel_queued(db::kOptimizationQueue, id, db::now_iso())) {
         const auto o = s->optimizations().get(id);
         if (!o) not_found(fmt::format("optimization {} does not exist", id));
-        if (o->state != db::JobState::Running || !core.jobs->cancel_running(Jobs::Kind::Optimization, id))
+        if (o->state != db::JobState::Running || !core.jobs->cancel_running(db::kOptimizationQueue, id))
             throw ApiError(409, "conflict", fmt::format("optimization {} is {}: only queued or running ones can be cancelled",
                                                         id, db::to_text(o->state)));
     }

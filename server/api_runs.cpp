@@ -19,6 +19,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <openssl/rand.h>
@@ -380,24 +381,35 @@ void list_runs(Core& core, Ctx& x) {
     x.reply(200, {{"items", items}, {"next_cursor", next}});
 }
 
+// How long DELETE of a running run waits for its worker to stop before removing its files.
+constexpr double kDeleteWaitS = 10;
+
 void delete_run(Core& core, Ctx& x) {
     const auto id = x.id();
     auto s = core.session();
     db::Transaction tx(*s);
     const auto run = s->runs().status(id);
     if (!run) not_found(fmt::format("run {} does not exist", id));
-    if (run->state == db::JobState::Running)
-        throw ApiError(409, "conflict", fmt::format("run {} is running: cancel it first (POST /api/v1/runs/{}/cancel)", id, id));
+    // A running run is cancelled first and then deleted: its worker stops at its next cancel check
+    // (a failure meanwhile, its files gone, ends as a cancel too) and its storing finds no row.
+    if (run->state == db::JobState::Running) core.jobs->cancel_running(db::kRunQueue, id);
     const fs::path dir = core.data_dir / run->upload_dir;
     // Its optimizations go with it; one being computed is stopped rather than left to run on
     // (after the commit: a worker claiming a job holds the job lock while it writes).
     const std::vector<std::int64_t> optimizing = s->optimizations().ids_of_run(id, db::JobState::Running);
     s->runs().remove(id);
     tx.commit();
-    for (const std::int64_t oid : optimizing) core.jobs->cancel_running(Jobs::Kind::Optimization, oid);
+    for (const std::int64_t oid : optimizing) core.jobs->cancel_running(db::kOptimizationQueue, oid);
+    // Its files go once its worker has let go (each phase checks the flag within a fraction of a
+    // second); one still busy after this reads from files already open or ends as cancelled.
+    if (run->state == db::JobState::Running) core.jobs->wait_released(db::kRunQueue, id, kDeleteWaitS);
     core.series_cache.forget_run(id);
     std::error_code ec;
     fs::remove_all(dir, ec);
+    // The run's rows are the bulk of the database: give their pages back and empty the WAL now,
+    // so the file shrinks with every DELETE (docs/api.md, "Disk").
+    const auto f = s->reclaim_space();
+    spdlog::debug("run {} deleted: store {} -> {} bytes", id, f.before_bytes, f.after_bytes);
     x.res.status = 204;
 }
 
@@ -407,7 +419,7 @@ void cancel_run(Core& core, Ctx& x) {
     if (!s->jobs().cancel_queued(db::kRunQueue, id, db::now_iso())) {
         const auto run = s->runs().status(id);
         if (!run) not_found(fmt::format("run {} does not exist", id));
-        if (run->state != db::JobState::Running || !core.jobs->cancel_running(Jobs::Kind::Run, id))
+        if (run->state != db::JobState::Running || !core.jobs->cancel_running(db::kRunQueue, id))
             throw ApiError(409, "conflict", fmt::format("run {} is {}: only queued or running runs can be cancelled", id,
                                                         db::to_text(run->state)));
     }

@@ -1,7 +1,6 @@
 #include "jobs.hpp"
 
 #include "program.hpp"
-#include "results.hpp"
 #include "db/jobs.hpp"
 #include "db/runs.hpp"
 
@@ -13,12 +12,6 @@
 
 namespace cutload::server {
 namespace fs = std::filesystem;
-
-namespace {
-
-const db::JobQueue& queue_of(Jobs::Kind kind) { return kind == Jobs::Kind::Run ? db::kRunQueue : db::kOptimizationQueue; }
-
-}  // namespace
 
 app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use_opencl) {
     const json& log = inputs.at("log");
@@ -50,9 +43,8 @@ force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64
     return stock;
 }
 
-Jobs::Jobs(db::Store& store, const ServerOptions& opt, fs::path data_dir, Metrics& metrics,
-           std::function<void()> on_alerts)
-    : store_(store), opt_(opt), data_dir_(std::move(data_dir)), metrics_(metrics), on_alerts_(std::move(on_alerts)) {}
+Jobs::Jobs(db::Store& store, JobPoolOptions opt, Metrics& metrics, std::vector<JobKind> kinds)
+    : store_(store), opt_(opt), metrics_(metrics), kinds_(std::move(kinds)) {}
 
 Jobs::~Jobs() { stop(0); }
 
@@ -61,9 +53,20 @@ void Jobs::start() {
         auto s = store_.session();
         // Only one server owns the database (see the lock in Core), so 'running' here means the
         // previous process died mid-job: its results were never committed, so run it again.
-        for (const Kind kind : {Kind::Run, Kind::Optimization})
-            if (int n = s->jobs().requeue_interrupted(queue_of(kind)))
-                spdlog::info("re-queued {} {} interrupted by the last shutdown", n, queue_of(kind).name);
+        // One that was claimed max_attempts times has taken the server down that often: it fails
+        // with the reason rather than looping.
+        const int cap = std::max(1, opt_.max_attempts);
+        for (const JobKind& k : kinds_) {
+            const db::Requeued r = s->jobs().requeue_interrupted(
+                k.queue, cap,
+                fmt::format("interrupted {} times (the server died while computing it); not re-queued again "
+                            "(attempt cap: cutload serve --max-attempts {})",
+                            cap, cap),
+                db::now_iso());
+            if (r.requeued) spdlog::info("re-queued {} {} interrupted by the last shutdown", r.requeued, k.queue.name);
+            if (r.failed)
+                spdlog::warn("{} {} interrupted {} times failed (attempt cap)", r.failed, k.queue.name, cap);
+        }
     }
     for (int i = 0; i < std::max(1, opt_.workers); ++i) threads_.emplace_back([this] { worker(); });
 }
@@ -74,12 +77,18 @@ void Jobs::notify() {
     cv_.notify_all();
 }
 
-bool Jobs::cancel_running(Kind kind, std::int64_t id) {
+bool Jobs::cancel_running(const db::JobQueue& queue, std::int64_t id) {
     std::lock_guard lk(mu_);
-    auto it = running_.find({kind, id});
+    auto it = running_.find({queue.name, id});
     if (it == running_.end()) return false;
     it->second->store(true);
     return true;
+}
+
+bool Jobs::wait_released(const db::JobQueue& queue, std::int64_t id, double timeout_s) {
+    std::unique_lock lk(mu_);
+    return idle_cv_.wait_for(lk, std::chrono::duration<double>(timeout_s),
+                             [&] { return !running_.contains({queue.name, id}); });
 }
 
 long Jobs::running() const {
@@ -101,17 +110,20 @@ void Jobs::stop(double drain_s) {
     threads_.clear();
 }
 
-// Runs first: an optimization re-predicts a finished run, a queued run is someone waiting.
-std::optional<Jobs::Job> Jobs::claim() {
+// In registry order: runs first (an optimization re-predicts a finished run, a queued run is
+// someone waiting).
+std::optional<Jobs::Claimed> Jobs::claim() {
     auto s = store_.session();
-    for (const Kind kind : {Kind::Run, Kind::Optimization})
-        if (const auto id = s->jobs().claim_oldest(queue_of(kind), db::now_iso())) return Job{kind, *id};
+    for (const JobKind& k : kinds_) {
+        const auto id = k.claim ? k.claim(*s) : s->jobs().claim_oldest(k.queue, db::now_iso());
+        if (id) return Claimed{&k, *id};
+    }
     return std::nullopt;
 }
 
 void Jobs::worker() {
     for (;;) {
-        std::optional<Job> job;
+        std::optional<Claimed> job;
         std::uint64_t seq = 0;
         {
             std::unique_lock lk(mu_);
@@ -128,117 +140,54 @@ void Jobs::worker() {
             } catch (const db::Error& e) {
                 spdlog::error("job queue: {}", e.what());
             }
-            if (job) running_[{job->kind, job->id}] = flag;
+            if (job) running_[{job->kind->queue.name, job->id}] = flag;
         }
         if (!job) {
             std::unique_lock lk(mu_);
             cv_.wait_for(lk, std::chrono::seconds(2), [this, seq] { return stopping_ || wake_seq_ != seq; });
             continue;
         }
-        if (job->kind == Kind::Run)
-            execute(job->id, *flag);
-        else
-            optimize(job->id, *flag);
+        run(*job, *flag);
         {
             std::lock_guard lk(mu_);
-            running_.erase({job->kind, job->id});
+            running_.erase({job->kind->queue.name, job->id});
         }
         idle_cv_.notify_all();
     }
 }
 
-void Jobs::finish(Kind kind, std::int64_t id, db::JobState state, const std::string& error) {
-    store_.session()->jobs().finish(queue_of(kind), id, state, error.empty() ? std::nullopt : std::optional<std::string>(error),
-                                    db::now_iso());
-}
-
-void Jobs::execute(std::int64_t id, const std::atomic<bool>& cancel) {
+void Jobs::run(const Claimed& job, const std::atomic<bool>& cancel) {
+    const JobKind& kind = *job.kind;
     const auto t_start = std::chrono::steady_clock::now();
-    auto elapsed_s = [&] {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-    };
-    try {
-        json inputs;
-        fs::path dir;
-        std::optional<std::int64_t> base_run;
-        {
-            const auto run = store_.session()->runs().get(id);
-            if (!run) return;   // deleted meanwhile
-            dir = data_dir_ / run->upload_dir;
-            inputs = json::parse(run->inputs_json);
-            base_run = run->base_run;
-        }
-        app::RunInput in = run_input(inputs, dir, opt_.use_opencl);
-        const force_model::StockPtr base = load_base_stock(store_, base_run);
-        in.base_stock = base.get();
-
-        app::Control control;
-        control.cancel = &cancel;
-        auto last_write = std::chrono::steady_clock::now() - std::chrono::seconds(1);
-        control.progress = [&](app::Phase, double f) {
-            // At most a few writes per second: progress is for people polling, not an audit trail.
-            auto now = std::chrono::steady_clock::now();
-            if (now - last_write < std::chrono::milliseconds(250)) return;
-            last_write = now;
-            store_.session()->jobs().set_progress(db::kRunQueue, id, f);
-        };
-        const app::RunResult r = app::predict_run(in, control);
-        const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
-
-        if (cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
-        int alerts = 0;
-        {
-            auto s = store_.session();
-            std::optional<ProgramResult> program_result;
-            if (r.program)
-                program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
-            alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
-                                  opt_.limit_alerts);
-        }
-        metrics_.job_finished("done", elapsed_s());
-        if (alerts > 0) {
-            metrics_.alerts_raised(alerts);
-            on_alerts_();
-        }
-        spdlog::info("run {} done in {:.2f} s ({} samples, {} alerts{})", id, elapsed_s(), r.prediction.samples.size(), alerts,
-                     r.program ? ", with the commanded prediction" : "");
-    } catch (const force_model::Cancelled&) {
-        const bool requeue = requeue_on_cancel_.load();
-        finish(Kind::Run, id, requeue ? db::JobState::Queued : db::JobState::Cancelled, "");
-        metrics_.job_finished(requeue ? "requeued" : "cancelled", elapsed_s());
-        spdlog::info("run {} {}", id, requeue ? "interrupted by shutdown, re-queued" : "cancelled");
-    } catch (const std::exception& e) {
-        finish(Kind::Run, id, db::JobState::Failed, e.what());
-        metrics_.job_finished("failed", elapsed_s());
-        spdlog::warn("run {} failed: {}", id, e.what());
-    }
-}
-
-void Jobs::optimize(std::int64_t id, const std::atomic<bool>& cancel) {
-    const auto t_start = std::chrono::steady_clock::now();
-    auto last_write = t_start - std::chrono::seconds(1);
-    auto progress = [&](double f) {
-        auto now = std::chrono::steady_clock::now();
-        if (now - last_write < std::chrono::milliseconds(250)) return;
-        last_write = now;
-        store_.session()->jobs().set_progress(db::kOptimizationQueue, id, f);
-    };
     auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
+    auto last_write = t_start - std::chrono::seconds(1);
+    JobContext ctx{job.id, cancel, [&](double f) {
+                       // At most a few writes per second: progress is for people polling, not an audit trail.
+                       const auto now = std::chrono::steady_clock::now();
+                       if (now - last_write < std::chrono::milliseconds(250)) return;
+                       last_write = now;
+                       store_.session()->jobs().set_progress(kind.queue, job.id, f);
+                   }};
+    auto finish = [&](db::JobState state, const std::optional<std::string>& error) {
+        store_.session()->jobs().finish(kind.queue, job.id, state, error, db::now_iso());
+    };
     try {
-        if (!run_optimization(store_, data_dir_, opt_.use_opencl, id, cancel, progress)) {
-            spdlog::info("optimization {} was deleted while computing; nothing stored", id);
+        const auto detail = kind.handler(ctx);
+        if (!detail) {
+            spdlog::info("{} {} was deleted while computing; nothing stored", kind.name, job.id);
             return;
         }
-        metrics_.optimization_finished("done", elapsed_s());
-        spdlog::info("optimization {} done in {:.2f} s", id, elapsed_s());
+        metrics_.job_finished(kind.metrics, JobOutcome::Done, elapsed_s());
+        spdlog::info("{} {} done in {:.2f} s{}", kind.name, job.id, elapsed_s(), *detail);
     } catch (const force_model::Cancelled&) {
         const bool requeue = requeue_on_cancel_.load();
-        finish(Kind::Optimization, id, requeue ? db::JobState::Queued : db::JobState::Cancelled, "");
-        metrics_.optimization_finished(requeue ? "requeued" : "cancelled", elapsed_s());
+        finish(requeue ? db::JobState::Queued : db::JobState::Cancelled, std::nullopt);
+        metrics_.job_finished(kind.metrics, requeue ? JobOutcome::Requeued : JobOutcome::Cancelled, elapsed_s());
+        spdlog::info("{} {} {}", kind.name, job.id, requeue ? "interrupted by shutdown, re-queued" : "cancelled");
     } catch (const std::exception& e) {
-        finish(Kind::Optimization, id, db::JobState::Failed, e.what());
-        metrics_.optimization_finished("failed", elapsed_s());
-        spdlog::warn("optimization {} failed: {}", id, e.what());
+        finish(db::JobState::Failed, std::string(e.what()));
+        metrics_.job_finished(kind.metrics, JobOutcome::Failed, elapsed_s());
+        spdlog::warn("{} {} failed: {}", kind.name, job.id, e.what());
     }
 }
 

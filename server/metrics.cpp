@@ -14,15 +14,19 @@ void Metrics::request(const std::string& method, const std::string& route, int s
     h.sum += seconds;
 }
 
-void Metrics::job_finished(const std::string& state, double compute_s) {
-    std::lock_guard lk(mu_);
-    ++jobs_[state];
-    compute_s_ += compute_s;
+const char* outcome_name(JobOutcome o) {
+    switch (o) {
+        case JobOutcome::Done: return "done";
+        case JobOutcome::Failed: return "failed";
+        case JobOutcome::Cancelled: return "cancelled";
+        case JobOutcome::Requeued: return "requeued";
+    }
+    return "?";
 }
 
-void Metrics::optimization_finished(const std::string& state, double compute_s) {
+void Metrics::job_finished(const JobMetricNames& kind, JobOutcome outcome, double compute_s) {
     std::lock_guard lk(mu_);
-    ++optimizations_[state];
+    ++finished_[kind.finished][outcome];
     compute_s_ += compute_s;
 }
 
@@ -36,7 +40,7 @@ void Metrics::alerts_raised(int n) {
     alerts_ += n;
 }
 
-std::string Metrics::render(long queued, long running, long pending_deliveries, long queued_optimizations) const {
+std::string Metrics::render(const std::vector<Queue>& queues, long running, long pending_deliveries) const {
     std::lock_guard lk(mu_);
     std::string out;
     auto line = [&out]<class... A>(fmt::format_string<A...> f, A&&... a) {
@@ -57,25 +61,21 @@ std::string Metrics::render(long queued, long running, long pending_deliveries, 
         line("cutload_http_request_duration_seconds_sum{{route=\"{}\"}} {}\n", route, h.sum);
         line("cutload_http_request_duration_seconds_count{{route=\"{}\"}} {}\n", route, h.count);
     }
-    line("# HELP cutload_jobs_total Prediction jobs finished, by final state.\n");
-    line("# TYPE cutload_jobs_total counter\n");
-    for (const char* s : {"done", "failed", "cancelled", "requeued"}) {
-        auto it = jobs_.find(s);
-        line("cutload_jobs_total{{state=\"{}\"}} {}\n", s, it == jobs_.end() ? 0 : it->second);
+    for (const Queue& q : queues) {
+        const JobMetricNames& k = *q.kind;
+        line("# HELP {} {}\n# TYPE {} counter\n", k.finished, k.finished_help, k.finished);
+        const auto counts = finished_.find(k.finished);
+        for (const JobOutcome outcome : kJobOutcomes) {
+            long n = 0;
+            if (counts != finished_.end())
+                if (auto it = counts->second.find(outcome); it != counts->second.end()) n = it->second;
+            line("{}{{state=\"{}\"}} {}\n", k.finished, outcome_name(outcome), n);
+        }
+        line("# HELP {} {}\n# TYPE {} gauge\n{} {}\n", k.queued, k.queued_help, k.queued, k.queued, q.queued);
     }
-    line("# HELP cutload_optimizations_total Feed optimization jobs finished, by final state.\n");
-    line("# TYPE cutload_optimizations_total counter\n");
-    for (const char* s : {"done", "failed", "cancelled", "requeued"}) {
-        auto it = optimizations_.find(s);
-        line("cutload_optimizations_total{{state=\"{}\"}} {}\n", s, it == optimizations_.end() ? 0 : it->second);
-    }
-    line("# HELP cutload_optimizations_queued Feed optimizations waiting for a worker.\n");
-    line("# TYPE cutload_optimizations_queued gauge\ncutload_optimizations_queued {}\n", queued_optimizations);
-    line("# HELP cutload_job_compute_seconds_total Wall seconds spent computing predictions and optimizations.\n");
+    line("# HELP cutload_job_compute_seconds_total Wall seconds spent computing jobs of every kind.\n");
     line("# TYPE cutload_job_compute_seconds_total counter\ncutload_job_compute_seconds_total {}\n", compute_s_);
-    line("# HELP cutload_jobs_queued Runs waiting for a worker.\n");
-    line("# TYPE cutload_jobs_queued gauge\ncutload_jobs_queued {}\n", queued);
-    line("# HELP cutload_jobs_running Jobs being computed (runs and feed optimizations).\n");
+    line("# HELP cutload_jobs_running Jobs being computed, of every kind.\n");
     line("# TYPE cutload_jobs_running gauge\ncutload_jobs_running {}\n", running);
     line("# HELP cutload_alerts_total Alerts raised by thresholds.\n");
     line("# TYPE cutload_alerts_total counter\ncutload_alerts_total {}\n", alerts_);

@@ -267,7 +267,7 @@ json load_alert(db::Session& s, std::int64_t alert_id) {
 
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts) {
+                 bool limit_alerts, const std::atomic<bool>* cancel) {
     db::Transaction tx(s);
     // Cancelled or deleted while computing: nothing to store.
     const auto status = s.runs().status(run_id);
@@ -308,6 +308,7 @@ int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionMod
                               {"commanded_simulated_s", cmd.stats.simulated_s}};
     }
     runs.mark_done(run_id, summary.dump(), json(names).dump(), flagged || alerts > 0, db::now_iso());
+    if (cancel && cancel->load()) throw force_model::Cancelled();   // the transaction rolls back
     tx.commit();
     return alerts;
 }

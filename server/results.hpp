@@ -12,10 +12,12 @@ struct ProgramResult;
 
 // Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
 // the commanded prediction and comparison of a run uploaded with an NC program, or null.
+// `cancel`, when set before the commit, rolls everything back and throws force_model::Cancelled
+// (a cancel while storing leaves nothing half-written).
 // `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts = true);
+                 bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr);
 
 // An alert as the API shows it; load_alert: null when unknown.
 json alert_json(const db::AlertRecord& a);

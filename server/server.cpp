@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <charconv>
@@ -320,8 +321,22 @@ struct Server::Impl : Core {
     int bound_port = 0;
 };
 
+// Uploads, NC sources and webhook secrets live in these files: what the server creates gets
+// 0666 & ~umask (0600 by default), and the database files an older version left readable are
+// brought to that mode.
+static void restrict_file_modes(unsigned file_umask, const std::string& db_path) {
+    const mode_t mask = static_cast<mode_t>(file_umask & 0777u);
+    ::umask(mask);
+    for (const char* suffix : {"", "-wal", "-shm", ".lock"}) {
+        const std::string p = db_path + suffix;
+        std::error_code ec;
+        if (fs::exists(p, ec)) fs::permissions(p, static_cast<fs::perms>(0666 & ~mask), fs::perm_options::replace, ec);
+    }
+}
+
 Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))) {
     auto& c = *impl_;
+    restrict_file_modes(c.opt.file_umask, c.opt.db_path);
     // One server per database: the job queue assumes no other process claims runs.
     c.lock_fd = ::open((c.opt.db_path + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (c.lock_fd < 0 || ::flock(c.lock_fd, LOCK_EX | LOCK_NB) != 0)
@@ -332,7 +347,8 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     fs::create_directories(c.data_dir);
     remove_orphan_uploads(c.session()->runs(), c.data_dir);
     c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
-    c.jobs = std::make_unique<Jobs>(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); });
+    c.jobs = std::make_unique<Jobs>(*c.store, JobPoolOptions{c.opt.workers, c.opt.max_attempts}, c.metrics,
+                                    service_job_kinds(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); }));
 
     GateLimits limits;
     limits.threads = std::max(4, c.opt.http_threads);

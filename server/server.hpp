@@ -38,6 +38,11 @@ struct ServerOptions {
     bool anonymous_loopback_reads = false; // GET without a key from 127.0.0.1 / ::1
     bool use_opencl = true;                // force engine device
     double drain_s = 10;                   // on stop: running jobs get this long, then re-queue
+    int max_attempts = 3;                  // claims of one job across server crashes; then 'failed'
+    // The process umask while serving: the database, its WAL, uploads and their folders are
+    // created without these permission bits (077: owner only, files 0600, folders 0700). The
+    // database files that exist already are brought to the same mode at start.
+    unsigned file_umask = 077;
     double webhook_backoff_s = 2;          // first retry delay; doubles per attempt
     int webhook_max_attempts = 6;
     double webhook_timeout_s = 5;

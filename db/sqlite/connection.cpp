@@ -118,7 +118,12 @@ Connection::Connection(const std::string& path, int busy_timeout_ms) {
     sqlite3_busy_timeout(db_, busy_timeout_ms);
     // NORMAL is durable across application crashes in WAL mode (only power loss can lose the
     // last commits), which is the guarantee the job store needs.
-    exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
+    // The WAL is checkpointed into the file every kWalAutocheckpointPages pages (SQLite's default,
+    // stated) and cut back to kJournalSizeLimitBytes after each checkpoint; it grows beyond that
+    // only while one transaction (one run's results) or a long reader holds it.
+    exec(fmt::format("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON; "
+                     "PRAGMA wal_autocheckpoint={}; PRAGMA journal_size_limit={};",
+                     kWalAutocheckpointPages, kJournalSizeLimitBytes));
 }
 
 Connection::~Connection() {

@@ -19,21 +19,36 @@ std::optional<std::int64_t> Jobs::claim_oldest(const JobQueue& q, const std::str
     return id;
 }
 
-int Jobs::requeue_interrupted(const JobQueue& q) {
+Requeued Jobs::requeue_interrupted(const JobQueue& q, int max_attempts, const std::string& error, const std::string& now) {
     // Only one server owns an SQLite database (the lock file beside it), so a job still running
-    // when that server starts was left by a process that died.
+    // when that server starts was left by a process that died. Both updates in one transaction:
+    // a job is either re-queued or failed.
+    Savepoint tx(c_, "requeue_interrupted");
+    Requeued r;
+    c_.prepare(fmt::format("UPDATE {} SET state = ?1, error = ?2, finished_at = ?3 WHERE state = ?4 AND attempts >= ?5",
+                           job_table(q)))
+        .bind(1, to_text(JobState::Failed))
+        .bind(2, error)
+        .bind(3, now)
+        .bind(4, to_text(JobState::Running))
+        .bind(5, max_attempts)
+        .run();
+    r.failed = c_.changes();
     c_.prepare(fmt::format("UPDATE {} SET state = ?1, progress = 0 WHERE state = ?2", job_table(q)))
         .bind(1, to_text(JobState::Queued))
         .bind(2, to_text(JobState::Running))
         .run();
-    return c_.changes();
+    r.requeued = c_.changes();
+    tx.release();
+    return r;
 }
 
 void Jobs::finish(const JobQueue& q, std::int64_t id, JobState state, const std::optional<std::string>& error,
                   const std::string& now) {
     const bool requeue = state == JobState::Queued;
     auto st = c_.prepare(fmt::format(
-        "UPDATE {} SET state = ?1, error = ?2, finished_at = ?3, progress = CASE WHEN ?4 THEN 0 ELSE progress END "
+        "UPDATE {} SET state = ?1, error = ?2, finished_at = ?3, progress = CASE WHEN ?4 THEN 0 ELSE progress END, "
+        "attempts = CASE WHEN ?4 THEN max(attempts - 1, 0) ELSE attempts END "
         "WHERE id = ?5 AND state = ?6",
         job_table(q)));
     st.bind(1, to_text(state)).bind(2, error);

@@ -8,13 +8,40 @@
 namespace cutload::db::sqlite {
 namespace {
 
+std::int64_t pragma_int(Connection& c, const char* pragma) {
+    auto st = c.prepare(fmt::format("PRAGMA {}", pragma));
+    st.step();
+    return st.i64(0);
+}
+
+// Freed pages are given back by `PRAGMA incremental_vacuum` (reclaim_space) only in a file with
+// auto_vacuum = INCREMENTAL. A new file takes it before its first table; a file made by an older
+// cutload is rebuilt once by VACUUM (a copy of the live data: it needs that much free disk).
+void use_incremental_vacuum(Connection& c) {
+    constexpr int kIncremental = 2;
+    if (pragma_int(c, "auto_vacuum") == kIncremental) return;
+    c.exec("PRAGMA auto_vacuum=INCREMENTAL");
+    if (pragma_int(c, "auto_vacuum") == kIncremental) return;   // empty file: set, nothing to rebuild
+    c.exec("VACUUM");
+}
+
+std::int64_t file_bytes(const std::string& path) {
+    std::error_code ec;
+    const auto n = std::filesystem::file_size(path, ec);
+    return ec ? 0 : static_cast<std::int64_t>(n);
+}
+
+std::int64_t footprint_bytes(const std::string& path) { return file_bytes(path) + file_bytes(path + "-wal"); }
+
 class SqliteStore final : public Store {
 public:
     explicit SqliteStore(const std::string& path) : Store(path) {}
 
     int migrate() override {
         auto s = session();
-        return sqlite::migrate(static_cast<SqliteSession&>(*s).connection());
+        Connection& c = static_cast<SqliteSession&>(*s).connection();
+        use_incremental_vacuum(c);
+        return sqlite::migrate(c);
     }
 
 protected:
@@ -29,6 +56,17 @@ std::unique_ptr<Store> open_store(const std::string& path, bool must_exist) {
     auto store = std::make_unique<SqliteStore>(path);
     store->session();   // opens the file now, so a bad path fails here and not at the first request
     return store;
+}
+
+Session::Footprint SqliteSession::reclaim_space() {
+    Footprint f;
+    f.before_bytes = footprint_bytes(path_);
+    c_.exec("PRAGMA incremental_vacuum");
+    // TRUNCATE: the log is emptied to zero bytes once every reader has moved past it; a reader
+    // still inside it leaves the log as it is (the next checkpoint catches up).
+    c_.exec("PRAGMA wal_checkpoint(TRUNCATE)");
+    f.after_bytes = footprint_bytes(path_);
+    return f;
 }
 
 void SqliteSession::begin_transaction() {

@@ -153,7 +153,8 @@ class Jobs final : public JobRepository {
 public:
     explicit Jobs(Connection& c) : c_(c) {}
     std::optional<std::int64_t> claim_oldest(const JobQueue& q, const std::string& now) override;
-    int requeue_interrupted(const JobQueue& q) override;
+    Requeued requeue_interrupted(const JobQueue& q, int max_attempts, const std::string& error,
+                                 const std::string& now) override;
     void finish(const JobQueue& q, std::int64_t id, JobState state, const std::optional<std::string>& error,
                 const std::string& now) override;
     bool cancel_queued(const JobQueue& q, std::int64_t id, const std::string& now) override;
@@ -166,7 +167,7 @@ private:
 
 class SqliteSession final : public Session {
 public:
-    explicit SqliteSession(const std::string& path) : c_(path) {}
+    explicit SqliteSession(const std::string& path) : path_(path), c_(path) {}
     RunRepository& runs() override { return runs_; }
     OptimizationRepository& optimizations() override { return optimizations_; }
     LibraryRepository& library() override { return library_; }
@@ -175,6 +176,7 @@ public:
     WebhookRepository& webhooks() override { return webhooks_; }
     ApiKeyRepository& api_keys() override { return api_keys_; }
     JobRepository& jobs() override { return jobs_; }
+    Footprint reclaim_space() override;
     Connection& connection() { return c_; }
 
 private:
@@ -182,6 +184,7 @@ private:
     void commit_transaction() override;
     void rollback_transaction() noexcept override;
 
+    std::string path_;
     Connection c_;
     int depth_ = 0;   // open transactions: 1 the outermost, more are savepoints within it
     Runs runs_{c_};

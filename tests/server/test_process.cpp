@@ -41,12 +41,13 @@ struct Proc {
     int port = 0;
 };
 
-Proc start_server(const fs::path& db, const fs::path& log) {
+Proc start_server(const fs::path& db, const fs::path& log, const std::vector<std::string>& extra = {}) {
     const std::size_t before = read_text(log).size();
     Proc p;
-    p.pid = spawn({CUTLOAD_BINARY, "serve", "--listen", "127.0.0.1:0", "--db", db.string(), "--workers", "1", "--device",
-                   "cpu", "--drain-s", "0"},
-                  log);
+    std::vector<std::string> args{CUTLOAD_BINARY, "serve", "--listen", "127.0.0.1:0", "--db", db.string(), "--workers", "1",
+                                  "--device", "cpu", "--drain-s", "0"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    p.pid = spawn(args, log);
     static const std::regex listening(R"(listening on http://127\.0\.0\.1:(\d+))");
     for (int i = 0; i < 500 && p.port == 0; ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -148,4 +149,41 @@ TEST_CASE("process: SIGTERM stops promptly and re-queues the running job and a r
     REQUIRE(wait_finished(c2, id, 60)["state"] == "done");
     ::kill(p2.pid, SIGTERM);
     wait_exit(p2.pid);
+}
+
+TEST_CASE("process: a run that kill -9 interrupts at every attempt ends failed at the attempt cap, with the reason") {
+    // Issue 19: the re-queue after a crash had no cap, so a job that took the server down did it
+    // again at every restart.
+    TempDir dir;
+    const fs::path db = dir.path() / "loop.db";
+    const fs::path log = dir.path() / "serve.log";
+    const std::string key = cutload::server::create_api_key(db.string(), cutload::server::Role::Write);
+    const std::vector<std::string> cap{"--max-attempts", "2"};
+    Proc p = start_server(db, log, cap);
+    int id = 0;
+    for (int attempt = 1; attempt <= 2; ++attempt) {
+        httplib::Client c("127.0.0.1", p.port);
+        c.set_bearer_token_auth(key.c_str());
+        if (attempt == 1) id = body(upload(c, slot_log_csv(4.0), slow_spec()))["id"];
+        for (int i = 0; i < 2000 && get_run(c, id)["state"] != "running"; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        json run = get_run(c, id);
+        REQUIRE(run["state"] == "running");
+        REQUIRE(run["attempts"] == attempt);
+        ::kill(p.pid, SIGKILL);
+        wait_exit(p.pid);
+        p = start_server(db, log, cap);
+    }
+    httplib::Client c("127.0.0.1", p.port);
+    c.set_bearer_token_auth(key.c_str());
+    const json run = get_run(c, id);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "failed");
+    REQUIRE(run["attempts"] == 2);
+    REQUIRE(run["error"].get<std::string>().find("interrupted 2 times") != std::string::npos);
+    // The server stays up and answers; a new run is computed.
+    const int next = body(upload(c, slot_log_csv(0.3), slot_spec()))["id"];
+    REQUIRE(wait_finished(c, next, 60)["state"] == "done");
+    ::kill(p.pid, SIGTERM);
+    REQUIRE(WEXITSTATUS(wait_exit(p.pid)) == 0);
 }

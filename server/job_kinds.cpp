@@ -1,0 +1,83 @@
+// The registry of job kinds `cutload serve` runs, and their handlers: a run (predict the forces
+// of an uploaded dry run, and of its NC program's commanded motion) and a feed optimization.
+// A new kind: its table (a migration with the job columns, db/jobs.hpp), its repository for what
+// it stores, a handler here and one entry in service_job_kinds().
+#include "jobs.hpp"
+
+#include "program.hpp"
+#include "results.hpp"
+#include "db/runs.hpp"
+
+#include <fmt/format.h>
+
+
+namespace cutload::server {
+namespace fs = std::filesystem;
+namespace {
+
+// Predicts run ctx.id from its stored inputs and stores the results, alerts and webhook deliveries
+// with state done. The use case checks ctx.cancel between its phases (ingest, program, mapping,
+// predict, commanded) and every few angle steps; storing checks it before its commit.
+std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const ServerOptions& opt,
+                                       const fs::path& data_dir, Metrics& metrics, const std::function<void()>& on_alerts) {
+    const std::int64_t id = ctx.id;
+    json inputs;
+    fs::path dir;
+    std::optional<std::int64_t> base_run;
+    {
+        const auto run = store.session()->runs().get(id);
+        if (!run) return std::nullopt;   // deleted meanwhile
+        dir = data_dir / run->upload_dir;
+        inputs = json::parse(run->inputs_json);
+        base_run = run->base_run;
+    }
+    app::RunInput in = run_input(inputs, dir, opt.use_opencl);
+    const force_model::StockPtr base = load_base_stock(store, base_run);
+    in.base_stock = base.get();
+
+    app::Control control;
+    control.cancel = &ctx.cancel;
+    control.progress = [&](app::Phase, double f) { ctx.progress(f); };
+    const app::RunResult r = app::predict_run(in, control);
+    const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
+
+    if (ctx.cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
+    int alerts = 0;
+    {
+        auto s = store.session();
+        std::optional<ProgramResult> program_result;
+        if (r.program) program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
+        alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
+                              opt.limit_alerts, &ctx.cancel);
+    }
+    if (alerts > 0) {
+        metrics.alerts_raised(alerts);
+        on_alerts();
+    }
+    return fmt::format(" ({} samples, {} alerts{})", r.prediction.samples.size(), alerts,
+                       r.program ? ", with the commanded prediction" : "");
+}
+
+}  // namespace
+
+std::vector<JobKind> service_job_kinds(db::Store& store, const ServerOptions& opt, const fs::path& data_dir,
+                                       Metrics& metrics, std::function<void()> on_alerts) {
+    std::vector<JobKind> kinds;
+    kinds.push_back(JobKind{
+        "run", db::kRunQueue, {},
+        [&store, &opt, data_dir, &metrics, on_alerts](JobContext& ctx) {
+            return predict_run(ctx, store, opt, data_dir, metrics, on_alerts);
+        },
+        {"cutload_jobs_total", "Prediction jobs finished, by final state.", "cutload_jobs_queued", "Runs waiting for a worker."}});
+    kinds.push_back(JobKind{
+        "optimization", db::kOptimizationQueue, {},
+        [&store, &opt, data_dir](JobContext& ctx) -> std::optional<std::string> {
+            if (!run_optimization(store, data_dir, opt.use_opencl, ctx.id, ctx.cancel, ctx.progress)) return std::nullopt;
+            return std::string();
+        },
+        {"cutload_optimizations_total", "Feed optimization jobs finished, by final state.", "cutload_optimizations_queued",
+         "Feed optimizations waiting for a worker."}});
+    return kinds;
+}
+
+}  // namespace cutload::server

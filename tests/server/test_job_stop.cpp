@@ -1,0 +1,113 @@
+// Jobs that stop and storage that shrinks (issue 19): a cancel or a DELETE stops a running run
+// (no 409), deleting runs gives their space back and empties the WAL, and what the server creates
+// is readable by its owner only. The sizes and latencies are printed: they are figures, not bounds.
+#include "harness.hpp"
+
+#include <sys/stat.h>
+
+using namespace cutload::test;
+
+namespace {
+
+// A run that computes for seconds on one core: a fine angle step over a 4 s slot.
+json slow_spec() {
+    json s = slot_spec();
+    s["resolution"] = {{"angle_step_deg", 0.5}, {"axial_step_mm", 0.1}, {"grid_mm", 0.1}};
+    return s;
+}
+
+json get_run(httplib::Client& c, std::int64_t id) { return body(c.Get(("/api/v1/runs/" + std::to_string(id)).c_str())); }
+
+// Waits until the run computes forces (progress above 0), so a stop lands mid-prediction.
+void wait_computing(httplib::Client& c, std::int64_t id) {
+    for (int i = 0; i < 2000; ++i) {
+        const json run = get_run(c, id);
+        if (run["state"] == "running" && run["progress"].get<double>() > 0) return;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    FAIL("run " << id << " never started computing");
+}
+
+std::int64_t size_of(const fs::path& p) {
+    std::error_code ec;
+    const auto n = fs::file_size(p, ec);
+    return ec ? 0 : static_cast<std::int64_t>(n);
+}
+
+unsigned mode_of(const fs::path& p) {
+    struct stat st {};
+    REQUIRE(::stat(p.c_str(), &st) == 0);
+    return st.st_mode & 0777u;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+TEST_CASE("job stop: cancel and DELETE stop a run mid-prediction; DELETE answers 204, not 409, and leaves nothing") {
+    TestServer ts;
+    auto c = ts.admin();
+    const std::int64_t cancelled = body(upload(c, slot_log_csv(4.0), slow_spec()))["id"];
+    wait_computing(c, cancelled);
+    auto t0 = std::chrono::steady_clock::now();
+    REQUIRE(c.Post(("/api/v1/runs/" + std::to_string(cancelled) + "/cancel").c_str())->status == 202);
+    const json run = wait_finished(c, cancelled, 30);
+    const double cancel_s = seconds_since(t0);
+    REQUIRE(run["state"] == "cancelled");
+    REQUIRE(body(c.Get(("/api/v1/runs/" + std::to_string(cancelled) + "/blocks").c_str())).value("items", json::array()).empty());
+
+    const std::size_t files_before = files_under(ts.data_dir());
+    const std::int64_t deleted = body(upload(c, slot_log_csv(4.0), slow_spec()))["id"];
+    wait_computing(c, deleted);
+    t0 = std::chrono::steady_clock::now();
+    const auto del = c.Delete(("/api/v1/runs/" + std::to_string(deleted)).c_str());
+    const double delete_s = seconds_since(t0);
+    REQUIRE(del);
+    INFO(del->body);
+    REQUIRE(del->status == 204);
+    require_error(c.Get(("/api/v1/runs/" + std::to_string(deleted)).c_str()), 404, "not_found");
+    // Nothing of the deleted run is left, and the worker let go: the next run is computed.
+    REQUIRE(files_under(ts.data_dir()) == files_before);
+    const std::int64_t next = body(upload(c, slot_log_csv(0.3), slot_spec()))["id"];
+    REQUIRE(wait_finished(c, next, 30)["state"] == "done");
+    WARN("cancel mid-prediction: state cancelled " << cancel_s * 1000 << " ms after POST cancel; DELETE of a running run "
+                                                     "answered 204 in "
+                                                  << delete_s * 1000 << " ms");
+}
+
+TEST_CASE("job stop: DELETE of 10 runs shrinks the database file, the WAL stays under its bound, files are owner-only") {
+    TestServer ts;
+    auto c = ts.admin();
+    std::vector<std::int64_t> ids;
+    json spec = slot_spec();
+    spec["resolution"] = {{"angle_step_deg", 1}, {"axial_step_mm", 0.1}, {"grid_mm", 0.1}};
+    for (int i = 0; i < 10; ++i) ids.push_back(body(upload(c, slot_log_csv(1.0 + 0.05 * i), spec))["id"]);
+    for (const auto id : ids) REQUIRE(wait_finished(c, id, 120)["state"] == "done");
+
+    const fs::path db = ts.opt.db_path;
+    const fs::path wal = ts.opt.db_path + "-wal";
+    const std::int64_t db_full = size_of(db), wal_full = size_of(wal);
+    // Owner-only (the default umask 077): the database, its WAL and the uploads.
+    REQUIRE(mode_of(db) == 0600u);
+    if (fs::exists(wal)) REQUIRE(mode_of(wal) == 0600u);
+    for (const auto& e : fs::recursive_directory_iterator(ts.data_dir())) {
+        INFO(e.path().string());
+        REQUIRE(mode_of(e.path()) == (e.is_directory() ? 0700u : 0600u));
+    }
+
+    std::int64_t wal_max = wal_full;
+    for (const auto id : ids) {
+        REQUIRE(c.Delete(("/api/v1/runs/" + std::to_string(id)).c_str())->status == 204);
+        wal_max = std::max(wal_max, size_of(wal));
+    }
+    const std::int64_t db_empty = size_of(db), wal_empty = size_of(wal);
+    WARN("10 runs: database " << db_full << " B, WAL " << wal_full << " B; after deleting them: database " << db_empty
+                              << " B, WAL " << wal_empty << " B (largest WAL seen " << wal_max << " B)");
+    // The runs' rows were most of the file: at least half of it comes back.
+    REQUIRE(db_empty < db_full / 2);
+    // The documented bound (docs/api.md, "Disk"): 64 MiB after a checkpoint; emptied by a DELETE.
+    REQUIRE(wal_max <= (64 << 20) + (4 << 20));
+    REQUIRE(wal_empty == 0);
+}
