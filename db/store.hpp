@@ -62,6 +62,7 @@ public:
     // the bytes the store's files took before and after.
     struct Footprint {
         std::int64_t before_bytes = 0, after_bytes = 0;
+        bool wal_emptied = false;   // false: a reader kept the log (the next checkpoint catches up)
     };
     virtual Footprint reclaim_space() = 0;
 

@@ -9,6 +9,7 @@
 #include "db/runs.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 
 namespace cutload::server {
@@ -49,6 +50,14 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         if (r.program) program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
         alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
                               opt.limit_alerts, &ctx.cancel);
+        // One run's results are one transaction, so the WAL grew by about their size: empty it
+        // now rather than leave it at the journal_size_limit until the next checkpoint
+        // (docs/api.md, "Disk").
+        try {
+            s->reclaim_space();
+        } catch (const std::exception& e) {   // the run is stored; a busy checkpoint is retried by the next
+            spdlog::warn("run {}: checkpoint after storing: {}", id, e.what());
+        }
     }
     if (alerts > 0) {
         metrics.alerts_raised(alerts);

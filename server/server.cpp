@@ -322,15 +322,15 @@ struct Server::Impl : Core {
 };
 
 // Uploads, NC sources and webhook secrets live in these files: what the server creates gets
-// 0666 & ~umask (0600 by default), and the database files an older version left readable are
-// brought to that mode.
+// 0666 & ~umask (0600 by default), and the database files and the uploads folder an older version
+// left readable lose the masked bits (only removed: a mode narrower than the mask stays so).
 static void restrict_file_modes(unsigned file_umask, const std::string& db_path) {
     const mode_t mask = static_cast<mode_t>(file_umask & 0777u);
     ::umask(mask);
     for (const char* suffix : {"", "-wal", "-shm", ".lock"}) {
         const std::string p = db_path + suffix;
         std::error_code ec;
-        if (fs::exists(p, ec)) fs::permissions(p, static_cast<fs::perms>(0666 & ~mask), fs::perm_options::replace, ec);
+        if (fs::exists(p, ec)) fs::permissions(p, static_cast<fs::perms>(mask), fs::perm_options::remove, ec);
     }
 }
 
@@ -345,6 +345,11 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     c.store = db::Store::open(c.opt.db_path);
     c.store->migrate();
     fs::create_directories(c.data_dir);
+    {
+        // The folder holds every upload: closing it closes those an older version left readable.
+        std::error_code ec;
+        fs::permissions(c.data_dir, static_cast<fs::perms>(c.opt.file_umask & 0777u), fs::perm_options::remove, ec);
+    }
     remove_orphan_uploads(c.session()->runs(), c.data_dir);
     c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
     c.jobs = std::make_unique<Jobs>(*c.store, JobPoolOptions{c.opt.workers, c.opt.max_attempts}, c.metrics,

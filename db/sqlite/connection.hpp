@@ -64,7 +64,7 @@ private:
 
 // How long a connection waits for another writer before SQLITE_BUSY.
 constexpr int kBusyTimeoutMs = 10000;
-// The write-ahead log's bound (docs/ops.md, "Disk"): checkpointed every 1000 pages (4 MiB at
+// The write-ahead log's bound (docs/api.md, "Disk"): checkpointed every 1000 pages (4 MiB at
 // the 4 KiB page) and truncated to 64 MiB after a checkpoint that leaves it larger.
 constexpr int kWalAutocheckpointPages = 1000;
 constexpr long long kJournalSizeLimitBytes = 64LL << 20;

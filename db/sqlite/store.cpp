@@ -3,7 +3,9 @@
 
 #include <fmt/format.h>
 
+#include <chrono>
 #include <filesystem>
+#include <thread>
 
 namespace cutload::db::sqlite {
 namespace {
@@ -62,9 +64,17 @@ Session::Footprint SqliteSession::reclaim_space() {
     Footprint f;
     f.before_bytes = footprint_bytes(path_);
     c_.exec("PRAGMA incremental_vacuum");
-    // TRUNCATE: the log is emptied to zero bytes once every reader has moved past it; a reader
-    // still inside it leaves the log as it is (the next checkpoint catches up).
-    c_.exec("PRAGMA wal_checkpoint(TRUNCATE)");
+    // TRUNCATE: the log is emptied to zero bytes once every reader has moved past it. A job
+    // worker's claim or the webhook sender may hold the log for a moment (SQLite answers busy
+    // at once rather than waiting for them), so a few tries; one still busy after them leaves
+    // the log as it is and the next checkpoint catches up.
+    constexpr int kTries = 40;
+    constexpr auto kPause = std::chrono::milliseconds(25);
+    for (int i = 0; i < kTries && !f.wal_emptied; ++i) {
+        if (i > 0) std::this_thread::sleep_for(kPause);
+        auto st = c_.prepare("PRAGMA wal_checkpoint(TRUNCATE)");
+        if (st.step()) f.wal_emptied = st.i64(0) == 0;   // the row: busy, frames in the log, frames checkpointed
+    }
     f.after_bytes = footprint_bytes(path_);
     return f;
 }

@@ -139,14 +139,19 @@ TEST_CASE("process: SIGTERM stops promptly and re-queues the running job and a r
     const auto t0 = std::chrono::steady_clock::now();
     ::kill(p.pid, SIGTERM);
     REQUIRE(WEXITSTATUS(wait_exit(p.pid)) == 0);
-    REQUIRE(std::chrono::steady_clock::now() - t0 < std::chrono::seconds(3));
+    const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    REQUIRE(stop_s < 3);
     INFO(read_text(log));
     REQUIRE(read_text(log).find("re-queued") != std::string::npos);
+    WARN("SIGTERM with --drain-s 0 and a run mid-prediction: the process exited " << stop_s * 1000 << " ms after the signal");
 
     Proc p2 = start_server(db, log);
     httplib::Client c2("127.0.0.1", p2.port);
     c2.set_bearer_token_auth(key.c_str());
-    REQUIRE(wait_finished(c2, id, 60)["state"] == "done");
+    const json done = wait_finished(c2, id, 60);
+    REQUIRE(done["state"] == "done");
+    // A graceful stop gave its claim back: only the restart's claim counts toward --max-attempts.
+    REQUIRE(done["attempts"] == 1);
     ::kill(p2.pid, SIGTERM);
     wait_exit(p2.pid);
 }
