@@ -1,9 +1,15 @@
 // Jobs that stop and storage that shrinks (issue 19): a cancel or a DELETE stops a running run
 // (no 409), deleting runs gives their space back and empties the WAL, and what the server creates
 // is readable by its owner only. The sizes and latencies are printed: they are figures, not bounds.
+#include "db/jobs.hpp"
+#include "db/runs.hpp"
+#include "db/store.hpp"
 #include "harness.hpp"
+#include "server/results.hpp"
 
 #include <sys/stat.h>
+
+#include <atomic>
 
 using namespace cutload::test;
 
@@ -46,7 +52,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 }  // namespace
 
-TEST_CASE("job stop: cancel and DELETE stop a run mid-prediction; DELETE answers 204, not 409, and leaves nothing") {
+TEST_CASE("job stop: cancel and DELETE stop a run mid-prediction, DELETE answers 204 (not 409) and leaves nothing") {
     TestServer ts;
     auto c = ts.admin();
     const std::int64_t cancelled = body(upload(c, slot_log_csv(4.0), slow_spec()))["id"];
@@ -110,4 +116,49 @@ TEST_CASE("job stop: DELETE of 10 runs shrinks the database file, the WAL stays 
     // The documented bound (docs/api.md, "Disk"): 64 MiB after a checkpoint; emptied by a DELETE.
     REQUIRE(wal_max <= (64 << 20) + (4 << 20));
     REQUIRE(wal_empty == 0);
+}
+
+TEST_CASE("job stop: a cancel that lands while a run's results are written rolls them back, without one they commit") {
+    TempDir dir;
+    const std::string path = (dir.path() / "store.db").string();
+    auto store = cutload::db::Store::open(path);
+    store->migrate();
+    auto s = store->session();
+    const auto claimed = [&] {
+        cutload::db::NewRun nr;
+        nr.inputs_json = "{}";
+        nr.created_at = cutload::db::now_iso();
+        const std::int64_t id = s->runs().create(nr);
+        REQUIRE(s->jobs().claim_oldest(cutload::db::kRunQueue, cutload::db::now_iso()) == id);
+        return id;
+    };
+    // Two samples and one block: enough for every table store_result writes.
+    cutload::motion_io::MotionModel motion;
+    motion.step_s = 0.001;
+    motion.t_s = {0.0, 0.001};
+    motion.x_mm = {0.0, 0.01};
+    motion.y_mm = {0.0, 0.0};
+    motion.z_mm = {-1.0, -1.0};
+    motion.vx_mm_s = {10.0, 10.0};
+    motion.vy_mm_s = motion.vz_mm_s = {0.0, 0.0};
+    motion.spindle_rpm = {6000.0, 6000.0};
+    motion.spindle_angle_deg = {0.0, 36.0};
+    motion.block = {0, 0};
+    motion.block_names = {"N10"};
+    motion.session_start = {0};
+    cutload::force_model::Prediction p;
+    p.blocks.resize(1);
+
+    std::atomic<bool> cancel{true};
+    const std::int64_t cancelled = claimed();
+    REQUIRE_THROWS_AS(cutload::server::store_result(*s, cancelled, motion, p, "", nullptr, true, &cancel),
+                      cutload::force_model::Cancelled);
+    REQUIRE(s->runs().status(cancelled)->state == cutload::db::JobState::Running);   // the pool finishes it as cancelled
+    REQUIRE(s->runs().blocks(cancelled, 0, std::nullopt, 10).empty());
+
+    cancel = false;
+    const std::int64_t stored = claimed();
+    cutload::server::store_result(*s, stored, motion, p, "", nullptr, true, &cancel);
+    REQUIRE(s->runs().status(stored)->state == cutload::db::JobState::Done);
+    REQUIRE(s->runs().blocks(stored, 0, std::nullopt, 10).size() == 1);
 }
