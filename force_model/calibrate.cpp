@@ -68,8 +68,8 @@ Material material_of(const std::array<double, 6>& k, const std::string& name) {
 //   x: Ktc -c sin cos, Krc -c sin^2, Kte -cos, Kre -sin;  y: Ktc c sin^2, Krc -c sin cos, Kte sin, Kre -cos;
 //   z: Kac c sin, Kae 1.
 Regressors closed_form_regressors(const ToolSpec& tool, const CutTest& test) {
-    if (tool.shape != ToolShape::Flat)
-        throw SpecError("closed-form regressors hold for flat end mills only: use the engine model");
+    if (tool.shape != ToolShape::Flat || tool.taper_deg != 0)
+        throw SpecError("closed-form regressors hold for untapered flat end mills only: use the engine model");
     validate_cut_test(test, tool);
     const double c = feed_per_tooth_mm(test, tool.flutes);
     // Not a structured binding: clang before 16 cannot capture one in a lambda (the fuzz build).
@@ -176,7 +176,8 @@ Regressors engine_regressors(const ToolSpec& tool, const CutTest& test, const En
 }
 
 double tooth_air_fraction(const ToolSpec& tool, const CutTest& test) {
-    if (tool.shape != ToolShape::Flat || test.mode == Immersion::Slot || tool.flutes < 1) return 0.0;
+    if (tool.shape != ToolShape::Flat || tool.taper_deg != 0 || test.mode == Immersion::Slot || tool.flutes < 1)
+        return 0.0;
     const auto [p0, p1] = immersion_window(test, tool.diameter_mm);
     const double lag = test.axial_mm * std::tan(tool.helix_deg * pi / 180.0) / (tool.diameter_mm / 2);
     return std::max(0.0, 1.0 - (p1 - p0 + std::abs(lag)) / (2 * pi / tool.flutes));

@@ -45,7 +45,8 @@ Material material_of(const std::array<double, 6>& k, const std::string& name);
 // coefficient: r[axis][k].
 using Regressors = std::array<std::array<double, 6>, 3>;
 
-// Closed-form average over a tooth period for a flat end mill; throws SpecError for other shapes.
+// Closed-form average over a tooth period for an untapered flat end mill; throws SpecError for
+// other shapes and for tapers.
 Regressors closed_form_regressors(const ToolSpec& tool, const CutTest& test);
 
 // The engine's mean over whole revolutions of a synthetic steady cut (six predictions).
@@ -120,7 +121,8 @@ SteadyForce steady_mean_force(const Measurement& mapped, double spindle_rpm, con
 
 // Share of each tooth period in which no edge of a flat end mill cuts in this test: one less the
 // immersion angle and the helix lag over the depth (a tan(helix) / R), over the tooth pitch. 0 for a
-// slot, for other tool shapes (whose lag this formula does not give) and when the edges overlap.
+// slot, for other tool shapes and tapers (whose lag this formula does not give) and when the edges
+// overlap.
 double tooth_air_fraction(const ToolSpec& tool, const CutTest& test);
 
 std::array<double, 3> to_feed_frame(const std::array<double, 3>& machine_N, double feed_direction_deg);

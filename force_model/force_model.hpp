@@ -44,6 +44,9 @@ struct ToolSpec {
     double corner_radius_mm = 0;   // flat: 0; ball: diameter/2; bull: 0 < r < diameter/2; cones: 0
     double point_angle_deg = 0;    // drill, chamfer: the included angle of the cone
     double tip_diameter_mm = 0;    // chamfer: the flat at the tip (0: a sharp point)
+    // flat, ball, bull: half angle of a tapered flank (0: cylindrical). diameter_mm is then the
+    // diameter at the tip and the flank widens by tan(taper) per mm up to flute_length_mm.
+    double taper_deg = 0;
     double flute_length_mm = 20;
     double stickout_mm = 30;       // tip to holder face
     Holder holder;

@@ -1,6 +1,7 @@
 // RUN.json: parsing and validation. Every error names the key path (e.g. "tool.diameter_mm") and
 // says what was expected, because the person reading it is fixing a file by hand.
 #include "force_model/force_model.hpp"
+#include "cutters/taper.hpp"
 #include "run_spec_reads.hpp"
 
 #include "motion_io/nc_program.hpp"
@@ -210,6 +211,15 @@ bool is_cone(ToolShape s) { return s == ToolShape::Drill || s == ToolShape::Cham
 // T numbers as controls take them (FANUC: up to 8 digits).
 constexpr double kMaxToolNumber = 99999999;
 
+// Draft tapers are a few degrees per side; beyond 15 a tool is a cone (a chamfer tool).
+constexpr double kMaxTaperDeg = 15;
+
+// The cutting radius where the flutes end: the tip's unless the flank is tapered.
+double top_radius_mm(const ToolSpec& t) {
+    if (t.taper_deg == 0) return t.diameter_mm / 2;
+    return tapered_flank_radius_mm(t.diameter_mm, t.corner_radius_mm, t.taper_deg, t.flute_length_mm);
+}
+
 ToolSpec parse_tool(ObjectReader& r) {
     ToolSpec t;
     t.shape = parse_shape(r.string("shape", shape_names()), r.key_path("shape"));
@@ -262,12 +272,29 @@ ToolSpec parse_tool(ObjectReader& r) {
     } else {
         for (const char* key : {"point_angle_deg", "tip_diameter_mm"})
             if (r.has(key)) fail(r.key_path(key), "only for a drill or chamfer tool");
+        // A tapered flank (draft walls, deep ribs): the half angle; diameter_mm stays the tip's.
+        t.taper_deg = r.number_or("taper_deg", 0);
+        require(t.taper_deg >= 0 && t.taper_deg <= kMaxTaperDeg, r.key_path("taper_deg"),
+                "must be in [0, 15] degrees per side (the half angle of the flank; 0: no taper)");
     }
+    if (is_cone(t.shape) && r.has("taper_deg"))
+        fail(r.key_path("taper_deg"), "only for a flat, ball or bull end mill (a drill's or chamfer tool's cone is "
+                                      "point_angle_deg)");
 
     t.flute_length_mm = r.number("flute_length_mm");
     require(t.flute_length_mm > 0 && t.flute_length_mm <= 500, r.key_path("flute_length_mm"), "must be in (0, 500] mm");
     require(t.flute_length_mm >= t.corner_radius_mm, r.key_path("flute_length_mm"),
             "must be at least corner_radius_mm");
+    if (t.taper_deg > 0) {
+        // The flank widens up to the end of the flutes: that diameter must still be a tool's.
+        const double top_diameter_mm = 2 * top_radius_mm(t);
+        if (top_diameter_mm > 200) {
+            std::ostringstream msg;
+            msg << "with taper_deg " << t.taper_deg << " the flutes end at a diameter of " << top_diameter_mm
+                << " mm (limit 200 mm): a shorter flute length or a smaller taper";
+            fail(r.key_path("flute_length_mm"), msg.str());
+        }
+    }
     if (t.flute_length_mm < cone_height_mm - 1e-9) {
         std::ostringstream msg;
         msg << "must be at least the cone's height, " << cone_height_mm << " mm (the point widens to diameter_mm there)";
@@ -280,8 +307,10 @@ ToolSpec parse_tool(ObjectReader& r) {
     if (const json* holder = r.optional_object("holder")) {
         ObjectReader h(*holder, r.key_path("holder"));
         t.holder.diameter_mm = h.number("diameter_mm");
-        require(t.holder.diameter_mm >= t.diameter_mm && t.holder.diameter_mm <= 500, h.key_path("diameter_mm"),
-                "must be at least the tool diameter and at most 500 mm");
+        require(t.holder.diameter_mm >= 2 * top_radius_mm(t) - 1e-9 && t.holder.diameter_mm <= 500,
+                h.key_path("diameter_mm"),
+                t.taper_deg > 0 ? "must be at least the tapered tool's diameter at the end of its flutes and at most 500 mm"
+                                : "must be at least the tool diameter and at most 500 mm");
         t.holder.length_mm = h.number("length_mm");
         require(t.holder.length_mm > 0 && t.holder.length_mm <= 1000, h.key_path("length_mm"), "must be in (0, 1000] mm");
         h.reject_unknown();
@@ -512,6 +541,7 @@ json tool_json(const ToolSpec& t) {
         if (t.shape == ToolShape::Chamfer) tool["tip_diameter_mm"] = t.tip_diameter_mm;
     } else {
         tool["corner_radius_mm"] = t.corner_radius_mm;
+        if (t.taper_deg > 0) tool["taper_deg"] = t.taper_deg;
     }
     tool["flute_length_mm"] = t.flute_length_mm;
     tool["stickout_mm"] = t.stickout_mm;

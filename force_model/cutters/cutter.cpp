@@ -23,7 +23,8 @@ CutterProfile profile_from_spec(const ToolSpec& tool) {
         case ToolShape::Drill: return cone_profile(tool.diameter_mm, 0, tool.point_angle_deg, tool.flute_length_mm);
         case ToolShape::Chamfer:
             return cone_profile(tool.diameter_mm, tool.tip_diameter_mm, tool.point_angle_deg, tool.flute_length_mm);
-        default: return corner_radius_profile(tool.diameter_mm, corner_radius_mm(tool), tool.flute_length_mm);
+        default:
+            return tapered_end_mill_profile(tool.diameter_mm, corner_radius_mm(tool), tool.taper_deg, tool.flute_length_mm);
     }
 }
 

@@ -4,12 +4,21 @@
 #pragma once
 
 #include "cutters/profile.hpp"
+#include "cutters/taper.hpp"
 
 namespace cutload::force_model {
 
 // end_mill.cpp: flat bottom, corner arc of radius corner_radius_mm, cylinder up to flute_length_mm.
 // Corner radius 0 is a flat end mill, diameter / 2 a ball end mill, anything between a bull nose.
 CutterProfile corner_radius_profile(double diameter_mm, double corner_radius_mm, double flute_length_mm);
+
+// end_mill.cpp: the same family with a tapered flank (Altintas' general end mill with its taper):
+// the corner arc ends where its normal meets the flank's, at taper_deg from the horizontal, and
+// the flank rises at taper_deg to the axis up to flute_length_mm. diameter_mm is the tip's: twice
+// the corner arc's centre radius plus the corner radius (a flat tool's bottom face, a ball's ball).
+// taper_deg 0 is corner_radius_profile exactly.
+CutterProfile tapered_end_mill_profile(double diameter_mm, double corner_radius_mm, double taper_deg,
+                                       double flute_length_mm);
 
 // cone.cpp: a cone tip with the included point angle (118 deg: a twist drill, 90 deg: a spot drill
 // or chamfer mill), starting from a flat of tip_diameter_mm (0: a sharp point) and widening to

@@ -160,3 +160,55 @@ TEST_CASE("cutters: a broken profile is refused, naming the segment", "[cutters]
     CHECK_THROWS_WITH(CutterProfile({ArcSegment{0, 1, 1, 0, 4}}), Catch::Contains("segment 0") && Catch::Contains("arc angles"));
     CHECK_THROWS_AS(CutterProfile({}), std::invalid_argument);
 }
+
+TEST_CASE("cutters: tapered flat, ball and bull end mills widen by tan(taper) per mm from the tip's diameter", "[cutters]") {
+    const double R = 4, L = 20, beta_deg = 3, beta = beta_deg * kPi / 180;
+    SECTION("taper 0 is the untapered profile exactly") {
+        for (double rc : {0.0, 1.5, R}) {
+            const CutterProfile a = corner_radius_profile(2 * R, rc, L), b = tapered_end_mill_profile(2 * R, rc, 0, L);
+            REQUIRE(a.segments().size() == b.segments().size());
+            const ToolGeometry ga = build_tool_geometry(cutter_of(a), 0.1), gb = build_tool_geometry(cutter_of(b), 0.1);
+            CHECK(ga.edges.r_mm == gb.edges.r_mm);
+            CHECK(ga.edges.z_mm == gb.edges.z_mm);
+            CHECK(ga.edges.nr == gb.edges.nr);
+            CHECK(ga.edges.db_mm == gb.edges.db_mm);
+            CHECK(ga.edges.lag_rad == gb.edges.lag_rad);
+            CHECK(ga.lower_mm == gb.lower_mm);
+        }
+    }
+    SECTION("flat: the flank from the bottom's edge, normal (cos, -sin) of the taper") {
+        const CutterProfile p = tapered_end_mill_profile(2 * R, 0, beta_deg, L);
+        CHECK(p.radius_mm() == Approx(R + L * std::tan(beta)).epsilon(1e-12));
+        CHECK(p.length_mm() == L);
+        const ToolGeometry g = build_tool_geometry(cutter_of(p), 0.1);
+        CHECK(g.edges.bottom_count == 40);
+        for (std::size_t e = std::size_t(g.edges.bottom_count); e < g.edges.size(); ++e) {
+            CHECK(g.edges.r_mm[e] == Approx(R + g.edges.z_mm[e] * std::tan(beta)).epsilon(1e-12));
+            CHECK(g.edges.nr[e] == Approx(std::cos(beta)));
+            CHECK(g.edges.nz[e] == Approx(-std::sin(beta)));
+        }
+        // Edge length of the flank: L / cos(beta).
+        CHECK(sums_below(g.edges, L).length_mm == Approx(R + L / std::cos(beta)).epsilon(1e-12));
+        for (double r : {0.0, 2.0, R}) CHECK(p.lower_surface_mm(r) == 0);
+        CHECK(p.lower_surface_mm(R + 0.5) == Approx(0.5 / std::tan(beta)));
+    }
+    SECTION("ball and bull: the arc meets the flank tangentially") {
+        for (double rc : {1.5, R}) {
+            const CutterProfile p = tapered_end_mill_profile(2 * R, rc, beta_deg, L);
+            const auto& arc = std::get<ArcSegment>(p.segments()[rc < R ? 1 : 0]);
+            CHECK(arc.to_rad == Approx(kPi / 2 - beta));
+            const auto& flank = std::get<LineSegment>(p.segments().back());
+            const ProfilePoint end = arc.at(arc.to_rad);
+            CHECK(flank.from.r_mm == end.r_mm);
+            CHECK(flank.from.z_mm == end.z_mm);
+            CHECK((flank.to.r_mm - flank.from.r_mm) / (flank.to.z_mm - flank.from.z_mm) == Approx(std::tan(beta)));
+            // The flank's line passes the arc's centre at distance rc (tangent), and at z = rc it is
+            // rc / cos(beta) out from the centre.
+            CHECK(tapered_flank_radius_mm(2 * R, rc, beta_deg, rc) == Approx(R - rc + rc / std::cos(beta)).epsilon(1e-12));
+        }
+    }
+    SECTION("refused: a taper of 45 degrees or more is a cone") {
+        CHECK_THROWS_AS(tapered_end_mill_profile(2 * R, 0, 45, L), std::invalid_argument);
+        CHECK_THROWS_AS(tapered_end_mill_profile(2 * R, 0, -1, L), std::invalid_argument);
+    }
+}

@@ -318,3 +318,59 @@ TEST_CASE("run spec: stock corners and the setup offset lie within 100 m of mach
     j["setup"]["offset_mm"] = {-99999, 99999, 0};
     CHECK(error_of(j).empty());
 }
+
+TEST_CASE("run spec: a tapered end mill is named by its half angle, the diameter at its tip", "[spec][tools]") {
+    json j = seed_spec();
+    j["tool"]["taper_deg"] = 3;
+    const auto spec = parse_run_spec(j);
+    CHECK(spec.tool.taper_deg == 3);
+    CHECK(spec.tool.diameter_mm == 8);
+    CHECK(cutload::force_model::to_json(spec)["tool"] == j["tool"]);
+    // Untapered tools are written as before: no taper_deg key.
+    CHECK_FALSE(cutload::force_model::to_json(parse_run_spec(seed_spec()))["tool"].contains("taper_deg"));
+    json zero = seed_spec();
+    zero["tool"]["taper_deg"] = 0;
+    CHECK(cutload::force_model::to_json(parse_run_spec(zero)) == cutload::force_model::to_json(parse_run_spec(seed_spec())));
+    // A tapered ball: the ball's diameter is the tip's.
+    json ball = seed_spec();
+    ball["tool"]["shape"] = "ball";
+    ball["tool"]["corner_radius_mm"] = 4;
+    ball["tool"]["taper_deg"] = 1.5;
+    CHECK(parse_run_spec(ball).tool.taper_deg == 1.5);
+
+    auto with = [&](auto change) {
+        json k = j;
+        change(k);
+        return error_of(k);
+    };
+    CHECK(with([](json& k) { k["tool"]["taper_deg"] = -1; }) ==
+          "tool.taper_deg: must be in [0, 15] degrees per side (the half angle of the flank; 0: no taper)");
+    CHECK(with([](json& k) { k["tool"]["taper_deg"] = 16; }) ==
+          "tool.taper_deg: must be in [0, 15] degrees per side (the half angle of the flank; 0: no taper)");
+    CHECK(with([](json& k) { k["tool"]["taper_deg"] = "3"; }) == "tool.taper_deg: expected a number");
+    // The holder must clear the flutes' top: 8 + 2 x 20 tan(3 deg) = 10.10 mm.
+    CHECK(with([](json& k) { k["tool"]["holder"]["diameter_mm"] = 10; }) ==
+          "tool.holder.diameter_mm: must be at least the tapered tool's diameter at the end of its flutes and at "
+          "most 500 mm");
+    CHECK(with([](json& k) { k["tool"]["holder"]["diameter_mm"] = 10.2; }).empty());
+    // 150 mm tip + 2 x 300 tan(15 deg) = 310.8 mm where the flutes end.
+    CHECK(with([](json& k) {
+              k["tool"]["diameter_mm"] = 150;
+              k["tool"]["taper_deg"] = 15;
+              k["tool"]["flute_length_mm"] = 300;
+              k["tool"]["stickout_mm"] = 400;
+              k["tool"].erase("holder");
+          }).rfind("tool.flute_length_mm: with taper_deg 15 the flutes end at a diameter of 310.7", 0) == 0);
+    CHECK(with([](json& k) {
+              k["tool"] = {{"shape", "drill"}, {"diameter_mm", 8},      {"flutes", 2},      {"helix_deg", 30},
+                           {"point_angle_deg", 118}, {"taper_deg", 2}, {"flute_length_mm", 20}, {"stickout_mm", 30}};
+          }) == "tool.taper_deg: only for a flat, ball or bull end mill (a drill's or chamfer tool's cone is point_angle_deg)");
+    // In a tool table too, named by entry.
+    json table = seed_spec();
+    json entry = table["tool"];
+    entry["number"] = 7;
+    entry["taper_deg"] = 20;
+    table.erase("tool");
+    table["tools"] = json::array({entry});
+    CHECK(error_of(table).rfind("tools[0].taper_deg: must be in [0, 15] degrees per side", 0) == 0);
+}
