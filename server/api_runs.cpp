@@ -1,6 +1,7 @@
 // Routes: /api/v1/runs (upload + queue, list, get, delete, cancel) and the result queries
 // (blocks, forces, motion) with window decimation and CSV.
 #include "app/ingest.hpp"
+#include "app/library_tools.hpp"
 #include "app/program_source.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
@@ -134,7 +135,7 @@ struct Resolved {
     std::optional<std::int64_t> machine_id, tool_id, material_id;
 };
 
-// Inlines library references (tool_id, material_id) and fills limits the spec leaves at 0 from
+// Inlines library references (tool_id, tools[k].tool_id, material_id) and fills limits the spec leaves at 0 from
 // the tool's limits, then the machine's spindle power and torque.
 Resolved resolve_spec(db::Session& s, json spec, const httplib::Request& req) {
     if (!spec.is_object()) throw ApiError(400, "bad_spec", "spec: must be a JSON object");
@@ -151,6 +152,16 @@ Resolved resolve_spec(db::Session& s, json spec, const httplib::Request& req) {
         if (!t) throw ApiError(404, "not_found", fmt::format("tool_id {}: no such tool", *r.tool_id));
         spec["tool"] = (*t)["tool"];
         tool_limits = (*t).value("limits", json::object());
+    }
+    // A tool table's entries may name library tools too: {"number": 11, "tool_id": 3}.
+    try {
+        spec = app::resolve_library_tools(std::move(spec), [&s](std::int64_t id) {
+            return library_body(s, db::LibraryKind::Tool, id);
+        });
+    } catch (const app::UnknownLibraryTool& e) {
+        throw ApiError(404, "not_found", e.what());
+    } catch (const app::InputError& e) {
+        throw ApiError(400, "bad_spec", e.what());
     }
     if (r.material_id) {
         if (spec.contains("material"))

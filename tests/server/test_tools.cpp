@@ -90,3 +90,63 @@ TEST_CASE("runs: a bad tool table is a 400 naming the entry and key") {
     spec["tools"][0]["flutes"] = 0;
     require_error(upload(c, tool_log_csv(), spec), 400, "bad_spec", "tools[0].flutes");
 }
+
+TEST_CASE("runs: a tool table naming library tools by tool_id gives the blocks of the same table inline") {
+    TestServer ts;
+    auto c = ts.admin();
+    const json inline_spec = tool_table_spec();
+    // The two tools of the inline table, stored in the library; T2's force limit is the library
+    // tool's own here, so it reaches the table entry as that tool's limit.
+    auto store = [&](const char* name, json tool, json limits) {
+        tool.erase("number");
+        tool.erase("limits");
+        const json item{{"name", name}, {"tool", tool}, {"limits", limits}};
+        auto r = c.Post("/api/v1/tools", item.dump(), "application/json");
+        REQUIRE(r->status == 201);
+        return body(r)["id"].get<std::int64_t>();
+    };
+    const std::int64_t d8 = store("D8 3-flute", inline_spec["tools"][0], json::object());
+    const std::int64_t d6 = store("D6 slotting", inline_spec["tools"][1], {{"force_N", 5}, {"rapid_feed_mm_min", 15000}});
+    json by_id = inline_spec;
+    by_id["tools"] = {{{"number", 1}, {"tool_id", d8}}, {{"number", 2}, {"tool_id", d6}}};
+
+    auto blocks_of = [&](const json& spec) {
+        auto r = upload(c, tool_log_csv(), spec);
+        REQUIRE(r->status == 202);
+        const auto id = body(r)["id"].get<std::int64_t>();
+        const json run = wait_finished(c, id);
+        REQUIRE(run["state"] == "done");
+        json blocks = body(c.Get(("/api/v1/runs/" + std::to_string(id) + "/blocks").c_str()))["items"];
+        return std::make_pair(run["inputs"]["spec"], blocks);
+    };
+    const auto [spec_inline, blocks_inline] = blocks_of(inline_spec);
+    const auto [spec_by_id, blocks_by_id] = blocks_of(by_id);
+    // The stored spec is the resolved table, the same as written inline (the library's rapid feed
+    // is the machine's and stays out of a tool's limits).
+    CHECK(spec_by_id["tools"] == spec_inline["tools"]);
+    REQUIRE(blocks_inline.size() == 3);
+    REQUIRE(blocks_by_id.size() == blocks_inline.size());
+    for (std::size_t b = 0; b < blocks_inline.size(); ++b) {
+        INFO("block " << blocks_inline[b]["block"]);
+        CHECK(blocks_by_id[b] == blocks_inline[b]);
+    }
+    CHECK(blocks_by_id[1]["peak_force_N"].get<double>() > 10);   // T2 cut, and tripped its library limit
+    CHECK(blocks_by_id[1]["flags"].size() >= 1);
+
+    // An entry's own limits win over the library tool's.
+    json own = by_id;
+    own["tools"][1]["limits"] = {{"force_N", 0}};
+    const auto [spec_own, blocks_own] = blocks_of(own);
+    CHECK(spec_own["tools"][1]["limits"]["force_N"] == 0);
+
+    json unknown = by_id;
+    unknown["tools"][1]["tool_id"] = 999;
+    require_error(upload(c, tool_log_csv(), unknown), 404, "not_found", "tools[1].tool_id: no library tool has id 999");
+    json both = by_id;
+    both["tools"][0]["shape"] = "flat";
+    require_error(upload(c, tool_log_csv(), both), 400, "bad_spec",
+                  "tools[0].tool_id: give either the tool's fields or tool_id, not both (the entry has 'shape')");
+    json text = by_id;
+    text["tools"][0]["tool_id"] = "3";
+    require_error(upload(c, tool_log_csv(), text), 400, "bad_spec", "tools[0].tool_id: must be an integer id");
+}
