@@ -26,7 +26,7 @@ const std::map<std::string, std::string>& titles() {
         {"tool", "Tool"}, {"tools", "Tool table"}, {"number", "T number"},
         {"shape", "Shape"}, {"diameter_mm", "Diameter"}, {"flutes", "Flutes"}, {"helix_deg", "Helix"},
         {"corner_radius_mm", "Corner radius"}, {"point_angle_deg", "Point angle"},
-        {"tip_diameter_mm", "Tip diameter"}, {"flute_length_mm", "Flute length"}, {"stickout_mm", "Stick-out"},
+        {"tip_diameter_mm", "Tip diameter"}, {"taper_deg", "Taper per side"}, {"flute_length_mm", "Flute length"}, {"stickout_mm", "Stick-out"},
         {"holder", "Holder"}, {"holder.diameter_mm", "Holder diameter"}, {"holder.length_mm", "Holder length"},
         {"material", "Material"}, {"name", "Material name"},
         {"Ktc_N_mm2", "Ktc"}, {"Krc_N_mm2", "Krc"}, {"Kac_N_mm2", "Kac"},

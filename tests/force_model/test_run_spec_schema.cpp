@@ -27,6 +27,7 @@ json full_spec(const std::string& shape) {
     if (shape == "flat") tool["corner_radius_mm"] = 0;
     if (shape == "ball") tool["corner_radius_mm"] = 6;
     if (shape == "bull") tool["corner_radius_mm"] = 1.5;
+    if (shape == "flat" || shape == "ball" || shape == "bull") tool["taper_deg"] = 1.5;   // a draft-wall tool
     if (shape == "drill") tool["point_angle_deg"] = 140;
     if (shape == "chamfer") {
         tool["point_angle_deg"] = 90;
@@ -205,6 +206,10 @@ TEST_CASE("run spec schema: shapes, shape-only keys, types, units and titles", "
     CHECK(tool["properties"]["corner_radius_mm"]["x-required-shapes"] == json({"bull"}));
     CHECK_FALSE(tool["properties"]["corner_radius_mm"].contains("x-tool-shapes"));
     CHECK_FALSE(tool["properties"]["diameter_mm"].contains("x-tool-shapes"));
+    CHECK(tool["properties"]["taper_deg"]["x-tool-shapes"] == json({"ball", "bull", "flat"}));
+    CHECK_FALSE(tool["properties"]["taper_deg"].contains("x-required-shapes"));
+    CHECK(tool["properties"]["taper_deg"]["x-unit"] == "deg");
+    CHECK(tool["properties"]["taper_deg"]["title"] == "Taper per side");
     // The same tool fields in the table's items.
     const json& item = s["properties"]["tools"]["items"];
     CHECK(item["properties"]["point_angle_deg"]["x-tool-shapes"] == json({"chamfer", "drill"}));
