@@ -186,12 +186,6 @@ constexpr std::pair<const char*, ToolShape> kShapes[] = {{"flat", ToolShape::Fla
                                                          {"drill", ToolShape::Drill},
                                                          {"chamfer", ToolShape::Chamfer}};
 
-std::vector<std::string> shape_names() {
-    std::vector<std::string> names;
-    for (const auto& [name, shape] : kShapes) names.emplace_back(name);
-    return names;
-}
-
 ToolShape parse_shape(const std::string& s, const std::string& path) {
     for (const auto& [name, shape] : kShapes)
         if (s == name) return shape;
@@ -222,7 +216,7 @@ double top_radius_mm(const ToolSpec& t) {
 
 ToolSpec parse_tool(ObjectReader& r) {
     ToolSpec t;
-    t.shape = parse_shape(r.string("shape", shape_names()), r.key_path("shape"));
+    t.shape = parse_shape(r.string("shape", tool_shape_names()), r.key_path("shape"));
     t.diameter_mm = r.number("diameter_mm");
     require(t.diameter_mm > 0 && t.diameter_mm <= 200, r.key_path("diameter_mm"), "must be in (0, 200] mm");
     const double R = t.diameter_mm / 2;
@@ -435,6 +429,12 @@ Resolution parse_resolution(ObjectReader& r) {
 }
 
 }  // namespace
+
+std::vector<std::string> tool_shape_names() {
+    std::vector<std::string> names;
+    for (const auto& [name, shape] : kShapes) names.emplace_back(name);
+    return names;
+}
 
 RunSpec parse_run_spec(const json& j) {
     ObjectReader root(j, "");

@@ -19,4 +19,7 @@ struct KeyRead {
 // or looked for, in order, including optional ones the spec leaves out.
 std::vector<KeyRead> keys_read(const nlohmann::json& spec);
 
+// The tool shapes the parser accepts ("flat", "ball", ...), in its order.
+std::vector<std::string> tool_shape_names();
+
 }  // namespace cutload::force_model

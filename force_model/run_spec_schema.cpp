@@ -157,10 +157,11 @@ json& parent_of(json& root, const std::vector<std::string>& parts) {
 }  // namespace
 
 nlohmann::json run_spec_schema() {
-    static const char* shapes[] = {"flat", "ball", "bull", "drill", "chamfer"};
+    const std::vector<std::string> shapes = tool_shape_names();
     std::map<std::string, Merged> keys;
     std::size_t order = 0;
-    for (const char* shape : shapes) {
+    for (const std::string& name : shapes) {
+        const char* shape = name.c_str();
         for (const KeyRead& r : keys_read(reference_spec(shape))) {
             auto [it, fresh] = keys.try_emplace(r.path);
             Merged& m = it->second;
@@ -185,11 +186,11 @@ nlohmann::json run_spec_schema() {
         json leaf = leaf_schema(key, m);
         leaf["title"] = title_of(parts);
         const bool tool_key = parts.size() >= 2 && (parts[0] == "tool" || parts[0] == "tools[]");
-        if (tool_key && m.shapes.size() < std::size(shapes))
+        if (tool_key && m.shapes.size() < shapes.size())
             leaf["x-tool-shapes"] = std::vector<std::string>(m.shapes.begin(), m.shapes.end());
         // Required for some shapes only (a bull's corner radius, a cone's point angle): JSON
         // Schema's required list cannot say so.
-        const bool some_shapes = tool_key && !m.required_shapes.empty() && m.required_shapes.size() < std::size(shapes);
+        const bool some_shapes = tool_key && !m.required_shapes.empty() && m.required_shapes.size() < shapes.size();
         if (some_shapes)
             leaf["x-required-shapes"] = std::vector<std::string>(m.required_shapes.begin(), m.required_shapes.end());
         json& slot = parent["properties"][key];
@@ -197,7 +198,7 @@ nlohmann::json run_spec_schema() {
         if (slot.is_object() && slot.contains("properties")) leaf["properties"] = slot["properties"];
         if (slot.is_object() && slot.contains("items") && leaf.contains("items")) leaf["items"].update(slot["items"]);
         slot = leaf;
-        if (m.required && m.shapes.size() == std::size(shapes)) parent["required"].push_back(key);
+        if (m.required && m.shapes.size() == shapes.size()) parent["required"].push_back(key);
     }
     root["title"] = "Run spec";
     root["description"] =
