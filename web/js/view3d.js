@@ -84,14 +84,24 @@ function toolMeshes(tool) {
     pts.push(new THREE.Vector2(r, Math.min(profile(r), Math.max(R, tool.flute_length_mm || R))));
   }
   const stickout = tool.stickout_mm || tool.flute_length_mm || 4 * R;
-  pts.push(new THREE.Vector2(R, stickout));
+  // A tapered end mill (diameter_mm at the tip) widens along its flutes from the top of its
+  // end profile; drawn as a straight flank (the corner's tangent blend is not drawn).
+  const tanTaper = Math.tan(((tool.taper_deg || 0) * Math.PI) / 180);
+  let rTop = R;
+  if (tanTaper > 0) {
+    const z0 = pts[pts.length - 1].y;
+    const flute = Math.max(z0, tool.flute_length_mm || stickout);
+    rTop = R + (flute - z0) * tanTaper;
+    pts.push(new THREE.Vector2(rTop, flute));
+  }
+  pts.push(new THREE.Vector2(rTop, stickout));
   pts.push(new THREE.Vector2(0, stickout));
   const cutter = new THREE.LatheGeometry(pts, 24);
   cutter.rotateX(Math.PI / 2);   // lathe axis y -> z
   const group = new THREE.Group();
   group.add(new THREE.Mesh(cutter, litMaterial(cutter, 0x52525b)));
   const flute = tool.flute_length_mm || stickout;
-  const band = new THREE.CylinderGeometry(R * 1.01, R * 1.01, 0.6, 24, 1, true);
+  const band = new THREE.CylinderGeometry(rTop * 1.01, rTop * 1.01, 0.6, 24, 1, true);
   band.rotateX(Math.PI / 2);
   band.translate(0, 0, flute);
   group.add(new THREE.Mesh(band, new THREE.MeshBasicMaterial({ color: 0xf59e0b })));
