@@ -27,6 +27,7 @@ class AlertRepository;
 class WebhookRepository;
 class ApiKeyRepository;
 class JobRepository;
+class LiveRunRepository;
 
 // A failed store operation. Constraint: the store refused the change (a unique name, a foreign
 // key, a check); a caller may answer it as a conflict. Busy: another writer held the store for
@@ -55,6 +56,7 @@ public:
     virtual WebhookRepository& webhooks() = 0;
     virtual ApiKeyRepository& api_keys() = 0;
     virtual JobRepository& jobs() = 0;
+    virtual LiveRunRepository& live() = 0;
 
     // Gives the space that deletions freed back to the file system and empties the write-ahead
     // log, so a DELETE shrinks what the store takes on disk. Outside any transaction; takes the

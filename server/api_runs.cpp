@@ -5,6 +5,7 @@
 #include "app/program_source.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
+#include "spec_refs.hpp"
 #include "db/optimizations.hpp"
 #include "db/runs.hpp"
 #include "durable_file.hpp"
@@ -59,6 +60,11 @@ json run_json(const db::RunRecord& r) {
                {"blocks", fmt::format("/api/v1/runs/{}/blocks", id)},
                {"forces", fmt::format("/api/v1/runs/{}/forces", id)},
                {"motion", fmt::format("/api/v1/runs/{}/motion", id)}}}};
+    // A live run (docs/live.md) runs from its start until it closes: 'live' rather than 'running'.
+    if (run["inputs"].is_object() && run["inputs"].contains("live")) {
+        if (r.state == db::JobState::Running) run["state"] = "live";
+        run["links"]["live"] = fmt::format("/api/v1/live/{}", id);
+    }
     if (run["inputs"].is_object() && run["inputs"].contains("nc_program")) {
         run["links"]["program"] = fmt::format("/api/v1/runs/{}/program", id);
         run["links"]["optimizations"] = fmt::format("/api/v1/runs/{}/optimizations", id);
@@ -130,13 +136,10 @@ std::optional<std::int64_t> id_from(const json& spec, const httplib::Request& re
     return id;
 }
 
-struct Resolved {
-    json spec;   // canonical (force_model::to_json) after references are inlined
-    std::optional<std::int64_t> machine_id, tool_id, material_id;
-};
+}  // namespace
 
-// Inlines library references (tool_id, tools[k].tool_id, material_id) and fills limits the spec leaves at 0 from
-// the tool's limits, then the machine's spindle power and torque.
+// resolve_spec (spec_refs.hpp): inlines library references (tool_id, tools[k].tool_id, material_id)
+// and fills limits the spec leaves at 0 from the tool's limits, then the machine's spindle power and torque.
 Resolved resolve_spec(db::Session& s, json spec, const httplib::Request& req) {
     if (!spec.is_object()) throw ApiError(400, "bad_spec", "spec: must be a JSON object");
     Resolved r;
@@ -190,6 +193,8 @@ Resolved resolve_spec(db::Session& s, json spec, const httplib::Request& req) {
     r.spec = force_model::to_json(parsed);
     return r;
 }
+
+namespace {
 
 std::string log_extension(const std::string& filename) {
     static const std::regex ok(R"(\.(csv|txt|shdr|log))", std::regex::icase);

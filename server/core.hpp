@@ -20,6 +20,7 @@
 namespace cutload::server {
 
 class Jobs;
+class LiveRuns;
 class Webhooks;
 
 // One request to a declared route, its parameters checked (route.hpp).
@@ -66,6 +67,7 @@ struct Core {
     SeriesCache series_cache;
     std::unique_ptr<Jobs> jobs;
     std::unique_ptr<Webhooks> hooks;
+    std::unique_ptr<LiveRuns> live;
     std::vector<RouteSpec> routes;
     std::string openapi;   // the document served, built from `routes` once all are declared
     int lock_fd = -1;
@@ -107,5 +109,6 @@ void add_calibration_routes(Core& c);
 void add_alert_routes(Core& c);
 void add_misc_routes(Core& c);
 void add_view_routes(Core& c);
+void add_live_routes(Core& c);
 
 }  // namespace cutload::server

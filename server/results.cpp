@@ -111,6 +111,8 @@ std::optional<double> metric_value(const std::string& metric, const force_model:
 // Flags that mean a collision rather than a load over its limit: their alerts are critical.
 bool collision_flag(const std::string& flag) { return flag == "rapid_in_material" || flag == "holder_contact"; }
 
+}  // namespace
+
 // Evaluates every enabled threshold that applies to this run; inserts alerts and deliveries.
 // `limit_alerts`: a run whose blocks the engine flagged against the run's own limits raises an
 // alert of its own (threshold_id null, "run limits") for the flags that no enabled flag threshold
@@ -199,6 +201,8 @@ int raise_alerts(db::Session& s, std::int64_t run_id, const force_model::Predict
     return raised;
 }
 
+namespace {
+
 json summary_json(const force_model::Prediction& p, double final_volume_mm3) {
     double peak_f = 0, peak_t = 0, peak_p = 0, chip = 0, bend = 0, removed = 0;
     std::size_t flagged = 0;
@@ -265,9 +269,12 @@ json load_alert(db::Session& s, std::int64_t alert_id) {
     return a ? alert_json(*a) : json(nullptr);
 }
 
-int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts, const std::atomic<bool>* cancel) {
+namespace {
+
+// store_result and store_live_result: `alerts_raised` set means the alerts were raised already.
+int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion, const force_model::Prediction& p,
+              const std::string* stock_bytes, const ProgramResult* program, bool limit_alerts,
+              std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel) {
     db::Transaction tx(s);
     // Cancelled or deleted while computing: nothing to store.
     const auto status = s.runs().status(run_id);
@@ -280,10 +287,11 @@ int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionMod
     }
     write_series(runs, run_id, SeriesId::Forces, force_series(p));
     write_series(runs, run_id, SeriesId::Motion, motion_series(motion));
-    runs.set_final_stock(run_id, stock_bytes);
-    const int alerts = raise_alerts(s, run_id, p, limit_alerts);
+    if (stock_bytes) runs.set_final_stock(run_id, *stock_bytes);
+    const int alerts = alerts_raised ? *alerts_raised : raise_alerts(s, run_id, p, limit_alerts);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0);
     summary["alerts"] = alerts;
+    if (live) summary["live"] = *live;
     std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;
     if (program) {
         // The commanded series names its blocks in the run's list, so one block_names serves both.
@@ -311,6 +319,22 @@ int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionMod
     if (cancel && cancel->load()) throw force_model::Cancelled();   // the transaction rolls back
     tx.commit();
     return alerts;
+}
+
+}  // namespace
+
+int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
+                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
+                 bool limit_alerts, const std::atomic<bool>* cancel) {
+    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel);
+}
+
+json block_summary_json(std::size_t idx, const force_model::BlockSummary& b) { return block_json(idx, b); }
+
+int store_live_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
+                      const force_model::Prediction& p, const std::string* stock_bytes, int alerts_raised,
+                      const json& live) {
+    return store_run(s, run_id, motion, p, stock_bytes, nullptr, false, alerts_raised, &live, nullptr);
 }
 
 }  // namespace cutload::server

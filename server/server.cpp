@@ -7,6 +7,7 @@
 #include "gzip.hpp"
 #include "http_guard.hpp"
 #include "jobs.hpp"
+#include "live_runs.hpp"
 #include "webhooks.hpp"
 
 #include "textio/text.hpp"
@@ -354,6 +355,9 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
     c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
     c.jobs = std::make_unique<Jobs>(*c.store, JobPoolOptions{c.opt.workers, c.opt.max_attempts}, c.metrics,
                                     service_job_kinds(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); }));
+    // Before the job workers start: they would re-queue the 'running' runs a dead process left.
+    c.live = std::make_unique<LiveRuns>(*c.store, c.opt, [&c] { c.hooks->notify(); });
+    c.live->recover();
 
     GateLimits limits;
     limits.threads = std::max(4, c.opt.http_threads);
@@ -433,6 +437,7 @@ void Server::stop() {
         c.http.stop();
         if (c.listener.joinable()) c.listener.join();
     }
+    c.live->stop_all();   // each live run closes as a finished run
     c.jobs->stop(c.opt.drain_s);
     c.hooks->stop();
     {
@@ -465,6 +470,7 @@ void add_all_routes(Core& c) {
     add_alert_routes(c);
     add_misc_routes(c);
     add_view_routes(c);
+    add_live_routes(c);
 }
 
 const std::string& openapi_json() {

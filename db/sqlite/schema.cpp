@@ -188,7 +188,43 @@ CREATE INDEX optimizations_by_state ON optimizations(state, id);
 CREATE INDEX optimizations_by_run ON optimizations(run_id, id);
 )SQL";
 
-constexpr std::array<const char*, 3> kMigrations{kV1, kV2, kV3};
+// Live runs (issue 16): what the run page follows while the machine runs. The run's results are
+// written as any run's when it closes, and these rows go in the same transaction.
+constexpr const char* kV4 = R"SQL(
+CREATE TABLE live_runs (
+  run_id INTEGER PRIMARY KEY REFERENCES runs(id) ON DELETE CASCADE,
+  source TEXT NOT NULL,            -- JSON: source address, key map, options
+  open INTEGER NOT NULL DEFAULT 1,
+  connection TEXT NOT NULL DEFAULT 'connecting',
+  lag_ms REAL NOT NULL DEFAULT 0,
+  machine_t_s REAL NOT NULL DEFAULT 0,
+  rows INTEGER NOT NULL DEFAULT 0,
+  gaps TEXT NOT NULL DEFAULT '[]', -- JSON: [{t_s, gap_s, message}]
+  block_names TEXT NOT NULL DEFAULT '[]',   -- JSON: names of the block indices in the chunks
+  alerts INTEGER NOT NULL DEFAULT 0,
+  end_reason TEXT,
+  updated_at TEXT NOT NULL
+);
+CREATE INDEX live_runs_open ON live_runs(open, run_id);
+CREATE TABLE live_chunks (
+  run_id INTEGER NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+  seq INTEGER NOT NULL,
+  t0_s REAL NOT NULL,
+  t1_s REAL NOT NULL,
+  n INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  PRIMARY KEY (run_id, seq)
+);
+CREATE TABLE live_blocks (
+  run_id INTEGER NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+  idx INTEGER NOT NULL,
+  body TEXT NOT NULL,
+  flagged INTEGER NOT NULL,
+  PRIMARY KEY (run_id, idx)
+);
+)SQL";
+
+constexpr std::array<const char*, 4> kMigrations{kV1, kV2, kV3, kV4};
 
 int user_version(Connection& c) {
     auto st = c.prepare("PRAGMA user_version");

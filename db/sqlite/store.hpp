@@ -6,6 +6,7 @@
 #include "db/api_keys.hpp"
 #include "db/jobs.hpp"
 #include "db/library.hpp"
+#include "db/live.hpp"
 #include "db/optimizations.hpp"
 #include "db/runs.hpp"
 #include "db/store.hpp"
@@ -165,6 +166,24 @@ private:
     Connection& c_;
 };
 
+class LiveRuns final : public LiveRunRepository {
+public:
+    explicit LiveRuns(Connection& c) : c_(c) {}
+    std::int64_t create(const NewRun& run, const std::string& source_json) override;
+    std::optional<LiveRecord> get(std::int64_t run_id) override;
+    std::vector<std::int64_t> open_runs() override;
+    void update_status(std::int64_t run_id, const LiveStatusUpdate& u) override;
+    std::int64_t add_chunk(std::int64_t run_id, double t0_s, double t1_s, std::int64_t n,
+                           std::span<const unsigned char> data) override;
+    std::vector<LiveChunk> chunks(std::int64_t run_id, std::int64_t after_seq, std::int64_t limit) override;
+    void add_block(std::int64_t run_id, std::int64_t idx, const std::string& body_json, bool flagged) override;
+    std::vector<BlockRow> blocks(std::int64_t run_id, std::int64_t from_idx) override;
+    void close(std::int64_t run_id, const std::string& end_reason, const std::string& now) override;
+
+private:
+    Connection& c_;
+};
+
 class SqliteSession final : public Session {
 public:
     explicit SqliteSession(const std::string& path) : path_(path), c_(path) {}
@@ -176,6 +195,7 @@ public:
     WebhookRepository& webhooks() override { return webhooks_; }
     ApiKeyRepository& api_keys() override { return api_keys_; }
     JobRepository& jobs() override { return jobs_; }
+    LiveRunRepository& live() override { return live_; }
     Footprint reclaim_space() override;
     Connection& connection() { return c_; }
 
@@ -195,6 +215,7 @@ private:
     Webhooks webhooks_{c_};
     ApiKeys api_keys_{c_};
     Jobs jobs_{c_};
+    LiveRuns live_{c_};
 };
 
 // The table of a job queue, for SQL text: the queue's name, checked to be a plain identifier

@@ -4,13 +4,43 @@
 #include "engine/rows.hpp"
 #include "force_model/force_model.hpp"
 
+#include <cstdint>
+#include <string>
 #include <vector>
 
 namespace cutload::force_model {
+
+// One block's summary built up row by row: the only place its figures and flags are worked out,
+// whether a whole run's rows are summarised at once (predict) or a live run's arrive in batches
+// (streaming), so a block split across batches ends with the same summary as in one piece.
+class BlockAccumulator {
+public:
+    BlockAccumulator(std::string name, double t_s);
+    // A motion sample of the block: its time span is that of its samples.
+    void add_motion(double t_s);
+    // `limits`: by the row's cutter slot (RowExtra::slot); slot -1 flags unknown_tool.
+    void add_row(const ForceSample& s, const RowExtra& x, const std::vector<Limits>& limits);
+    // The summary so far: mean over the cutting rows, the tool that cut most of its rows.
+    BlockSummary summary() const;
+    double t_end_s() const { return b_.t_end_s; }
+
+private:
+    struct ToolCount {
+        std::int32_t tool;
+        std::size_t rows;
+    };
+    BlockSummary b_;
+    double force_sum_N_ = 0;
+    std::size_t cutting_rows_ = 0;
+    std::vector<ToolCount> tools_;   // cutting rows per T number (a block rarely sees more than one)
+};
 
 // `limits`: by the rows' cutter slot (RowExtra::slot; the tool's own limits over the run's). Rows of
 // an unknown tool (slot -1) flag unknown_tool.
 std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
                                            const std::vector<RowExtra>& extra, const std::vector<Limits>& limits);
+
+// The name a block index is summarised under ("(none)" for rows without a block).
+std::string block_name(const std::vector<std::string>& block_names, std::int32_t block);
 
 }  // namespace cutload::force_model

@@ -59,6 +59,23 @@ void Engine::use_tool(std::int32_t slot, std::int32_t number) {
     rows_.use_tool(slot, number, tool_->shank_diameter_mm);
 }
 
+void Engine::walk(std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i + 1 < to; ++i) {
+        current_interval_ = i;
+        walk_interval(i);
+    }
+}
+
+void Engine::settle() {
+    flush_batch();
+    complete();
+}
+
+void Engine::end_session() {
+    flush_batch();
+    remove_all_pending();
+}
+
 void Engine::walk_interval(std::size_t i) {
     if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
     if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)

@@ -29,6 +29,15 @@ public:
     // Walks the whole motion model; every batch and every removal is complete on return.
     void run();
 
+    // Streaming (a live run, force_model/streaming.hpp): the motion model grows between calls.
+    // walk(from, to) walks the intervals between samples from .. to - 1 (one session); settle()
+    // flushes the batch being gathered and completes it, so every row so far is final, the stock
+    // lag kept; end_session() also removes the whole pending path (the next samples start a new
+    // session).
+    void walk(std::size_t from, std::size_t to);
+    void settle();
+    void end_session();
+
     RowTable& rows() { return rows_; }
     std::size_t steps() const { return steps_; }   // angle steps evaluated
 

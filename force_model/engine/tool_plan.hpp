@@ -32,6 +32,18 @@ struct ToolPlan {
     std::int32_t number_at(std::size_t i) const { return number.empty() ? -1 : number[i]; }
     // The slot of the first sample that has a cutter (0 when none has).
     std::int32_t first_slot() const;
+
+    // Appends the next sample's slot and number from its T number (-1: it names none). How
+    // plan_tools() fills the per-sample lists, and how a live run's plan grows with its motion.
+    void append(std::int32_t t);
+
+    // How append() maps T numbers (set by plan_tools / single_cutter_plan).
+    bool one_cutter = true;                        // slot 0 throughout; rows carry the sample's T number
+    std::int32_t unnamed_slot = 0, unnamed_number = -1;   // a sample naming no tool
+    std::vector<std::int32_t> table_numbers;       // T number of each table slot
+
+private:
+    std::int32_t last_number_ = -2, last_slot_ = -1;   // runs of one tool are long: the last lookup
 };
 
 // From the run spec (its tool, its table) and the motion's tool channel.

@@ -124,12 +124,13 @@ TEST_CASE("keys: a schema 1 database upgrades in place and keeps its keys") {
     const std::string db = (dir.path() / "old.db").string();
     const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Write, "old");
     {
-        // Back to schema 1: api_keys without last_used_at (v2), no program tables (v3).
+        // Back to schema 1: api_keys without last_used_at (v2), no program tables (v3), no live tables (v4).
         sqlite3* h = nullptr;
         REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
         REQUIRE(sqlite3_exec(h,
                              "ALTER TABLE api_keys DROP COLUMN last_used_at; DROP TABLE run_program; "
-                             "DROP TABLE optimizations; PRAGMA user_version=1",
+                             "DROP TABLE optimizations; DROP TABLE live_blocks; DROP TABLE live_chunks; DROP TABLE live_runs; "
+                             "PRAGMA user_version=1",
                              nullptr, nullptr, nullptr) == SQLITE_OK);
         sqlite3_close(h);
     }

@@ -92,6 +92,9 @@ export const api = {
   createRun: (form) => request('POST', 'runs', { form }),
   deleteRun: (id) => request('DELETE', `runs/${id}`),
   cancelRun: (id) => request('POST', `runs/${id}/cancel`),
+  // A live run (docs/live.md): state, force rows after `after`, blocks from `from_block`.
+  live: (id, query, signal) => request('GET', `live/${id}`, { query, signal }),
+  stopLive: (id) => request('POST', `live/${id}/stop`),
   blocks: (id) => all(`runs/${id}/blocks`, {}, 10000),
   // window: {from_s, to_s, max_points}; decimated answers carry min/max per bucket.
   forces: (id, window, signal) => request('GET', `runs/${id}/forces`, { query: window, signal }),

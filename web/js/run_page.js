@@ -7,6 +7,7 @@
 import { api } from './api.js';
 import { h, clear, num, seconds, when, download, statusLine, errorText, lowerBound } from './dom.js';
 import { loadLibraries, toolLabel, stateBadge } from './runs.js';
+import { LiveView } from './live_view.js';
 import { ForcePlot } from './force_plot.js';
 import { BlockTable, withComparison } from './block_table.js';
 import { programSection, optimizePanel } from './program.js';
@@ -514,6 +515,7 @@ export async function renderRun(main, id) {
   let stopped = false;
   let timer = 0;
   let shown = false;
+  let live = null;   // the live view while the run is live
 
   const action = (label, fn) => h('button', {
     type: 'button',
@@ -545,15 +547,34 @@ export async function renderRun(main, id) {
     setTitle(`Run #${id}${run.name ? ` ${run.name}` : ''}${run.state === 'done' ? (flagged ? ` (${flagged} flagged)` : '') : ` (${run.state})`}`);
     badge.replaceChildren(stateBadge(run));
     clear(metaBox, meta(run, lib));
-    const active = run.state === 'queued' || run.state === 'running';
+    const isLive = run.state === 'live';
+    const active = run.state === 'queued' || run.state === 'running' || isLive;
     clear(actions,
-      active ? action('Cancel', async () => { await api.cancelRun(id); clearTimeout(timer); poll(); }) : null,
+      isLive ? action('Stop', async () => { await api.stopLive(id); }) : null,
+      active && !isLive ? action('Cancel', async () => { await api.cancelRun(id); clearTimeout(timer); poll(); }) : null,
       !active ? action('Delete', async () => {
         if (!window.confirm(`Delete run #${id} and its results?`)) return;
         await api.deleteRun(id);
         location.hash = '#/runs';
       }) : null);
-    progressBox.hidden = !active;
+    progressBox.hidden = !active || isLive;
+    if (isLive) {
+      if (!live) {
+        live = new LiveView(id);
+        body.prepend(live.el);
+        disposers.push(() => live && live.dispose());
+      }
+      try {
+        await live.poll();
+      } catch (e) {
+        errorBox.hidden = false;
+        errorBox.textContent = errorText(e);
+      }
+    } else if (live) {
+      live.el.remove();
+      live.dispose();
+      live = null;
+    }
     if (run.state === 'queued') {
       progress.removeAttribute('value');
       progressLabel.textContent = 'Queued: waiting for a worker';
