@@ -86,6 +86,7 @@ struct LiveRun::Impl : motion_io::MotionConsumer {
         co.step_ms = opt.step_ms;
         co.event_driven = !opt.polled;
         co.clock_batch_readings = opt.clock_batch_readings;
+        co.reorder_horizon_s = opt.reorder_horizon_s;
         co.source = "live";
         chain = std::make_unique<motion_io::IngestChain>(co, *this);
         try {

@@ -33,6 +33,10 @@ struct LiveOptions {
     // rate (a controller export replayed, e.g. `cutload replay` of a CSV log).
     bool polled = false;
     std::size_t clock_batch_readings = 1024;   // polled only: less is less latency (docs/ingest.md)
+    // How far back a reading may arrive out of time order and still be put in order; every
+    // reading waits this long (an adapter or agent sends in order: the default keeps 0.1 s for
+    // stragglers between channels, against 1 s for files).
+    double reorder_horizon_s = 0.1;
     double step_ms = 1.0;                       // motion grid
     std::chrono::milliseconds idle_timeout{std::chrono::minutes(5)};   // 0: never
     const force_model::Stock* base_stock = nullptr;

@@ -50,6 +50,9 @@ struct IngestChain::Impl {
         s.step_s = opt.step_ms * 1e-3;
         s.event_driven = opt.event_driven;
         s.clock.batch_readings = std::max<std::size_t>(opt.clock_batch_readings, 1);
+        if (!(opt.reorder_horizon_s >= 0 && opt.reorder_horizon_s <= 60))
+            throw IngestError(fmt::format("reorder horizon must be from 0 to 60 s, got {}", opt.reorder_horizon_s));
+        s.limits.reorder_horizon_s = opt.reorder_horizon_s;
         chain = detail::make_ingest_chain(diag, sink, s);
     }
     detail::Diagnostics diag;

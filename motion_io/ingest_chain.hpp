@@ -22,6 +22,10 @@ struct ChainOptions {
     // Polled sources: readings the CNC clock times at once. Lower (e.g. 64) for less latency;
     // see docs/ingest.md. Event-driven sources give the same grid at any value.
     std::size_t clock_batch_readings = 1024;
+    // Readings up to this much older than the newest are put back in time order (a larger jump
+    // back starts a session). Each reading waits this long for stragglers, so it is the chain's
+    // least latency: 1 s for files (ingest()'s value), less for a live source that sends in order.
+    double reorder_horizon_s = 1.0;
 };
 
 // Receives the grid. Samples are in time order within a session; a session starts after a jump

@@ -107,6 +107,7 @@ void create_live(Core& c, Ctx& x) {
     opt.step_ms = number_in(body, "step_ms", 1.0, 0.01, 1000);
     opt.idle_timeout = std::chrono::milliseconds(std::llround(1000 * number_in(body, "idle_timeout_s", 300, 0, 86400)));
     opt.clock_batch_readings = std::size_t(number_in(body, "clock_batch_readings", 64, 16, 1024));
+    opt.reorder_horizon_s = number_in(body, "reorder_horizon_s", 0.1, 0, 1);
     opt.device = force_model::Device::Cpu;   // one live run must not hold the OpenCL device from the jobs
     for (const char* k : {"name", "program"})
         if (body.contains(k) && !body[k].is_string()) bad_request(fmt::format("{}: must be text", k));

@@ -51,7 +51,10 @@ void ClockRecovery::record(const Record& r) {
     read.t_s = r.t_s;
     std::copy(r.v, r.v + 3, read.p_mm);
     pending_.push_back(read);
-    if (pending_.size() >= limits_.batch_readings) process_batch(false);
+    // Without a grid a reading's time is its own stamp, so batching would only delay it (a live
+    // source's lag); the one-reading look-ahead stays.
+    const std::size_t batch = event_driven_ ? 2 : limits_.batch_readings;
+    if (pending_.size() >= batch) process_batch(false);
 }
 
 void ClockRecovery::end_session(SessionSummary& s) {

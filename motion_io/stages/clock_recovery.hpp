@@ -13,8 +13,8 @@ struct ClockLimits {
     // Readings timed together. Each batch's phase chunks (64 readings) start at its first
     // reading; a smaller batch lowers the latency of a live source at the price of other chunk
     // boundaries (ticks then differ from the file's by microseconds). The period is estimated
-    // from the first 1024 readings at any batch size. Event-driven sources have no grid, and
-    // there the batch size changes nothing.
+    // from the first 1024 readings at any batch size. Event-driven sources have no grid: each
+    // reading is passed on as soon as its successor arrives, whatever the batch size.
     std::size_t batch_readings = 1024;
 };
 
