@@ -94,9 +94,9 @@ TEST_CASE("live_run: the demo replayed at 10x gives the offline forces, blocks a
 
     CHECK(live.end == app::LiveEnd::Idle);
     CHECK(live.gaps.empty());
-    // 14.9 s of log at 10x: about 1.5 s of playing, plus the idle time that closed it.
+    // 14.9 s of log at 10x: at least about 1.5 s of playing (it was paced, not dumped at once). No
+    // upper bound: on a loaded machine the engine may fall behind; bench_live measures the lag.
     CHECK(wall_s > 1.3);
-    CHECK(wall_s < 8);
     REQUIRE(live.force_rows == rows.size());
     REQUIRE(rows.size() > 1000);
 
