@@ -166,6 +166,14 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
         throw std::invalid_argument(fmt::format("feed range {}..{} mm/min is empty", o.min_feed_mm_min, max_feed));
     if (o.max_predictions < 2) throw std::invalid_argument("max_predictions must be >= 2");
     if (!(o.feed_step_mm_min >= 0)) throw std::invalid_argument("feed_step_mm_min must be >= 0");
+    // The lowest feed a changed block may get: the minimum, raised to the step when there is one
+    // (a shop's 50 mm/min step never states 10 mm/min).
+    const double min_feed = o.feed_step_mm_min > 0
+                                ? std::ceil(o.min_feed_mm_min / o.feed_step_mm_min - 1e-9) * o.feed_step_mm_min
+                                : o.min_feed_mm_min;
+    if (!(min_feed < max_feed))
+        throw std::invalid_argument(fmt::format("feed range {}..{} mm/min is empty at a step of {} mm/min", min_feed, max_feed,
+                                                o.feed_step_mm_min));
 
     std::vector<Unit> units;
     std::map<std::string, std::size_t> unit_of;
@@ -186,8 +194,8 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
     // A feed as the rewritten program will state it: clamped to the range, rounded down to the
     // step (not below the minimum), floored to what an F word can say.
     auto stated_feed = [&](const motion_io::NcBlock& b, double wanted_mm_min) {
-        double f = std::clamp(wanted_mm_min, o.min_feed_mm_min, max_feed);
-        if (o.feed_step_mm_min > 0) f = std::max(o.min_feed_mm_min, std::floor(f / o.feed_step_mm_min + 1e-9) * o.feed_step_mm_min);
+        double f = std::clamp(wanted_mm_min, min_feed, max_feed);
+        if (o.feed_step_mm_min > 0) f = std::max(min_feed, std::floor(f / o.feed_step_mm_min + 1e-9) * o.feed_step_mm_min);
         return motion_io::representable_feed_mm_min(b, f);
     };
     // The unit's effective scale follows its first block; a unit left alone keeps its feeds as
@@ -250,7 +258,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
             const double scale_now = feed / u.programmed_mm_min;
             if (rr <= o.target) u.best_feasible_scale = std::max(u.best_feasible_scale, scale_now);
             const bool at_max = feed >= stated_feed(program.blocks[u.blocks.front()], max_feed) - 1e-9;
-            const bool at_min = feed <= o.min_feed_mm_min + 1.0;   // within one F-word step
+            const bool at_min = feed <= min_feed + 1.0;   // within one F-word step
             u.at_limit = (at_max && rr <= o.target) || (at_min && rr > o.target);
             // One feed step may be wider than the tolerance: landing within a step of it is done.
             const double tol = std::max(o.tolerance, o.feed_step_mm_min / std::max(feed, 1.0));
@@ -279,7 +287,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
                 // machine enters it), so its own history can point upwards even when it is over
                 // the target: a block over it as programmed is only ever slowed.
                 if (u.over_at_programmed || o.never_raise) f = std::min(f, u.programmed_mm_min);
-                u.scale = std::clamp(f, o.min_feed_mm_min, max_feed) / u.programmed_mm_min;
+                u.scale = std::clamp(f, min_feed, max_feed) / u.programmed_mm_min;
             }
         feeds = feeds_for(units);
     }
@@ -292,7 +300,7 @@ FeedOptimization optimize_feeds(const motion_io::NcProgram& program, const motio
             if (!u.cuts || u.fixed) continue;
             const BlockSummary* s = summary(r.after, u.name);
             const double rr = s ? ratio(values_of(*s), u.lim) : 0.0;
-            if (rr > o.target && feeds[u.blocks.front()] > o.min_feed_mm_min + 1.0) {
+            if (rr > o.target && feeds[u.blocks.front()] > min_feed + 1.0) {
                 u.scale *= o.target / rr * (1 - 0.5 * o.tolerance);
                 over = true;
             }

@@ -31,8 +31,8 @@ struct FeedOptimizerOptions {
     bool only_flagged = false;
     // Feeds are only ever lowered: a block under the target keeps its programmed feed.
     bool never_raise = false;
-    // A changed feed is rounded down to a multiple of this (not below min_feed_mm_min), so the
-    // program states feeds a shop would write; 0: only to what an F word can state.
+    // A changed feed is rounded down to a multiple of this (not below min_feed_mm_min rounded up
+    // to it), so the program states feeds a shop would write; 0: only to what an F word can state.
     double feed_step_mm_min = 0;
 };
 

@@ -109,3 +109,32 @@ TEST_CASE("optimizer options: never raising leaves a program under its target as
     CHECK(std::any_of(raised.blocks.begin(), raised.blocks.end(),
                       [](const auto& b) { return b.recommended_feed_mm_min > b.programmed_feed_mm_min; }));
 }
+
+TEST_CASE("optimizer options: a block that no feed clears stops at the minimum raised to the step", "[optimizer]") {
+    CornerCase c = corner_case();
+    const force_model::Prediction base = force_model::predict(c.actual, c.spec, predict_options(c));
+    double peak = 0;
+    for (const auto& b : base.blocks) peak = std::max(peak, b.peak_force_N);
+    // Far below what any feed gives (the edge forces alone exceed it): every cutting block falls to
+    // the lowest feed the options allow.
+    c.spec.limits.force_N = 0.02 * peak;
+    force_model::FeedOptimizerOptions o = options_for(c);
+    o.min_feed_mm_min = 10;
+    o.feed_step_mm_min = 50;
+    const force_model::FeedOptimization r = force_model::optimize_feeds(c.program, c.actual, c.spec, predict_options(c), o);
+    REQUIRE_FALSE(r.blocks.empty());
+    int at_limit = 0;
+    for (const auto& b : r.blocks) {
+        INFO(b.block << ": F" << b.programmed_feed_mm_min << " -> F" << b.recommended_feed_mm_min);
+        if (b.recommended_feed_mm_min == b.programmed_feed_mm_min) continue;
+        // 10 mm/min is not on a 50 mm/min step: the floor is 50.
+        REQUIRE(b.recommended_feed_mm_min >= 50);
+        REQUIRE(std::fmod(b.recommended_feed_mm_min, 50.0) == 0.0);
+        if (b.at_feed_limit) {
+            ++at_limit;
+            REQUIRE(b.recommended_feed_mm_min == 50);
+        }
+    }
+    REQUIRE(at_limit >= 1);
+    CHECK_FALSE(r.target_met);
+}
