@@ -2,6 +2,7 @@
 #include "app/inputs.hpp"
 #include "core.hpp"
 #include "library.hpp"
+#include "live_source.hpp"
 
 #include <fmt/format.h>
 
@@ -32,11 +33,28 @@ void only_keys(const json& body, std::initializer_list<const char*> keys) {
     }
 }
 
+// The machine's live source (docs/live.md): where POST /api/v1/live follows it when a request
+// names the machine and no source. The key map is read when a live run starts.
+json validate_live_source(const json& ls) {
+    if (!ls.is_object()) throw ApiError(400, "bad_request", "live_source: must be an object with adapter, or agent and device");
+    for (const auto& [k, v] : ls.items())
+        if (k != "adapter" && k != "agent" && k != "device" && k != "key_map" && k != "sampling")
+            throw ApiError(400, "bad_request", fmt::format("live_source.{}: unknown key", k));
+    (void)live_source_address(ls, "live_source");
+    if (ls.contains("key_map") && !ls["key_map"].is_object())
+        throw ApiError(400, "bad_request", "live_source.key_map: must be a JSON object (a channel map, docs/formats.md)");
+    if (ls.contains("sampling") && ls["sampling"] != "event" && ls["sampling"] != "polled")
+        throw ApiError(400, "bad_request", "live_source.sampling: must be 'event' or 'polled'");
+    return ls;
+}
+
 json validate_machine(const json& b) {
-    only_keys(b, {"name", "spindle_power_kW", "spindle_torque_Nm", "max_feed_mm_min"});
-    return {{"spindle_power_kW", positive(b, "spindle_power_kW")},
-            {"spindle_torque_Nm", positive(b, "spindle_torque_Nm")},
-            {"max_feed_mm_min", positive(b, "max_feed_mm_min")}};
+    only_keys(b, {"name", "spindle_power_kW", "spindle_torque_Nm", "max_feed_mm_min", "live_source"});
+    json stored = {{"spindle_power_kW", positive(b, "spindle_power_kW")},
+                   {"spindle_torque_Nm", positive(b, "spindle_torque_Nm")},
+                   {"max_feed_mm_min", positive(b, "max_feed_mm_min")}};
+    if (b.contains("live_source")) stored["live_source"] = validate_live_source(b["live_source"]);
+    return stored;
 }
 
 json validate_tool(const json& b) {

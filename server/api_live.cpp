@@ -3,6 +3,8 @@
 // cursor, blocks after an index). docs/api.md, "Live runs".
 #include "core.hpp"
 #include "live_runs.hpp"
+#include "library.hpp"
+#include "live_source.hpp"
 #include "spec_refs.hpp"
 
 #include "db/live.hpp"
@@ -17,46 +19,6 @@
 namespace cutload::server {
 
 namespace {
-
-// "shdr://HOST:PORT", or {"adapter": "HOST:PORT"}, or {"agent": "http://HOST:PORT/PREFIX", "device": "NAME"}.
-std::string source_address(const json& src) {
-    if (src.is_string()) {
-        const std::string s = src.get<std::string>();
-        try {
-            (void)live::open_source(s);   // checks the address; opening connects nothing yet
-        } catch (const live::SourceError& e) {
-            throw ApiError(400, "bad_request", fmt::format("source: {}", e.what()));
-        }
-        return s;
-    }
-    if (!src.is_object()) throw ApiError(400, "bad_request", "source: must be an address or an object with adapter or agent");
-    if (src.contains("adapter")) {
-        if (!src["adapter"].is_string()) throw ApiError(400, "bad_request", "source.adapter: must be HOST:PORT");
-        try {
-            const live::HostPort hp = live::parse_host_port(src["adapter"].get<std::string>(), 7878);
-            // An IPv6 literal is bracketed so the port stays apart from it.
-            const bool v6 = hp.host.find(':') != std::string::npos;
-            return fmt::format("shdr://{}{}{}:{}", v6 ? "[" : "", hp.host, v6 ? "]" : "", hp.port);
-        } catch (const live::SourceError& e) {
-            throw ApiError(400, "bad_request", fmt::format("source.adapter: {}", e.what()));
-        }
-    }
-    if (src.contains("agent")) {
-        if (!src["agent"].is_string()) throw ApiError(400, "bad_request", "source.agent: must be the agent's URL");
-        std::string url = src["agent"].get<std::string>();
-        if (src.contains("device")) {
-            if (!src["device"].is_string() || src["device"].get<std::string>().empty())
-                throw ApiError(400, "bad_request", "source.device: must be the device's name");
-            while (!url.empty() && url.back() == '/') url.pop_back();
-            url.push_back('/');
-            url += src["device"].get<std::string>();
-        }
-        if (url.rfind("http://", 0) != 0 && url.rfind("https://", 0) != 0)
-            throw ApiError(400, "bad_request", "source.agent: must start with http:// or https://");
-        return url;
-    }
-    throw ApiError(400, "bad_request", "source: give adapter (HOST:PORT) or agent (URL) and device");
-}
 
 // The key map as a JSON object in the format of a --map file (docs/formats.md), read by the
 // same loader: written to a scratch file in the data folder first.
@@ -93,27 +55,38 @@ double number_in(const json& body, const char* key, double fallback, double lo, 
 void create_live(Core& c, Ctx& x) {
     const json body = *x.json_body();
     if (!body.is_object()) bad_request("request body: must be a JSON object");
-    if (!body.contains("source")) bad_request("source: required (adapter HOST:PORT, or agent URL and device)");
     if (!body.contains("spec")) throw ApiError(400, "bad_spec", "spec: required (a run spec, docs/run_spec.md)");
-    const std::string source = source_address(body["source"]);
+    for (const char* k : {"name", "program"})
+        if (body.contains(k) && !body[k].is_string()) bad_request(fmt::format("{}: must be text", k));
+    auto s = c.session();
+    Resolved r = resolve_spec(*s, body["spec"], x.req);
+    // Without a source the machine's own (spec.machine_id, its live_source in the library); the
+    // request's key_map and sampling win over the machine's.
+    json machine_source;
+    if (!body.contains("source")) {
+        if (!r.machine_id) bad_request("source: required (adapter HOST:PORT, or agent URL and device), or a spec.machine_id whose machine has a live_source");
+        const auto m = library_body(*s, db::LibraryKind::Machine, *r.machine_id);
+        if (!m || !m->contains("live_source"))
+            bad_request(fmt::format("source: required: machine {} has no live_source in the library", *r.machine_id));
+        machine_source = (*m)["live_source"];
+    }
+    const std::string source =
+        body.contains("source") ? live_source_address(body["source"], "source") : live_source_address(machine_source, "machine live_source");
+    auto from_machine = [&](const char* k) { return machine_source.is_object() ? machine_source.value(k, json(nullptr)) : json(nullptr); };
+    const json key_map_json = body.contains("key_map") ? body["key_map"] : from_machine("key_map");
     app::LiveOptions opt;
-    if (body.contains("key_map")) opt.keys = key_map(c, body["key_map"]);
-    if (body.contains("sampling")) {
-        const json& s = body["sampling"];
-        if (!s.is_string() || (s != "event" && s != "polled"))
+    if (!key_map_json.is_null()) opt.keys = key_map(c, key_map_json);
+    const json sampling = body.contains("sampling") ? body["sampling"] : from_machine("sampling");
+    if (!sampling.is_null()) {
+        if (!sampling.is_string() || (sampling != "event" && sampling != "polled"))
             bad_request("sampling: must be 'event' (values sent on change) or 'polled' (re-sent at a polling rate)");
-        opt.polled = s == "polled";
+        opt.polled = sampling == "polled";
     }
     opt.step_ms = number_in(body, "step_ms", 1.0, 0.01, 1000);
     opt.idle_timeout = std::chrono::milliseconds(std::llround(1000 * number_in(body, "idle_timeout_s", 300, 0, 86400)));
     opt.clock_batch_readings = std::size_t(number_in(body, "clock_batch_readings", 64, 16, 1024));
     opt.reorder_horizon_s = number_in(body, "reorder_horizon_s", 0.1, 0, 1);
     opt.device = force_model::Device::Cpu;   // one live run must not hold the OpenCL device from the jobs
-    for (const char* k : {"name", "program"})
-        if (body.contains(k) && !body[k].is_string()) bad_request(fmt::format("{}: must be text", k));
-
-    auto s = c.session();
-    Resolved r = resolve_spec(*s, body["spec"], x.req);
     opt.spec = force_model::parse_run_spec(r.spec);
     db::NewRun run;
     if (body.contains("name")) run.name = body["name"].get<std::string>();
@@ -125,7 +98,7 @@ void create_live(Core& c, Ctx& x) {
                     {"sampling", opt.polled ? "polled" : "event"},
                     {"step_ms", opt.step_ms},
                     {"idle_timeout_s", double(opt.idle_timeout.count()) / 1000.0},
-                    {"key_map", body.value("key_map", json(nullptr))}};
+                    {"key_map", key_map_json}};
     run.inputs_json = json{{"live", live}, {"spec", r.spec}}.dump();
     run.created_at = db::now_iso();
     const std::int64_t id = c.live->start(run, live, source, std::move(opt));

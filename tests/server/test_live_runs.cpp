@@ -340,3 +340,57 @@ TEST_CASE("live runs: cutload serve killed with -9 during a live run closes it o
     ::kill(p2.pid, SIGTERM);
     REQUIRE(WEXITSTATUS(wait_exit(p2.pid)) == 0);
 }
+
+TEST_CASE("live runs: a request naming a machine and no source follows the machine's live_source", "[live]") {
+    TestServer ts;
+    auto c = ts.admin();
+    TempDir dir;
+    const std::string log = write_file(dir.path() / "slot.csv", slot_log_csv(2.0)).string();
+    auto adapter = replay(log, 4);
+    const std::string address = "127.0.0.1:" + std::to_string(adapter->port());
+    auto post_machine = [&](const json& j) { return c.Post("/api/v1/machines", j.dump(), "application/json"); };
+    const json machine{{"spindle_power_kW", 15}, {"spindle_torque_Nm", 95}, {"max_feed_mm_min", 20000}};
+
+    // Bad live sources are refused when the machine is stored, naming the key.
+    json bad = machine;
+    bad["name"] = "bad";
+    bad["live_source"] = {{"adapter", "127.0.0.1:99999"}};
+    require_error(post_machine(bad), 400, "bad_request", "live_source.adapter");
+    bad["live_source"] = {{"agent", "ftp://agent"}, {"device", "VMC"}};
+    require_error(post_machine(bad), 400, "bad_request", "live_source.agent");
+    bad["live_source"] = {{"adapter", address}, {"port", 7878}};
+    require_error(post_machine(bad), 400, "bad_request", "live_source.port");
+    bad["live_source"] = {{"adapter", address}, {"sampling", "often"}};
+    require_error(post_machine(bad), 400, "bad_request", "live_source.sampling");
+
+    json plain = machine;
+    plain["name"] = "no source";
+    auto created = [](const httplib::Result& r) {
+        REQUIRE(r);
+        INFO(r->body);
+        REQUIRE(r->status == 201);
+        return json::parse(r->body)["id"].get<std::int64_t>();
+    };
+    const std::int64_t plain_id = created(post_machine(plain));
+    json with = machine;
+    with["name"] = "VMC-1";
+    with["live_source"] = {{"adapter", address}, {"sampling", "polled"}};
+    const std::int64_t machine_id = created(post_machine(with));
+
+    json spec = slot_spec();
+    spec["machine_id"] = plain_id;
+    require_error(c.Post("/api/v1/live", json{{"spec", spec}}.dump(), "application/json"), 400, "bad_request",
+                  "no live_source");
+    spec["machine_id"] = machine_id;
+    auto r = c.Post("/api/v1/live", json{{"spec", spec}, {"idle_timeout_s", 1}}.dump(), "application/json");
+    REQUIRE(r);
+    INFO(r->body);
+    REQUIRE(r->status == 201);
+    const json started = json::parse(r->body);
+    CHECK(started["source"] == "shdr://" + address);
+    const json run = wait_closed(c, started["id"], 60);
+    REQUIRE(run["state"] == "done");
+    CHECK(run["machine_id"] == machine_id);
+    CHECK(run["inputs"]["live"]["sampling"] == "polled");   // the machine's sampling
+    CHECK(run["summary"]["samples"].get<int>() > 0);
+}
