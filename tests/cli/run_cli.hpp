@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <string>
 #include <sys/wait.h>
+#include <unistd.h>
+#include <vector>
 
 namespace cutload::clitest {
 
@@ -31,11 +33,23 @@ inline Result run(const std::string& args) {
 
 inline std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
 
-// A fresh, empty scratch folder per test.
+// A fresh, empty scratch folder per test. The process id keeps apart test processes that CTest
+// runs side by side (and other checkouts' suites) when they use the same name.
+// Removed when the test process ends.
 inline std::filesystem::path scratch(const std::string& name) {
-    const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("cutload_cli_test_" + name);
+    struct Made {
+        std::vector<std::filesystem::path> dirs;
+        ~Made() {
+            std::error_code ec;
+            for (const auto& d : dirs) std::filesystem::remove_all(d, ec);
+        }
+    };
+    static Made made;
+    const std::filesystem::path dir =
+        std::filesystem::temp_directory_path() / ("cutload_cli_test_" + std::to_string(::getpid()) + "_" + name);
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
+    made.dirs.push_back(dir);
     return dir;
 }
 
