@@ -11,6 +11,39 @@ bool moved(const PosRead& a, const PosRead& b) {
     return a.p_mm[0] != b.p_mm[0] || a.p_mm[1] != b.p_mm[1] || a.p_mm[2] != b.p_mm[2];
 }
 
+// Where a reading lies on the grid: its tick index (period > 0), or its own time stamp (no grid).
+// Indices, not tick times: the interval between two readings is then a whole number of periods
+// whatever the grid's phase or the log's time origin (tick times far from zero would add their
+// rounding), so grids that put every reading on the same tick give bit-identical roughness.
+double tick_position(double t_s, double period_s, double phase_s) {
+    return period_s > 0 ? std::floor((t_s - phase_s) / period_s) : t_s;
+}
+
+double tick_interval(double cur, double prev, double period_s) {
+    return period_s > 0 ? period_s * (cur - prev) : cur - prev;
+}
+
+void velocity(const PosRead& a, const PosRead& b, double dg, double v[3]) {
+    for (int ax = 0; ax < 3; ++ax) v[ax] = (b.p_mm[ax] - a.p_mm[ax]) / dg;
+}
+
+// |v - pv|^2 / (|v|^2 + |pv|^2): 0 for a steady velocity, up to 2 for a reversal.
+double velocity_jump(const double v[3], const double pv[3]) {
+    double dv2 = 0, s2 = 0;
+    for (int ax = 0; ax < 3; ++ax) {
+        dv2 += (v[ax] - pv[ax]) * (v[ax] - pv[ax]);
+        s2 += v[ax] * v[ax] + pv[ax] * pv[ax];
+    }
+    return dv2 / s2;
+}
+
+struct RoughnessSum {
+    double cost = 0;
+    std::size_t pairs = 0;
+    void add(double c, std::size_t p) { cost += c, pairs += p; }
+    double value() const { return pairs ? cost / static_cast<double>(pairs) : 0.0; }
+};
+
 std::size_t count_moving_pairs(const PosRead* r, std::size_t n) {
     std::size_t c = 0;
     for (std::size_t k = 1; k < n; ++k) c += moved(r[k - 1], r[k]);
@@ -220,40 +253,31 @@ double tick_at_or_before(double t_s, double period_s, double phase_s) {
 }
 
 double tick_roughness(const PosRead* r, std::size_t n, double period_s, double phase_s, std::size_t* pairs_out) {
-    double cost = 0;
-    std::size_t pairs = 0;
+    RoughnessSum sum;
     bool have_v = false;
     double pv[3] = {0, 0, 0};
-    double g_prev = n ? tick_at_or_before(r[0].t_s, period_s, phase_s) : 0;
+    double prev = n ? tick_position(r[0].t_s, period_s, phase_s) : 0;
     for (std::size_t k = 1; k < n; ++k) {
-        const double g = tick_at_or_before(r[k].t_s, period_s, phase_s);
-        const double dg = g - g_prev;
-        g_prev = g;
+        const double cur = tick_position(r[k].t_s, period_s, phase_s);
+        const double dg = tick_interval(cur, prev, period_s);
+        prev = cur;
         if (!moved(r[k - 1], r[k])) {
             have_v = false;
             continue;
         }
         if (dg <= 0) {
-            cost += 1;
-            ++pairs;
+            sum.add(1.0, 1);
             have_v = false;
             continue;
         }
-        double v[3], dv2 = 0, s2 = 0;
-        for (int a = 0; a < 3; ++a) {
-            v[a] = (r[k].p_mm[a] - r[k - 1].p_mm[a]) / dg;
-            dv2 += (v[a] - pv[a]) * (v[a] - pv[a]);
-            s2 += v[a] * v[a] + pv[a] * pv[a];
-        }
-        if (have_v) {
-            cost += dv2 / s2;
-            ++pairs;
-        }
+        double v[3];
+        velocity(r[k - 1], r[k], dg, v);
+        if (have_v) sum.add(velocity_jump(v, pv), 1);
         std::copy(v, v + 3, pv);
         have_v = true;
     }
-    if (pairs_out) *pairs_out = pairs;
-    return pairs ? cost / static_cast<double>(pairs) : 0.0;
+    if (pairs_out) *pairs_out = sum.pairs;
+    return sum.value();
 }
 
 UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {

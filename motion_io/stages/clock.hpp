@@ -21,7 +21,8 @@ struct PosRead {
 // The tick at or before t on the grid phase + k * period (period 0: t itself, no grid).
 double tick_at_or_before(double t_s, double period_s, double phase_s);
 
-// How much the velocity from consecutive readings jumps when each reading is timed at its tick:
+// How much the velocity from consecutive readings jumps when each reading is timed at its tick
+// (by tick index: an interval is a whole number of periods, whatever the grid's phase):
 // mean over consecutive moving pairs of |v_k - v_k-1|^2 / (|v_k|^2 + |v_k-1|^2); two different
 // positions on one tick count 1. 0 for a smooth motion. pairs (optional) receives the pairs used.
 double tick_roughness(const PosRead* reads, std::size_t n, double period_s, double phase_s,

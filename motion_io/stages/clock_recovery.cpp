@@ -46,9 +46,9 @@ void ClockRecovery::begin_session() {
 }
 
 void ClockRecovery::record(const Record& r) {
-    if (!have_first_line_) first_line_ = r.line, have_first_line_ = true;
+    if (!have_first_line_) first_line_ = r.line, have_first_line_ = true, origin_s_ = r.t_s;
     PosRead read;
-    read.t_s = r.t_s;
+    read.t_s = r.t_s - origin_s_;
     std::copy(r.v, r.v + 3, read.p_mm);
     pending_.push_back(read);
     // Without a grid a reading's time is its own stamp, so batching would only delay it (a live
@@ -190,6 +190,7 @@ void ClockRecovery::add_tick(double t_s, const double p[3]) {
             diag_.warn("duplicate_time", 0, "two different positions with the same time stamp; the later kept");
             std::copy(p, p + 3, last.p_mm);
             Tick replace = last;
+            replace.t_s += origin_s_;
             replace.replaces_previous = true;
             emit(replace);
             return;
@@ -200,6 +201,7 @@ void ClockRecovery::add_tick(double t_s, const double p[3]) {
     std::copy(p, p + 3, k.p_mm);
     k.period_s = period_s_;
     last_tick_ = k;
+    k.t_s += origin_s_;
     emit(k);
 }
 

@@ -63,6 +63,11 @@ private:
     std::optional<Tick> last_tick_;
     std::size_t first_line_ = 0;
     bool have_first_line_ = false;
+    // The session's first time stamp. The clock works on times since it, so that its trial grids
+    // (phases k * period / n) are anchored at the session, not at the log's time zero: a log
+    // shifted by a constant then gives the same ticks, shifted by it, and a machine clock that has
+    // run for days keeps the precision of a small number.
+    double origin_s_ = 0;
 };
 
 }  // namespace cutload::motion_io::detail
