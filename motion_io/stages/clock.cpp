@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 namespace cutload::motion_io::detail {
@@ -14,7 +15,8 @@ bool moved(const PosRead& a, const PosRead& b) {
 // Where a reading lies on the grid: its tick index (period > 0), or its own time stamp (no grid).
 // Indices, not tick times: the interval between two readings is then a whole number of periods
 // whatever the grid's phase or the log's time origin (tick times far from zero would add their
-// rounding), so grids that put every reading on the same tick give bit-identical roughness.
+// rounding), so grids that put every reading on the same tick give bit-identical roughness (what
+// the phase scan below relies on).
 double tick_position(double t_s, double period_s, double phase_s) {
     return period_s > 0 ? std::floor((t_s - phase_s) / period_s) : t_s;
 }
@@ -84,10 +86,7 @@ double tracked_roughness(const PosRead* r, std::size_t n, double period_s, int p
     std::size_t chunks = 0;
     for (std::size_t s = 0; s + 1 < n; s += kTrackChunk) {
         const std::size_t m = std::min(n - s, kTrackChunk + 1);
-        double best = 1e300;
-        for (int i = 0; i < phases; ++i)
-            best = std::min(best, tick_roughness(r + s, m, period_s, period_s * (i + 0.5) / phases));
-        sum += best;
+        sum += least_roughness_over_phases(r + s, m, period_s, phases, 0.5);
         ++chunks;
     }
     return chunks ? sum / static_cast<double>(chunks) : 0.0;
@@ -280,6 +279,149 @@ double tick_roughness(const PosRead* r, std::size_t n, double period_s, double p
     return sum.value();
 }
 
+namespace {
+
+// The scan behind roughness_over_phases and least_roughness_over_phases: tick_roughness(r, n, T,
+// T * (i + offset) / phases) for i = 0, 1, ..., phases - 1. Each reading's tick index falls by one
+// at one phase of the scan (monotonically: floor((t - phase) / T) never rises with the phase, and
+// the phases span less than a period), so moving to the next phase changes the velocities of the
+// pairs next to the readings that changed tick, and three terms of the roughness sum each. The
+// sum is then redone in tick_roughness's order, so a value equals tick_roughness's bit for bit.
+// With `out` null only the least value is wanted: a phase whose running (unordered) sum proves
+// it larger than the least so far is not summed in order.
+class PhaseScan {
+public:
+    // False where the bookkeeping does not apply (no grid, a tick index that falls by more than
+    // one across the scan); the caller then evaluates phase by phase.
+    bool run(const PosRead* r, std::size_t n, double period_s, int phases, double offset, double* out, double* least,
+             std::size_t* last_pairs) {
+        r_ = r, n_ = n, period_s_ = period_s;
+        if (!(period_s > 0) || phases < 2 || n < 3) return false;
+        auto phase_at = [&](int i) { return period_s * (i + offset) / phases; };
+        idx_.resize(n), dropped_.resize(n), drop_at_.assign(n, phases);
+        bucket_start_.assign(static_cast<std::size_t>(phases) + 1, 0);
+        const double first = phase_at(0), last = phase_at(phases - 1);
+        for (std::size_t k = 0; k < n; ++k) {
+            const double t = r[k].t_s;
+            idx_[k] = tick_position(t, period_s, first);
+            dropped_[k] = tick_position(t, period_s, last);
+            if (dropped_[k] == idx_[k]) continue;
+            if (dropped_[k] != idx_[k] - 1) return false;
+            // First phase at which the index has dropped: estimated from where t lies between
+            // ticks, then settled with tick_position itself (what the grid does decides).
+            const double residue = (t - idx_[k] * period_s) / period_s * phases - offset;
+            int i = std::clamp(static_cast<int>(std::floor(residue)) + 1, 1, phases - 1);
+            while (i > 1 && tick_position(t, period_s, phase_at(i - 1)) != idx_[k]) --i;
+            while (i < phases - 1 && tick_position(t, period_s, phase_at(i)) == idx_[k]) ++i;
+            drop_at_[k] = i;
+            ++bucket_start_[static_cast<std::size_t>(i) + 1];
+        }
+        // Readings by the phase they drop at (counting sort; in reading order within a phase).
+        for (int i = 0; i < phases; ++i) bucket_start_[static_cast<std::size_t>(i) + 1] += bucket_start_[static_cast<std::size_t>(i)];
+        order_.resize(bucket_start_[static_cast<std::size_t>(phases)]);
+        fill_ = bucket_start_;
+        for (std::size_t k = 0; k < n; ++k)
+            if (drop_at_[k] < phases) order_[fill_[static_cast<std::size_t>(drop_at_[k])]++] = k;
+
+        moving_.assign(n, 0), ahead_.assign(n, 0), counted_.assign(n, 0);
+        v_.assign(3 * n, 0.0), term_.assign(n, 0.0);
+        for (std::size_t k = 1; k < n; ++k) moving_[k] = moved(r[k - 1], r[k]), update_pair(k);
+        for (std::size_t k = 1; k < n; ++k) update_term(k);
+        RoughnessSum exact = ordered_sum();
+        double running = exact.cost;   // the same sum kept by differences: off by rounding only
+        std::size_t pairs = exact.pairs;
+        bool exact_now = true;
+        double best = 1e300;
+        // Bound on the running sum's rounding: at most 7 n additions (n to start, then three terms
+        // out and in per reading that changes tick), each off by eps of a partial sum that stays
+        // below 2 n + 2 (a term is at most 2).
+        const double nd = static_cast<double>(n);
+        const double margin = 1e-12 + 7 * nd * (2 * nd + 2) * std::numeric_limits<double>::epsilon();
+        for (int i = 0; i < phases; ++i) {
+            const std::size_t b0 = bucket_start_[static_cast<std::size_t>(i)], b1 = bucket_start_[static_cast<std::size_t>(i) + 1];
+            if (b0 < b1) {
+                std::size_t lo = n, hi = 0;   // pairs whose velocity changes
+                for (std::size_t j = b0; j < b1; ++j) {
+                    const std::size_t k = order_[j];
+                    idx_[k] = dropped_[k];
+                    lo = std::min(lo, std::max<std::size_t>(k, 1));
+                    hi = std::max(hi, std::min(k + 1, n - 1));
+                }
+                for (std::size_t k = lo; k <= hi; ++k) update_pair(k);
+                for (std::size_t k = lo; k <= std::min(hi + 1, n - 1); ++k) {
+                    running -= term_[k], pairs -= counted_[k];
+                    update_term(k);
+                    running += term_[k], pairs += counted_[k];
+                }
+                exact_now = false;
+            }
+            if (out != nullptr) {
+                if (!exact_now) exact = ordered_sum(), exact_now = true;
+                out[i] = exact.value();
+                continue;
+            }
+            // A phase the running sum shows worse than the best by more than its rounding cannot be
+            // the least.
+            if (pairs > 0 && (running - margin) / static_cast<double>(pairs) > best) continue;
+            if (!exact_now) exact = ordered_sum(), exact_now = true;
+            best = std::min(best, exact.value());
+        }
+        if (least) *least = best;
+        if (last_pairs) *last_pairs = pairs;
+        return true;
+    }
+
+private:
+    void update_pair(std::size_t k) {
+        const double dg = tick_interval(idx_[k], idx_[k - 1], period_s_);
+        ahead_[k] = dg > 0;
+        if (moving_[k] && ahead_[k]) velocity(r_[k - 1], r_[k], dg, &v_[3 * k]);
+    }
+    // Pair k's term of tick_roughness's sum: none when it did not move or the pair before did not
+    // give a velocity, 1 for two positions on one tick.
+    void update_term(std::size_t k) {
+        if (!moving_[k]) term_[k] = 0, counted_[k] = 0;
+        else if (!ahead_[k]) term_[k] = 1.0, counted_[k] = 1;
+        else if (k >= 2 && moving_[k - 1] && ahead_[k - 1]) term_[k] = velocity_jump(&v_[3 * k], &v_[3 * (k - 1)]), counted_[k] = 1;
+        else term_[k] = 0, counted_[k] = 0;
+    }
+    RoughnessSum ordered_sum() const {
+        RoughnessSum sum;
+        for (std::size_t k = 1; k < n_; ++k)
+            if (counted_[k]) sum.add(term_[k], counted_[k]);
+        return sum;
+    }
+
+    const PosRead* r_ = nullptr;
+    std::size_t n_ = 0;
+    double period_s_ = 0;
+    std::vector<double> idx_, dropped_, v_, term_;
+    std::vector<int> drop_at_;
+    std::vector<std::size_t> bucket_start_, fill_, order_, counted_;
+    std::vector<char> moving_, ahead_;
+};
+
+// One scanner per thread, its buffers reused: the period scan calls it thousands of times.
+PhaseScan& phase_scan() {
+    thread_local PhaseScan scan;
+    return scan;
+}
+
+}  // namespace
+
+void roughness_over_phases(const PosRead* r, std::size_t n, double period_s, int phases, double offset,
+                           double* out, std::size_t* last_pairs) {
+    if (phase_scan().run(r, n, period_s, phases, offset, out, nullptr, last_pairs)) return;
+    for (int i = 0; i < phases; ++i) out[i] = tick_roughness(r, n, period_s, period_s * (i + offset) / phases, last_pairs);
+}
+
+double least_roughness_over_phases(const PosRead* r, std::size_t n, double period_s, int phases, double offset) {
+    double least = 1e300;
+    if (phase_scan().run(r, n, period_s, phases, offset, nullptr, &least, nullptr)) return least;
+    for (int i = 0; i < phases; ++i) least = std::min(least, tick_roughness(r, n, period_s, period_s * (i + offset) / phases));
+    return least;
+}
+
 UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
     const std::size_t pairs = count_moving_pairs(reads.data(), reads.size());
     if (pairs < kMinPeriodPairs) return {};
@@ -336,11 +478,8 @@ double best_phase(const PosRead* r, std::size_t n, double period_s, double fallb
     if (period_s <= 0) return 0;
     std::size_t pairs = 0;
     std::vector<double> rough(static_cast<std::size_t>(phases));
-    double best = 1e300;
-    for (int i = 0; i < phases; ++i) {
-        rough[static_cast<std::size_t>(i)] = tick_roughness(r, n, period_s, period_s * i / phases, &pairs);
-        best = std::min(best, rough[static_cast<std::size_t>(i)]);
-    }
+    roughness_over_phases(r, n, period_s, phases, 0.0, rough.data(), &pairs);
+    const double best = *std::min_element(rough.begin(), rough.end());
     if (pairs < 8) return fallback_s;
     // Middle of the longest circular run of near-best phases: the tick grid then sits as far as
     // possible from the read times, so time-stamp jitter does not move a reading to another tick.

@@ -28,6 +28,15 @@ double tick_at_or_before(double t_s, double period_s, double phase_s);
 double tick_roughness(const PosRead* reads, std::size_t n, double period_s, double phase_s,
                       std::size_t* pairs = nullptr);
 
+// tick_roughness(reads, n, period_s, period_s * (i + offset) / phases) for every i in [0, phases),
+// into out[i], bit for bit, at about the cost of two evaluations: a reading changes tick at one
+// phase of the scan, and only the terms next to it change there. last_pairs (optional) receives
+// the pairs of the last phase. The period scans' inner loop.
+void roughness_over_phases(const PosRead* reads, std::size_t n, double period_s, int phases, double offset,
+                           double* out, std::size_t* last_pairs = nullptr);
+// The least of those values, exactly, summing in order only the phases that can be the least.
+double least_roughness_over_phases(const PosRead* reads, std::size_t n, double period_s, int phases, double offset);
+
 // Fewest moving pairs of readings from which estimate_update_period() tries to find a grid.
 inline constexpr std::size_t kMinPeriodPairs = 12;
 

@@ -3,6 +3,11 @@
 // for days), so moving every stamp by a constant must move the repaired motion by that constant
 // and change nothing else: the recovered period, the ticks, the positions on the resampled grid,
 // the velocities, the spindle angle and the block boundaries.
+//
+// And the phase scan behind the period search (roughness_over_phases) must give what evaluating
+// tick_roughness phase by phase gives, bit for bit: it is the same figure, computed incrementally.
+#include "cnc_reads.hpp"
+#include "stages/clock.hpp"
 #include "test_helpers.hpp"
 
 #include <catch2/catch.hpp>
@@ -12,9 +17,11 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <random>
 
 using namespace cutload::motion_io;
 using namespace cutload::motion_io::test;
+using detail::PosRead;
 
 namespace {
 
@@ -115,4 +122,38 @@ TEST_CASE("clock origin: a generated log with client stalls, shifted in time, gi
             check_same_up_to_shift(base, moved, static_cast<double>(shift_us) * 1e-6);
         }
     }
+}
+
+TEST_CASE("clock origin: the phase scan equals tick_roughness phase by phase, bit for bit", "[clock]") {
+    std::mt19937_64 rng(14);
+    std::size_t checked = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+        CncReadSpec s;
+        s.reads = 20 + 9 * static_cast<std::size_t>(trial);
+        s.seed = 100 + static_cast<std::uint64_t>(trial);
+        s.jitter_s = trial % 3 == 0 ? 0 : 40e-6;
+        const std::vector<PosRead> reads = cnc_reads(s);
+        // Trial periods around the true one and far from it (a scan visits both), on the
+        // coarse, tracking and fine phase counts the period search uses.
+        std::uniform_real_distribution<double> period(0.0005, 0.018);
+        for (double T : {s.period_s, s.period_s * 1.0004, period(rng), period(rng)}) {
+            for (int phases : {16, 32, 256}) {
+                for (double offset : {0.0, 0.5}) {
+                    std::vector<double> fast(static_cast<std::size_t>(phases));
+                    std::size_t fast_pairs = 0, slow_pairs = 0;
+                    detail::roughness_over_phases(reads.data(), reads.size(), T, phases, offset, fast.data(), &fast_pairs);
+                    double least = 1e300;
+                    for (int i = 0; i < phases; ++i) {
+                        const double slow = detail::tick_roughness(reads.data(), reads.size(), T, T * (i + offset) / phases, &slow_pairs);
+                        least = std::min(least, slow);
+                        if (fast[static_cast<std::size_t>(i)] != slow) FAIL("phase " << i << " of " << phases << ", period " << T);
+                    }
+                    CHECK(fast_pairs == slow_pairs);
+                    CHECK(detail::least_roughness_over_phases(reads.data(), reads.size(), T, phases, offset) == least);
+                    ++checked;
+                }
+            }
+        }
+    }
+    CHECK(checked == 40 * 4 * 3 * 2);
 }
