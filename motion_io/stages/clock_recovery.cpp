@@ -36,6 +36,7 @@ ClockRecovery::ClockRecovery(Diagnostics& diag, bool event_driven, ClockLimits l
 
 void ClockRecovery::begin_session() {
     pending_.clear();
+    pending_stamp_s_.clear();
     period_s_ = phase_s_ = ref_phase_s_ = 0;
     have_ref_phase_ = false;
     calibration_attempts_ = 0;
@@ -51,6 +52,7 @@ void ClockRecovery::record(const Record& r) {
     read.t_s = r.t_s - origin_s_;
     std::copy(r.v, r.v + 3, read.p_mm);
     pending_.push_back(read);
+    pending_stamp_s_.push_back(r.t_s);
     // Without a grid a reading's time is its own stamp, so batching would only delay it (a live
     // source's lag); the one-reading look-ahead stays.
     const std::size_t batch = event_driven_ ? 2 : limits_.batch_readings;
@@ -108,6 +110,7 @@ void ClockRecovery::process_batch(bool final) {
     const std::size_t commit = final ? pending_.size() : pending_.size() - 1;
     for (std::size_t s = 0; s < commit; s += kPhaseChunk) time_chunk(s, std::min(commit, s + kPhaseChunk));
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<long>(commit));
+    pending_stamp_s_.erase(pending_stamp_s_.begin(), pending_stamp_s_.begin() + static_cast<long>(commit));
 }
 
 // The chunk's phase picks each reading's tick; its time is put on the reference grid, which
@@ -128,7 +131,9 @@ void ClockRecovery::time_chunk(std::size_t s, std::size_t e) {
     const double shift = period_s_ > 0 ? wrap_half_period(ref_before - phase_s_) : 0.0;
     for (std::size_t k = s; k < e; ++k) {
         const double ramp = ref_step * static_cast<double>(k - s + 1) / static_cast<double>(e - s);
-        add_tick(tick_of(k) + shift + ramp, pending_[k].p_mm);
+        // Without a grid a reading keeps its own stamp, exactly (not origin + (stamp - origin)).
+        add_tick(tick_of(k) + shift + ramp, period_s_ > 0 ? std::nullopt : std::optional(pending_stamp_s_[k]),
+                 pending_[k].p_mm);
         last_committed_ = pending_[k];
     }
 }
@@ -179,8 +184,9 @@ double ClockRecovery::tick_of(std::size_t k) const {
     return miss(alt) < miss(g) ? alt : g;
 }
 
-void ClockRecovery::add_tick(double t_s, const double p[3]) {
-    if (last_tick_ && t_s <= last_tick_->t_s) {
+void ClockRecovery::add_tick(double t_s, std::optional<double> stamp_s, const double p[3]) {
+    // Without a grid the stamps themselves are compared: two stamps a rounding apart stay apart.
+    if (last_tick_ && (stamp_s ? *stamp_s <= last_tick_stamp_s_ : t_s <= last_tick_->t_s)) {
         Tick& last = *last_tick_;
         if (last.p_mm[0] == p[0] && last.p_mm[1] == p[1] && last.p_mm[2] == p[2]) return;  // same tick read twice
         if (period_s_ > 0) {
@@ -190,7 +196,7 @@ void ClockRecovery::add_tick(double t_s, const double p[3]) {
             diag_.warn("duplicate_time", 0, "two different positions with the same time stamp; the later kept");
             std::copy(p, p + 3, last.p_mm);
             Tick replace = last;
-            replace.t_s += origin_s_;
+            replace.t_s = last_tick_stamp_s_;
             replace.replaces_previous = true;
             emit(replace);
             return;
@@ -201,7 +207,8 @@ void ClockRecovery::add_tick(double t_s, const double p[3]) {
     std::copy(p, p + 3, k.p_mm);
     k.period_s = period_s_;
     last_tick_ = k;
-    k.t_s += origin_s_;
+    k.t_s = stamp_s ? *stamp_s : origin_s_ + t_s;
+    last_tick_stamp_s_ = k.t_s;
     emit(k);
 }
 

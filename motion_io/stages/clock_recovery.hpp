@@ -47,12 +47,14 @@ private:
     double tick_of(std::size_t pending_index) const;
     double wrap_half_period(double d) const;
     void follow_phase();
-    void add_tick(double t_s, const double p[3]);
+    // t_s since the origin; stamp_s: the reading's own stamp, emitted as it is (no grid).
+    void add_tick(double t_s, std::optional<double> stamp_s, const double p[3]);
 
     Diagnostics& diag_;
     bool event_driven_;
     ClockLimits limits_;
-    std::vector<PosRead> pending_;
+    std::vector<PosRead> pending_;          // times since origin_s_
+    std::vector<double> pending_stamp_s_;   // their stamps as read
     double period_s_ = 0, phase_s_ = 0, ref_phase_s_ = 0;
     bool have_ref_phase_ = false;
     int calibration_attempts_ = 0;
@@ -60,7 +62,8 @@ private:
     double known_period_s_ = 0;
     std::size_t scans_ = 0;
     std::optional<PosRead> last_committed_;
-    std::optional<Tick> last_tick_;
+    std::optional<Tick> last_tick_;         // time since origin_s_
+    double last_tick_stamp_s_ = 0;          // last_tick_'s time as emitted
     std::size_t first_line_ = 0;
     bool have_first_line_ = false;
     // The session's first time stamp. The clock works on times since it, so that its trial grids

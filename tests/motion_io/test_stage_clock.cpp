@@ -187,6 +187,20 @@ TEST_CASE("clock stage: an event-driven log keeps its stamps, a duplicate stamp 
     CHECK(warning_of(c.diag, "duplicate_time").count == 1);
 }
 
+TEST_CASE("clock stage: without a grid, stamps are kept bit for bit whatever the session's first stamp", "[clock]") {
+    // The stage works on times since the session's first stamp; 45.479514 - 4.423036 + 4.423036
+    // is not 45.479514 in doubles, so a stamp must not be rebuilt from its offset.
+    ClockRig c(true);
+    c.run({pos(4.423036, 0), pos(45.479514, 1), pos(45.479514, 2), pos(1000000.000001, 3)});
+    const auto& t = c.rig.out->ticks;
+    REQUIRE(t.size() == 4);
+    CHECK(t[0].t_s == 4.423036);
+    CHECK(t[1].t_s == 45.479514);
+    CHECK(t[2].t_s == 45.479514);   // the duplicate stamp replaces the reading before, at its stamp
+    CHECK(t[2].replaces_previous);
+    CHECK(t[3].t_s == 1000000.000001);
+}
+
 TEST_CASE("clock stage: a short session is timed at its end and warns how the period was chosen", "[clock]") {
     CncReadSpec s;
     s.reads = 80;
