@@ -878,7 +878,9 @@ export class View3D {
       line.renderOrder = 2;
       this.measureGroup.add(line);
       const d = b.clone().sub(a);
-      const text = `Distance ${num(d.length(), 4)} mm (ΔX ${num(d.x, 4)}, ΔY ${num(d.y, 4)}, ΔZ ${num(d.z, 4)} mm)`;
+      // Picked points carry float noise (1e-14 mm on a 30 mm distance): a component that small is 0.
+      const part = (v) => num(Math.abs(v) < 1e-9 * Math.max(1, d.length()) ? 0 : v, 4);
+      const text = `Distance ${num(d.length(), 4)} mm (ΔX ${part(d.x)}, ΔY ${part(d.y)}, ΔZ ${part(d.z)} mm)`;
       this.measureText.textContent = text;
       this.onMeasure?.(d.length(), d);
     } else {
