@@ -216,12 +216,33 @@ struct PredictOptions {
     const Stock* base_stock = nullptr;                    // start from this stock instead of the box
     std::function<void(double fraction)> progress;        // 0..1, called from the calling thread
     const std::atomic<bool>* cancel = nullptr;            // set to stop early (throws Cancelled)
+    // Most rows the prediction may hold (0: unchecked): checked as rows are written, so a run
+    // whose estimate (expected_rows) was too low still stops (TooManyRows) instead of growing.
+    std::size_t max_rows = 0;
 };
 
 class Cancelled : public std::runtime_error {
 public:
     Cancelled() : std::runtime_error("prediction cancelled") {}
 };
+
+// A prediction stopped at PredictOptions::max_rows; the message gives the rows and the limit.
+class TooManyRows : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+// The rows a prediction of a motion of this extent writes at most: one per angle step, plus one
+// per motion sample (air, a stopped spindle, the step that closes an interval). An upper bound,
+// so a run refused by it could not have fitted and one accepted cannot outgrow it.
+std::size_t expected_rows(const motion_io::MotionExtent& extent, double angle_step_deg);
+
+// Dexel cells (rays) of a stock over this box at this grid, as make_stock lays them out.
+double stock_cells(const StockBox& box, double grid_mm);
+// The most cells make_stock builds (it refuses more; run specs asking for more are refused too).
+inline constexpr double kMaxStockRays = 4e8;
+// Bytes one cell holds in memory: its rays' intervals and its sub-cell walls.
+std::size_t stock_bytes_per_cell();
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 

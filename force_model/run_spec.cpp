@@ -28,8 +28,6 @@ using nlohmann::json;
 // (100 m). Beyond that the engine's geometry loses its precision and no part is that large.
 const double kMaxAbsCoordinateMm = motion_io::NcLimits{}.max_abs_position_mm;
 
-// Above this many dexel cells the stock alone would exceed about 1 GB: refuse rather than swap.
-constexpr double kMaxStockCells = 60e6;
 
 std::string join(const std::string& path, const std::string& key) {
     return path.empty() ? key : path + "." + key;
@@ -480,13 +478,13 @@ RunSpec parse_run_spec(const json& j) {
     }
     root.reject_unknown();
 
-    const auto& b = spec.stock;
+    // Only what no machine could build is refused here; what this one can honour is a work limit
+    // of the front end (app::WorkLimits::max_stock_cells, --max-stock-cells).
     const double g = spec.resolution.grid_mm;
-    const double cells = std::ceil((b.max_mm[0] - b.min_mm[0]) / g) * std::ceil((b.max_mm[1] - b.min_mm[1]) / g);
-    if (cells > kMaxStockCells) {
+    if (const double cells = stock_cells(spec.stock, g); cells > kMaxStockRays) {
         std::ostringstream msg;
-        msg << "a " << g << " mm grid over the stock box needs " << cells << " cells (limit "
-            << kMaxStockCells << "): use a coarser grid or a smaller stock";
+        msg << "a " << g << " mm grid over the stock box needs " << cells << " cells (at most "
+            << kMaxStockRays << " can be built): use a coarser grid or a smaller stock";
         fail("resolution.grid_mm", msg.str());
     }
     return spec;

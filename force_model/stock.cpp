@@ -91,6 +91,17 @@ bool Stock::untouched(std::size_t r) const {
 
 void StockDeleter::operator()(Stock* s) const { delete s; }
 
+double stock_cells(const StockBox& box, double grid_mm) {
+    // Rounded to whole cells as make_stock lays them out (a box that is a multiple of the grid
+    // exactly); at least one per axis.
+    const auto along = [&](int k) { return std::max(1.0, std::round((box.max_mm[k] - box.min_mm[k]) / grid_mm)); };
+    return along(0) * along(1);
+}
+
+std::size_t stock_bytes_per_cell() {
+    return (kernels::kDexelFloats + kernels::kWallSlots * kernels::kWallFloats) * sizeof(float);
+}
+
 StockPtr make_stock(const StockBox& box, double grid_mm) {
     if (!(grid_mm > 0)) throw std::invalid_argument("make_stock: grid_mm must be > 0");
     for (int k = 0; k < 3; ++k)
@@ -101,10 +112,11 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     s->grid.x0_mm = box.min_mm[0];
     s->grid.y0_mm = box.min_mm[1];
     // Round to whole cells so that a box that is a multiple of the grid is represented exactly.
+    if (stock_cells(box, grid_mm) > kMaxStockRays)
+        throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
     s->grid.nx = std::max(1, int(std::lround((box.max_mm[0] - box.min_mm[0]) / grid_mm)));
     s->grid.ny = std::max(1, int(std::lround((box.max_mm[1] - box.min_mm[1]) / grid_mm)));
     const std::size_t rays = std::size_t(s->grid.nx) * s->grid.ny;
-    if (rays > 400'000'000ull) throw std::invalid_argument("make_stock: grid too fine for the box (over 4e8 rays)");
     s->codec = kernels::RayCodec::for_column(float(box.min_mm[2]), float(box.max_mm[2]));
     s->storage = ZeroPages(rays * kernels::kDexelFloats * sizeof(float));   // all rays: the full box column
     s->walls = ZeroPages(rays * kernels::kWallSlots * kernels::kWallFloats * sizeof(float));   // no walls

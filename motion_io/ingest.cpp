@@ -42,6 +42,21 @@ private:
     bool new_session_ = true;
 };
 
+// Measures the motion on its way to the real sink, so inspect reports the same extent ingest builds.
+class ExtentSink final : public GridSink {
+public:
+    ExtentSink(GridSink& next, MotionExtent& extent) : next_(next), extent_(extent) {}
+    void begin_session() override { next_.begin_session(); }
+    void sample(const GridSample& s) override {
+        extent_.add(s.spindle_angle_deg);
+        next_.sample(s);
+    }
+
+private:
+    GridSink& next_;
+    MotionExtent& extent_;
+};
+
 class NullSink final : public GridSink {
 public:
     void sample(const GridSample&) override {}
@@ -119,7 +134,9 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, GridS
     detail::ChainSettings settings;
     settings.step_s = opt.step_ms * 1e-3;
     settings.event_driven = format == Format::Shdr;
-    const auto chain = detail::make_ingest_chain(diag, sink, settings);
+    MotionExtent extent;
+    ExtentSink measured(sink, extent);
+    const auto chain = detail::make_ingest_chain(diag, measured, settings);
     if (format == Format::Csv)
         detail::read_csv(path, opt, diag, blocks, *chain);
     else
@@ -137,11 +154,18 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, GridS
     report.file = path;
     report.format = format == Format::Csv ? "csv" : "shdr";
     report.blocks = blocks.names().size();
+    report.extent = extent;
     report.warnings = diag.warnings();
     return report;
 }
 
 }  // namespace
+
+MotionExtent motion_extent(const MotionModel& m) {
+    MotionExtent e;
+    for (double a : m.spindle_angle_deg) e.add(a);
+    return e;
+}
 
 MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport* report) {
     MotionModel m;

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -61,6 +62,21 @@ struct IngestWarning {
     std::size_t count = 0;
 };
 
+// The repaired motion's extent, what the force engine walks: its uniform samples, and the spindle's
+// turning summed sample to sample (degrees, either direction; a jump between sessions counts
+// too, so the sum bounds the angle steps from above). Work bounds are estimated from it
+// (force_model::expected_rows) before a log is predicted.
+struct MotionExtent {
+    std::size_t samples = 0;
+    double spindle_turned_deg = 0;
+    double last_angle_deg = 0;   // the last sample's angle, where the sum continues
+    void add(double spindle_angle_deg) {
+        if (samples > 0) spindle_turned_deg += std::abs(spindle_angle_deg - last_angle_deg);
+        last_angle_deg = spindle_angle_deg;
+        ++samples;
+    }
+};
+
 struct IngestReport {
     std::string file;
     std::string format;                            // "csv" | "shdr"
@@ -78,6 +94,7 @@ struct IngestReport {
     std::optional<double> position_step_mm;
     double spindle_max_rpm = 0;
     bool commanded_positions = false;
+    MotionExtent extent;                           // of the repaired motion (inspect too)
     std::vector<IngestWarning> warnings;
 };
 
@@ -134,6 +151,9 @@ struct MotionState {
     std::int32_t block = -1;
     std::int32_t tool = -1;   // tool in the spindle; -1: no tool channel
 };
+
+// The model's extent, as the ingest that built it reported it (IngestReport::extent).
+MotionExtent motion_extent(const MotionModel& m);
 
 // Interpolates the model at time t_s inside sample interval [i, i+1] (i + 1 < size()).
 MotionState sample_between(const MotionModel& m, std::size_t i, double t_s);

@@ -3,6 +3,8 @@
 #include "engine/motion_walk.hpp"
 #include "engine/phase_timer.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -78,6 +80,7 @@ void Engine::end_session() {
 
 void Engine::walk_interval(std::size_t i) {
     if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
+    check_rows();
     if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)
         use_tool(slot, number);
     if (slot_ < 0) {
@@ -191,8 +194,17 @@ void Engine::complete() {
     report_progress();
 }
 
+// The estimate before a run is an upper bound; this is the net under it should it ever be wrong.
+void Engine::check_rows() const {
+    if (options_.max_rows == 0 || rows_.size() <= options_.max_rows) return;
+    throw TooManyRows(fmt::format("the prediction passed {} force rows at t = {:.3f} s of the motion, above the limit "
+                                  "of {:.4g}: it was stopped",
+                                  rows_.size(), motion_.t_s[current_interval_], double(options_.max_rows)));
+}
+
 void Engine::report_progress() {
     if (options_.cancel && options_.cancel->load()) throw Cancelled();
+    check_rows();
     if (!options_.progress) return;
     const double f = double(current_interval_ + 1) / double(motion_.size());
     if (f - last_progress_ >= 0.005 || f >= 1.0) {

@@ -58,6 +58,7 @@ private:
     // holder checks.
     void complete();
     void report_progress();
+    void check_rows() const;   // TooManyRows past options_.max_rows
 
     const motion_io::MotionModel& motion_;
     const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates

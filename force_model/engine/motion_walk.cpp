@@ -17,11 +17,12 @@ double simulated_seconds(const motion_io::MotionModel& m) {
     return total;
 }
 
+std::size_t expected_rows(const motion_io::MotionExtent& extent, double angle_step_deg) {
+    return std::size_t(extent.spindle_turned_deg / angle_step_deg) + extent.samples + 1;
+}
+
 std::size_t expected_rows(const motion_io::MotionModel& m, double angle_step_deg) {
-    double turned_deg = 0;
-    for (std::size_t i = 0; i + 1 < m.size(); ++i)
-        turned_deg += std::abs(m.spindle_angle_deg[i + 1] - m.spindle_angle_deg[i]);
-    return std::size_t(turned_deg / angle_step_deg) + m.size() + 1;
+    return expected_rows(motion_io::motion_extent(m), angle_step_deg);
 }
 
 Vec3 tip_position(const motion_io::MotionModel& m, std::size_t i, const double offset_mm[3]) {
