@@ -18,7 +18,7 @@ OptimizeResult optimize_steps(const OptimizeInput& in, const Control& control) {
     source.settings.limits.sample_step_s = r.motion.step_s;   // the commanded samples it may imply
     motion_io::NcProgram program = read_program(source, in.spec, log_start_mm(r.motion));
     track.begin(Phase::Mapping, 0, 0);
-    r.program = prepare_program_run(std::move(program), source.settings, r.motion);
+    r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
 
     force_model::FeedOptimizerOptions search = in.search;
     search.commanded = r.program.commanded;

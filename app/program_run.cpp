@@ -88,7 +88,7 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
 }
 
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
-                               motion_io::MotionModel& motion) {
+                               motion_io::MotionModel& motion, const Control& control) {
     if (motion.size() < 2) throw motion_io::IngestError("the log holds fewer than two motion samples");
     ProgramRun run;
     run.program = std::move(program);
@@ -105,13 +105,18 @@ ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettin
     motion_io::BlockMappingOptions mo;
     mo.lead_s = settings.block_lead_ms * 1e-3;
     mo.rapid_mm_min = settings.rapid_mm_min;
+    mo.cancel = control.cancel;
     run.mapped = settings.map_blocks || !log_blocks_match(motion, run.program);
-    if (!run.mapped) {
-        // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
-        run.estimated_lead_s = motion_io::estimate_block_lead_s(motion, run.program, mo);
-        mo.lead_s = *run.estimated_lead_s;
+    try {
+        if (!run.mapped) {
+            // Deviations do not depend on the lead; the agreement is reported at the calibrated one.
+            run.estimated_lead_s = motion_io::estimate_block_lead_s(motion, run.program, mo);
+            mo.lead_s = *run.estimated_lead_s;
+        }
+        run.mapping = motion_io::map_blocks(motion, run.program, mo);
+    } catch (const motion_io::MappingCancelled&) {
+        throw force_model::Cancelled();   // one cancel for every phase of a use case
     }
-    run.mapping = motion_io::map_blocks(motion, run.program, mo);
     // The program starts where the log does, so its first move always meets the log; a log that
     // mostly runs elsewhere is another program, or this one under another work offset. Blocks and
     // comparisons taken from it would be wrong without a sign, so it is refused.

@@ -4,6 +4,7 @@
 // The steps of app::predict_run and app::optimize_feeds (app/predict_run.hpp, app/optimize.hpp).
 #pragma once
 
+#include "app/control.hpp"
 #include "force_model/force_model.hpp"
 #include "force_model/program_compare.hpp"
 #include "motion_io/block_mapping.hpp"
@@ -64,8 +65,10 @@ std::optional<std::array<double, 3>> log_start_mm(const motion_io::MotionModel& 
 // settings.min_match of the counted samples lie near the program's path (wrong program or work
 // offset; samples at rest, rapids away from the cutting moves and tool changes are not counted),
 // or when the commanded motion at the log's step would pass settings.limits.max_samples.
+// control.cancel stops the mapping within a few thousand samples (motion_io::MappingCancelled,
+// which the use cases' cancellable() reports as force_model::Cancelled); progress is not used.
 ProgramRun prepare_program_run(motion_io::NcProgram program, const ProgramSettings& settings,
-                               motion_io::MotionModel& motion);
+                               motion_io::MotionModel& motion, const Control& control = {});
 
 // The tool in the spindle at each sample by the program: the tool of the sample's block (blocks
 // that share a name and a tool; where a name spans several tools, the block matched to the sample

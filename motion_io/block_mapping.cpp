@@ -14,6 +14,14 @@
 namespace cutload::motion_io {
 namespace {
 
+// Every this many samples a long loop reads the cancel flag (a load, negligible beside a sample's work).
+constexpr std::size_t kCancelEvery = 4096;
+
+void check_cancel(const BlockMappingOptions& opt, std::size_t i = 0) {
+    if (i % kCancelEvery == 0 && opt.cancel && opt.cancel->load()) throw MappingCancelled();
+}
+
+
 // The programmed path as chords in arc-length order (lines exact, arcs within 2 um).
 struct Chord {
     double p0[3], d[3];   // start and direction * length
@@ -135,6 +143,7 @@ void match_geometry(const MotionModel& motion, const std::vector<Chord>& chords,
     double prev[3] = {0, 0, 0};
     const double inf = std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < n; ++i) {
+        check_cancel(opt, i);
         const double p[3] = {motion.x_mm[i], motion.y_mm[i], motion.z_mm[i]};
         const bool session_begins = session < motion.session_start.size() && motion.session_start[session] == i;
         double travel = 0;
@@ -374,6 +383,7 @@ void fill_quality(const MotionModel& motion, const NcProgram& program, const std
         if (block_moves(b) && b.motion != NcMotion::Rapid) fastest_cut_mm_min = std::max(fastest_cut_mm_min, b.feed_mm_min);
     std::optional<CutIndex> cuts;
     for (std::size_t i = 0; i < motion.size(); ++i) {
+        check_cancel(opt, i);
         if (out.program_block[i] >= 0) continue;
         const double v = speed_mm_min(motion, i);
         if (tool_change[i]) {
@@ -410,9 +420,11 @@ BlockMapping map_blocks(const MotionModel& motion, const NcProgram& program, con
     BlockMapping out;
     out.block_names = program_block_names(program);
     match_geometry(motion, chords, tool_change_positions(program), opt, out);
+    check_cancel(opt);
     apply_lead(motion, program, opt.lead_s, out);
     std::vector<std::uint8_t> tool_change;
     attribute_stationary(motion, program, opt, out, tool_change);
+    check_cancel(opt);
     fill_quality(motion, program, chords, opt, tool_change, out);
     return out;
 }
@@ -436,6 +448,7 @@ double estimate_block_lead_s(const MotionModel& logged, const NcProgram& program
     double best_lead = 0, best_agreement = -1;
     const auto steps = static_cast<long>(std::floor(max_lead_s / logged.step_s + 1e-9));
     for (long k = 0; k <= steps; ++k) {
+        check_cancel(o);   // each lead is a pass over the whole log
         const double lead = double(k) * logged.step_s;
         apply_lead(logged, program, lead, m);
         attribute_stationary(logged, program, o, m, tool_change);

@@ -7,8 +7,10 @@
 #include "motion_io/motion_io.hpp"
 #include "motion_io/nc_program.hpp"
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -26,6 +28,15 @@ struct BlockMappingOptions {
     double away_mm = 10;
     double rapid_mm_min = 30000;   // the machine's G00 rate
     double rapid_fraction = 0.4;
+    // Set from any thread to stop: mapping a long log against a long program takes seconds, so
+    // the flag is read every few thousand samples and MappingCancelled thrown.
+    const std::atomic<bool>* cancel = nullptr;
+};
+
+// Mapping stopped by BlockMappingOptions::cancel (the application layer reports it as its cancel).
+class MappingCancelled : public std::runtime_error {
+public:
+    MappingCancelled() : std::runtime_error("block mapping cancelled") {}
 };
 
 struct BlockMappingQuality {
