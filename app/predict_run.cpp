@@ -58,8 +58,19 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
                                              "block with its own)",
                                              list));
         }
+        CommandedWork commanded;
+        commanded.program = &program;
+        commanded.options.step_s = r.motion.step_s;
+        commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
+        r.work = estimate_work(r.ingest, in.spec, commanded);
+        check_work(r.work, in.limits);
         track.begin(Phase::Mapping, 0, 0);
-        r.program = prepare_program_run(std::move(program), source.settings, r.motion);
+        r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
+    } else {
+        CommandedWork commanded;
+        commanded.from_log = in.commanded_from_log;
+        r.work = estimate_work(r.ingest, in.spec, commanded);
+        check_work(r.work, in.limits);
     }
     motion_io::MotionModel logged_commanded;
     if (in.commanded_from_log) {
@@ -87,9 +98,12 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     po.device = in.device;
     po.base_stock = in.base_stock;
     po.cancel = control.cancel;
+    // The job's rows together: the commanded prediction gets what the actual one left.
+    po.max_rows = max_rows(in.limits);
     track.begin(Phase::Predict, 0, actual_share);
     po.progress = track.engine_progress();
     r.prediction = force_model::predict(r.motion, in.spec, po);
+    if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.prediction.samples.size()));
     if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);
     if (r.program) {
         track.begin(Phase::Commanded, actual_share, 1);
@@ -113,7 +127,13 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
 }  // namespace
 
 RunResult predict_run(const RunInput& in, const Control& control) {
-    return cancellable(control, [&] { return predict_steps(in, control); });
+    return cancellable(control, [&] {
+        try {
+            return predict_steps(in, control);
+        } catch (const force_model::TooManyRows& e) {
+            throw TooMuchWork("force_rows", fmt::format("{} (--max-force-rows)", e.what()));
+        }
+    });
 }
 
 }  // namespace cutload::app

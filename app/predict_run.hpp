@@ -8,6 +8,7 @@
 #include "app/inputs.hpp"
 #include "app/program_run.hpp"
 #include "app/program_source.hpp"
+#include "app/work_bounds.hpp"
 #include "force_model/force_model.hpp"
 #include "force_model/program_compare.hpp"
 #include "motion_io/motion_io.hpp"
@@ -27,6 +28,7 @@ struct RunInput {
     bool commanded_from_log = false;                  // or the log's own commanded positions as the commanded path
     const force_model::Stock* base_stock = nullptr;   // start from it (load_stock, load_stock_bytes)
     force_model::Device device = force_model::Device::Cpu;
+    WorkLimits limits;                                // checked before predicting (TooMuchWork)
 };
 
 struct RunResult {
@@ -39,6 +41,7 @@ struct RunResult {
     std::optional<ProgramPrediction> commanded;  // with a program or commanded_from_log: commanded forces,
                                                  // comparison, time warp (identity for the log's own)
     std::size_t commanded_samples = 0;           // commanded_from_log: samples of the commanded motion
+    WorkEstimate work;                           // the work estimated before predicting
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path
@@ -46,7 +49,9 @@ struct RunResult {
 // InputError when both a program and commanded_from_log are given, motion_io::IngestError (a bad
 // log, one of fewer than two samples, or commanded_from_log on a log without commanded
 // positions), motion_io::NcProgramError (a bad program, or one the log does not run),
-// force_model::SpecError, force_model::Cancelled.
+// force_model::SpecError, force_model::Cancelled, and TooMuchWork when the work the log, spec and
+// program imply passes input.limits (checked once the program is read, before mapping and
+// predicting; the engine stops at the row limit should the estimate be low).
 RunResult predict_run(const RunInput& input, const Control& control = {});
 
 }  // namespace cutload::app

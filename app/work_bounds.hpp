@@ -1,0 +1,77 @@
+// Every job is bounded before it starts: the work a log, its run spec and an NC program imply
+// (force rows, stock cells, memory) is estimated from what is known before predicting (the log's
+// inspect or ingest report, the spec, the program) and checked against limits the machine can
+// honour. The CLI (cutload predict) and the service (at upload, and again in the job) check the
+// same figures with the same messages; the engine counts its rows again as it writes them
+// (force_model::PredictOptions::max_rows), so an estimate that is ever too low cannot run away.
+#pragma once
+
+#include "app/inputs.hpp"
+#include "force_model/force_model.hpp"
+#include "motion_io/commanded.hpp"
+#include "motion_io/motion_io.hpp"
+#include "motion_io/nc_program.hpp"
+
+#include <cstddef>
+#include <string>
+
+namespace cutload::app {
+
+// The defaults suit the smallest machine cutload is run on (2 cores, 8 GB, two jobs at once):
+// docs/api.md, "Work limits", gives the figures they come from.
+struct WorkLimits {
+    double max_force_rows = 2e7;        // rows of the job's predictions together (--max-force-rows)
+    double max_stock_cells = 25e6;      // dexel cells of the stock (--max-stock-cells)
+    double max_job_memory_mb = 3000;    // the estimate below (--max-job-memory-mb)
+};
+
+// What one force row, one stock cell and one motion sample cost a job at its peak, in bytes
+// (measured figures and their derivation: docs/api.md, "Work limits").
+inline constexpr double kJobBytesPerForceRow = 240;
+inline constexpr double kJobBytesPerMotionSample = 200;
+// Beyond the stocks themselves (force_model::stock_bytes_per_cell() each): the final stock as
+// stored (32 B per ray, walls besides) in a buffer that may have doubled once.
+inline constexpr double kJobBytesPerStoredCell = 80;
+
+// The commanded motion a job predicts besides the log's: none, the program's, or the log's own
+// commanded positions (the same extent as the log again).
+struct CommandedWork {
+    const motion_io::NcProgram* program = nullptr;
+    motion_io::CommandedOptions options;   // the log's step, the rapid rate
+    bool from_log = false;
+};
+
+struct WorkEstimate {
+    double log_duration_s = 0;
+    double spindle_max_rpm = 0;
+    double spindle_revolutions = 0;    // of the log's motion
+    double angle_step_deg = 0;
+    double force_rows = 0;             // of the log's motion (force_model::expected_rows)
+    double commanded_duration_s = 0;
+    double commanded_revolutions = 0;
+    double commanded_rows = 0;         // of the commanded motion; 0 without one
+    double motion_samples = 0;         // the log's and the commanded motion's
+    double stock_cells = 0;
+    int stocks = 1;                    // stocks predicted on (the commanded motion cuts its own)
+    double memory_mb = 0;
+    double total_rows() const { return force_rows + commanded_rows; }
+};
+
+// `log` is the report of the log as the job reads it (inspect or ingest, same read options).
+WorkEstimate estimate_work(const motion_io::IngestReport& log, const force_model::RunSpec& spec,
+                           const CommandedWork& commanded = {});
+
+// Too much work for the limits: key() names the quantity (force_rows, stock_cells, job_memory),
+// what() is "<key>: <the figures that give it, the limit and its option>".
+class TooMuchWork : public InputError {
+public:
+    using InputError::InputError;
+};
+
+// Throws TooMuchWork for the first limit the estimate passes: stock cells, force rows, memory.
+void check_work(const WorkEstimate& estimate, const WorkLimits& limits);
+
+// The engine's own bound on the rows it may write (force_model::PredictOptions::max_rows).
+std::size_t max_rows(const WorkLimits& limits);
+
+}  // namespace cutload::app
