@@ -19,6 +19,7 @@ struct PredictArgs {
     double step_ms = motion_io::ReadOptions{}.step_ms;
     app::LogFormat format;
     ProgramOptions program;
+    app::WorkLimits limits;
 };
 
 void run_predict(const PredictArgs& a) {
@@ -36,6 +37,7 @@ void run_predict(const PredictArgs& a) {
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
     in.base_stock = base.get();
     in.device = choose_device(a.device);
+    in.limits = a.limits;
 
     app::Control control;
     int last_pct = -1;
@@ -106,6 +108,7 @@ void add_predict(CLI::App& app) {
         ->check(CLI::Range(0.01, 1000.0))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
+    add_work_limit_options(*cmd, a->limits.max_force_rows, a->limits.max_stock_cells, a->limits.max_job_memory_mb);
     add_program_options(*cmd, a->program, true);
     add_log_options(*cmd, a->format);
     cmd->callback([a] { run_predict(*a); });

@@ -98,6 +98,7 @@ void add_serve(CLI::App& app) {
         ->check(CLI::Range(0.001, 4096.0))
         ->capture_default_str();
     sub->add_option("--max-log-rows", a->opt.max_log_rows, "Most rows in an uploaded log (413 beyond)")->capture_default_str();
+    add_work_limit_options(*sub, a->opt.max_force_rows, a->opt.max_stock_cells, a->opt.max_job_memory_mb);
     sub->add_option("--max-pending-jobs", a->opt.max_pending_jobs, "Most runs queued or running (429 beyond)")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();

@@ -36,6 +36,9 @@ void add_log_options(CLI::App& sub, app::LogFormat& format);
 // The reader's options from those and the resampling step; a bad value exits 2 naming the option.
 motion_io::ReadOptions reader_options(const app::LogFormat& format, double step_ms = motion_io::ReadOptions{}.step_ms);
 
+// --max-force-rows, --max-stock-cells, --max-job-memory-mb (app::WorkLimits; docs/api.md, "Work limits").
+void add_work_limit_options(CLI::App& sub, double& max_force_rows, double& max_stock_cells, double& max_job_memory_mb);
+
 // The engine's device for --device opencl|cpu|auto; says on stderr when auto falls back to the CPU.
 force_model::Device choose_device(const std::string& name);
 

@@ -3,6 +3,7 @@
 #include "app/ingest.hpp"
 #include "app/library_tools.hpp"
 #include "app/program_source.hpp"
+#include "app/work_bounds.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
 #include "spec_refs.hpp"
@@ -208,10 +209,16 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
     return s;
 }
 
+// The uploaded program as read, for the work it implies.
+struct UploadedProgram {
+    motion_io::NcProgram program;
+    double rapid_mm_min = 0;
+};
+
 // Stores the uploaded NC program beside the log and reads it once, so a bad program is a 400 now
 // rather than a failed job later. Positions are checked again by the job, against the log.
 json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json,
-                      const std::optional<std::array<double, 3>>& start_mm) {
+                      const std::optional<std::array<double, 3>>& start_mm, std::optional<UploadedProgram>& read) {
     const auto f = req.get_file_value("nc_program");
     if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
     const std::string name = f.filename.empty() ? "program.nc" : fs::path(client_text(f.filename, "file name of part 'nc_program'")).filename().string();
@@ -233,9 +240,10 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
     try {
         // From where the log starts, as the job will read it (the inspect report's first sample).
-        const auto program = app::read_program(source, spec, start_mm);
+        auto program = app::read_program(source, spec, start_mm);
         if (std::none_of(program.blocks.begin(), program.blocks.end(), motion_io::block_moves))
             throw ApiError(400, "bad_program", fmt::format("{}: the program has no motion block", name));
+        read.emplace(UploadedProgram{std::move(program), source.settings.rapid_mm_min});
     } catch (const motion_io::NcProgramError& e) {
         throw ApiError(400, "bad_program", e.what());
     }
@@ -325,14 +333,29 @@ void create_run(Core& core, Ctx& x) {
         throw ApiError(400, "bad_log", msg);
     }
     json nc_program;
+    std::optional<UploadedProgram> program_read;
     if (req.has_file("nc_program"))
-        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm);
+        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm, program_read);
     else if (part(req, "nc_options"))
         bad_request("part nc_options: given without nc_program (the options are for reading the NC program)");
     std::size_t rows = 0;
     for (const auto& [name, ch] : report.channels) rows = std::max(rows, ch.samples);
     if (rows > core.opt.max_log_rows)
         throw ApiError(413, "too_many_rows", fmt::format("the log has {} rows; the limit is {}", rows, core.opt.max_log_rows));
+    // The work the run implies, before it is queued: the job checks the same figures again.
+    {
+        app::CommandedWork commanded;
+        if (program_read) {
+            commanded.program = &program_read->program;
+            commanded.options.step_s = ro.step_ms * 1e-3;
+            commanded.options.rapid_mm_min = program_read->rapid_mm_min;
+        }
+        try {
+            app::check_work(app::estimate_work(report, force_model::parse_run_spec(r.spec), commanded), work_limits(core.opt));
+        } catch (const app::TooMuchWork& e) {
+            throw ApiError(400, "too_much_work", e.what());
+        }
+    }
     // Coarse data is said out loud before any prediction (docs/formats.md, "Coarse data").
     const motion_io::SamplingCheck sampling = motion_io::check_sampling(report, force_model::max_flutes(force_model::parse_run_spec(r.spec)));
     json warnings = json::array();

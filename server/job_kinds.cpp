@@ -33,6 +33,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         base_run = run->base_run;
     }
     app::RunInput in = run_input(inputs, dir, opt.use_opencl);
+    in.limits = work_limits(opt);
     const force_model::StockPtr base = load_base_stock(store, base_run);
     in.base_stock = base.get();
 

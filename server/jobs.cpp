@@ -31,6 +31,14 @@ app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use
     return in;
 }
 
+app::WorkLimits work_limits(const ServerOptions& opt) {
+    app::WorkLimits w;
+    w.max_force_rows = opt.max_force_rows;
+    w.max_stock_cells = opt.max_stock_cells;
+    w.max_job_memory_mb = opt.max_job_memory_mb;
+    return w;
+}
+
 force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run) {
     if (!base_run) return nullptr;
     force_model::StockPtr stock;

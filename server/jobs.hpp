@@ -29,6 +29,10 @@ namespace cutload::server {
 // input; an nc_options object that is no longer valid is ApiError 400 naming the key.
 app::RunInput run_input(const json& inputs, const std::filesystem::path& upload_dir, bool use_opencl);
 
+// The work limits of `cutload serve` (--max-force-rows, --max-stock-cells, --max-job-memory-mb),
+// checked at upload and again by the job.
+app::WorkLimits work_limits(const ServerOptions& opt);
+
 // The final stock of base_run, from its bytes in the store (null without a base run).
 force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run);
 

@@ -32,6 +32,11 @@ struct ServerOptions {
     int max_waiting_connections = 512;
     std::size_t max_header_bytes = 64u << 10;   // request line + headers; 431 beyond
     std::size_t max_log_rows = 20'000'000;
+    // Work limits (app::WorkLimits; docs/api.md, "Work limits"): a run whose estimated work passes
+    // one is refused at upload (400 too_much_work) and stopped by the engine should it pass the rows.
+    double max_force_rows = 2e7;
+    double max_stock_cells = 25e6;
+    double max_job_memory_mb = 3000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429
     int max_points = 20000;                // cap of forces/motion max_points
     std::size_t cache_bytes = 128u << 20;  // decoded series chunks kept in memory (LRU)
