@@ -20,8 +20,8 @@ namespace cutload::app {
 // The defaults suit the smallest machine cutload is run on (2 cores, 8 GB, two jobs at once):
 // docs/api.md, "Work limits", gives the figures they come from.
 struct WorkLimits {
-    double max_force_rows = 2e7;        // rows of the job's predictions together (--max-force-rows)
-    double max_stock_cells = 25e6;      // dexel cells of the stock (--max-stock-cells)
+    double max_force_rows = 1e7;        // rows of the job's predictions together (--max-force-rows)
+    double max_stock_cells = 20e6;      // dexel cells of the stock (--max-stock-cells)
     double max_job_memory_mb = 3000;    // the estimate below (--max-job-memory-mb)
 };
 
@@ -30,7 +30,8 @@ struct WorkLimits {
 inline constexpr double kJobBytesPerForceRow = 240;
 inline constexpr double kJobBytesPerMotionSample = 200;
 // Beyond the stocks themselves (force_model::stock_bytes_per_cell() each): the final stock as
-// stored (32 B per ray, walls besides) in a buffer that may have doubled once.
+// stored, about 40 B a cell (32 B per ray, 24 B per sub-cell wall), twice while it is written:
+// the serialized bytes and the database's own copy of them.
 inline constexpr double kJobBytesPerStoredCell = 80;
 
 // The commanded motion a job predicts besides the log's: none, the program's, or the log's own

@@ -34,8 +34,8 @@ struct ServerOptions {
     std::size_t max_log_rows = 20'000'000;
     // Work limits (app::WorkLimits; docs/api.md, "Work limits"): a run whose estimated work passes
     // one is refused at upload (400 too_much_work) and stopped by the engine should it pass the rows.
-    double max_force_rows = 2e7;
-    double max_stock_cells = 25e6;
+    double max_force_rows = 1e7;
+    double max_stock_cells = 20e6;
     double max_job_memory_mb = 3000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429
     int max_points = 20000;                // cap of forces/motion max_points

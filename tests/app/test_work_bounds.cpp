@@ -117,6 +117,16 @@ TEST_CASE("work bounds: each limit refuses with the quantity, its figures and it
                       Catch::Contains("stock_cells: resolution.grid_mm gives the stock box 1e+05 dexel cells, above the "
                                       "limit of 5e+04 (--max-stock-cells)"));
 
+    // The demo's 105 x 90 mm stock at 0.01 mm: 10500 x 9000 = 9.45e7 cells, which the run spec
+    // itself took up to 60e6 and which the defaults now refuse (20e6).
+    force_model::RunSpec fine = force_model::load_run_spec(source_path("data/demo_run.json"));
+    fine.resolution.grid_mm = 0.01;
+    const app::WorkEstimate wf = app::estimate_work(report, fine);
+    CHECK(wf.stock_cells == 94'500'000);
+    CHECK_THROWS_WITH(app::check_work(wf, app::WorkLimits{}), Catch::StartsWith("stock_cells:") &&
+                                                                 Catch::Contains("9.45e+07 dexel cells") &&
+                                                                 Catch::Contains("limit of 2e+07"));
+
     app::WorkLimits memory;
     memory.max_job_memory_mb = 100;   // the estimate is about 350 MB
     CHECK_THROWS_WITH(app::check_work(w, memory), Catch::Contains("job_memory: the run would need about") &&

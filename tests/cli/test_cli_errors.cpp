@@ -107,3 +107,22 @@ TEST_CASE("issue 19: 1e400 in a run spec, tool or map file is one line naming fi
     require_one_error_line(run("inspect " + source("data/demo_dryrun.csv") + " --map " + map),
                            map + ":2:22: sample_period_ms: the number 1e400 is out of range");
 }
+
+TEST_CASE("predict refuses a run whose estimated work passes a limit, in one line and before computing", "[cli][bounds]") {
+    // The demo: 14.9 s of motion at up to 10002 rpm, about 4.2e5 angle steps at 2 deg; its stock is
+    // 105 x 90 mm at 0.1 mm, 9.45e5 cells.
+    const fs::path dir = scratch("predict_bounds");
+    const fs::path forces = dir / "forces.csv";
+    const std::string predict = "predict " + source("data/demo_dryrun.csv") + " --spec " + source("data/demo_run.json") +
+                                " --device cpu --out " + forces.string();
+    const Result rows = run(predict + " --max-force-rows 100000");
+    require_one_error_line(rows, "force_rows: the log's 14.87 s turn the spindle");
+    CHECK(rows.output.find("force rows, above the limit of 1e+05 (--max-force-rows)") != std::string::npos);
+    CHECK_FALSE(fs::exists(forces));
+    const Result cells = run(predict + " --max-stock-cells 500000");
+    require_one_error_line(cells, "stock_cells: resolution.grid_mm gives the stock box 9.45e+05 dexel cells");
+    CHECK_FALSE(fs::exists(forces));
+    const Result memory = run(predict + " --max-job-memory-mb 50");
+    require_one_error_line(memory, "(--max-job-memory-mb)");
+    CHECK_FALSE(fs::exists(forces));
+}

@@ -114,7 +114,7 @@ TEST_CASE("errors: body and row and job limits answer 413 and 429") {
     // One job pending fills the queue; the next is refused until it finishes. The first job is
     // made slow on purpose (0.1 deg steps on a fine grid: seconds of work) so the check is certain.
     json slow = slot_spec();
-    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.02}};
+    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.025}};   // 16e6 cells
     auto r = upload(c, slot_log_csv(0.6), slow);
     REQUIRE(r->status == 202);
     auto refused = upload(c, slot_log_csv(0.2), slot_spec());
@@ -123,6 +123,42 @@ TEST_CASE("errors: body and row and job limits answer 413 and 429") {
     auto cancelled = c.Post("/api/v1/runs/" + std::to_string(json::parse(r->body)["id"].get<int>()) + "/cancel", "", "application/json");
     REQUIRE(cancelled);
     REQUIRE(cancelled->status < 300);
+}
+
+TEST_CASE("errors: a run whose estimated work passes a limit is a 400 naming the cause, before anything is stored") {
+    // The slot log: 1 s at 10000 rpm, 166.7 revolutions; at the spec's 2 deg a step that is
+    // 30000 force rows, plus one per sample of the 1 ms model. Its stock: 1000 x 10 mm at
+    // 0.1 mm, 1e6 cells.
+    SECTION("force rows") {
+        TestServer ts([](cutload::server::ServerOptions& o) { o.max_force_rows = 20000; });
+        auto c = ts.client(ts.write_key);
+        const auto r = upload(c, slot_log_csv(1.0), slot_spec());
+        require_error(r, 400, "too_much_work", "force_rows: the log's 0.998 s turn the spindle 166.3 revolutions");
+        const std::string m = body(r)["error"]["message"];
+        CHECK(m.find("at resolution.angle_step_deg 2 that is 3.09e+04 force rows, above the limit of 2e+04 "
+                     "(--max-force-rows)") != std::string::npos);
+        require_nothing_left(ts);
+    }
+    SECTION("stock cells") {
+        TestServer ts([](cutload::server::ServerOptions& o) { o.max_stock_cells = 500'000; });
+        auto c = ts.client(ts.write_key);
+        require_error(upload(c, slot_log_csv(1.0), slot_spec()), 400, "too_much_work",
+                      "stock_cells: resolution.grid_mm gives the stock box 1e+06 dexel cells, above the limit of 5e+05");
+        require_nothing_left(ts);
+    }
+    SECTION("memory") {
+        // 1e6 cells at 144 B (the stock and its stored copy) alone are 137 MB.
+        TestServer ts([](cutload::server::ServerOptions& o) { o.max_job_memory_mb = 100; });
+        auto c = ts.client(ts.write_key);
+        require_error(upload(c, slot_log_csv(1.0), slot_spec()), 400, "too_much_work",
+                      "above the limit of 100 MB (--max-job-memory-mb)");
+        require_nothing_left(ts);
+    }
+    SECTION("inside the limits the same upload is queued") {
+        TestServer ts([](cutload::server::ServerOptions& o) { o.max_force_rows = 40000; });
+        auto c = ts.client(ts.write_key);
+        REQUIRE(upload(c, slot_log_csv(1.0), slot_spec())->status == 202);
+    }
 }
 
 TEST_CASE("errors: static files are served without path traversal") {

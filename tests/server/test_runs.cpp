@@ -224,7 +224,7 @@ TEST_CASE("runs: cancelling a running run stops it and stores no results") {
     TestServer ts;
     auto c = ts.client(ts.write_key);
     json slow = slot_spec();   // seconds of work, so the cancel lands while it computes
-    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.02}};
+    slow["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.02}, {"grid_mm", 0.025}};   // 16e6 cells
     const std::int64_t id = body(upload(c, slot_log_csv(0.6), slow))["id"];
     const std::string url = "/api/v1/runs/" + std::to_string(id);
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
