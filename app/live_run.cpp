@@ -17,6 +17,7 @@ const char* to_string(LiveEnd e) {
     case LiveEnd::ProgramEnd: return "program_end";
     case LiveEnd::Stopped: return "stopped";
     case LiveEnd::Idle: return "idle";
+    case LiveEnd::Limit: return "limit";
     }
     return "stopped";
 }
@@ -281,6 +282,7 @@ const std::vector<double>& LiveRun::lags_s() const { return impl_->lags; }
 std::int64_t LiveRun::origin_ns() const { return impl_->origin_ns; }
 double LiveRun::machine_t_s() const { return impl_->machine_t_s; }
 std::size_t LiveRun::observations() const { return impl_->observations; }
+std::size_t LiveRun::motion_samples() const { return impl_->engine.motion_samples(); }
 
 LiveResult run_live(live::Source& source, const LiveOptions& opt, const LiveCallbacks& cb, const std::atomic<bool>& stop) {
     LiveRun run(opt, cb);
@@ -292,6 +294,10 @@ LiveResult run_live(live::Source& source, const LiveOptions& opt, const LiveCall
         const auto now = Clock::now();
         if (!batch.observations.empty()) last_data = now;
         if (auto end = run.push(batch, now)) return run.finish(*end, "program end");
+        if (opt.max_motion_samples > 0 && run.motion_samples() >= opt.max_motion_samples)
+            return run.finish(LiveEnd::Limit, fmt::format("the run reached its limit of {} motion samples ({:.0f} s at the {:g} ms grid)",
+                                                          opt.max_motion_samples, double(opt.max_motion_samples) * opt.step_ms * 1e-3,
+                                                          opt.step_ms));
         if (opt.idle_timeout.count() > 0 && now - last_data > opt.idle_timeout)
             return run.finish(LiveEnd::Idle, fmt::format("no data for {} s", opt.idle_timeout.count() / 1000.0));
     }

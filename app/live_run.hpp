@@ -37,14 +37,18 @@ struct LiveOptions {
     // reading waits this long (an adapter or agent sends in order: the default keeps 0.1 s for
     // stragglers between channels, against 1 s for files).
     double reorder_horizon_s = 0.1;
+    // The run closes (LiveEnd::Limit) once its motion grid holds this many samples: the grid is
+    // kept for the stored run (about 100 B a sample), so a run left open cannot grow without
+    // bound. 0: no limit (the service derives one from its job memory limit).
+    std::size_t max_motion_samples = 0;
     double step_ms = 1.0;                       // motion grid
     std::chrono::milliseconds idle_timeout{std::chrono::minutes(5)};   // 0: never
     const force_model::Stock* base_stock = nullptr;
     force_model::Device device = force_model::Device::Cpu;
 };
 
-enum class LiveEnd { ProgramEnd, Stopped, Idle };
-const char* to_string(LiveEnd e);   // "program_end", "stopped", "idle"
+enum class LiveEnd { ProgramEnd, Stopped, Idle, Limit };
+const char* to_string(LiveEnd e);   // "program_end", "stopped", "idle", "limit"
 
 struct LiveGap {
     double t_s = 0;       // machine time of the last sample before it (run time, see LiveRun::origin_ns)
@@ -96,6 +100,7 @@ public:
     std::int64_t origin_ns() const;      // 0 until the first observation
     double machine_t_s() const;          // run time of the latest force row handed out
     std::size_t observations() const;
+    std::size_t motion_samples() const;   // grid samples walked so far
 
 private:
     struct Impl;

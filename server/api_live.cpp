@@ -7,6 +7,7 @@
 #include "live_source.hpp"
 #include "spec_refs.hpp"
 
+#include "app/work_bounds.hpp"
 #include "db/live.hpp"
 
 #include <fmt/format.h>
@@ -86,6 +87,8 @@ void create_live(Core& c, Ctx& x) {
     opt.idle_timeout = std::chrono::milliseconds(std::llround(1000 * number_in(body, "idle_timeout_s", 300, 0, 86400)));
     opt.clock_batch_readings = std::size_t(number_in(body, "clock_batch_readings", 64, 16, 1024));
     opt.reorder_horizon_s = number_in(body, "reorder_horizon_s", 0.1, 0, 1);
+    // A live run has no length to estimate up front: it closes at the job memory limit instead.
+    opt.max_motion_samples = std::size_t(c.opt.max_job_memory_mb * 1e6 / app::kJobBytesPerMotionSample);
     opt.device = force_model::Device::Cpu;   // one live run must not hold the OpenCL device from the jobs
     opt.spec = force_model::parse_run_spec(r.spec);
     db::NewRun run;

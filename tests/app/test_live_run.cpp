@@ -183,6 +183,37 @@ TEST_CASE("live_run: an explicit stop closes the run with what arrived", "[app][
     CHECK(live.prediction.stats.simulated_s < 12.0);
 }
 
+TEST_CASE("live_run: a run that reaches its motion-sample limit closes with what arrived", "[app][live]") {
+    live::ReplayOptions ro;
+    ro.log = source_path("data/demo_dryrun.csv");
+    ro.port = 0;
+    ro.speed = 10;
+    live::ReplayAdapter adapter(ro);
+    auto source = live::open_source("shdr://127.0.0.1:" + std::to_string(adapter.port()));
+    app::LiveOptions lo;
+    lo.spec = demo_input(false).spec;
+    lo.polled = true;
+    // 8 s of the 14.9 s log at the 1 ms grid (past the ~6 s a polled source's clock holds at the
+    // start while it estimates the CNC period, which it then releases at once).
+    lo.max_motion_samples = 8000;
+    lo.clock_batch_readings = 64;   // the service's: motion comes out about 0.4 s at a time
+    lo.idle_timeout = std::chrono::milliseconds(2000);   // without the limit: closed idle, not hung
+    std::size_t rows = 0;
+    app::LiveCallbacks cb;
+    cb.samples = [&](const std::vector<force_model::ForceSample>& s, const std::vector<std::string>&) { rows += s.size(); };
+    const std::atomic<bool> stop{false};
+    const app::LiveResult live = app::run_live(*source, lo, cb, stop);
+    CHECK(live.end == app::LiveEnd::Limit);
+    CHECK(std::string(app::to_string(live.end)) == "limit");
+    CHECK(live.end_reason.find("limit of 8000 motion samples") != std::string::npos);
+    // Closed at the first source batch past the limit (a fraction of a second of log; more on a
+    // loaded machine), before the log's 14 900 samples.
+    CHECK(live.motion.size() >= 8000);
+    CHECK(live.motion.size() < 14000);
+    CHECK(rows == live.force_rows);
+    CHECK(rows > 100);
+}
+
 TEST_CASE("live_run: an M30 block or a completed execution state ends the program", "[app][live]") {
     // A tiny SHDR log with an execution state, written as a recording with per-line stamps.
     Scratch dir("live_m30");
