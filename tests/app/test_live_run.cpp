@@ -15,6 +15,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -58,6 +59,31 @@ std::string demo_rezeroed(const std::filesystem::path& dir) {
     write_text(path, out.str());
     return path.string();
 }
+
+// The demo log played by the replay adapter at `speed` (polled, as a CSV export is), with the
+// demo's spec; counts the force rows handed out.
+struct DemoReplay {
+    std::unique_ptr<live::ReplayAdapter> adapter;
+    std::unique_ptr<live::Source> source;
+    app::LiveOptions options;
+    app::LiveCallbacks callbacks;
+    std::size_t rows = 0;
+
+    explicit DemoReplay(double speed) {
+        live::ReplayOptions ro;
+        ro.log = source_path("data/demo_dryrun.csv");
+        ro.port = 0;
+        ro.speed = speed;
+        adapter = std::make_unique<live::ReplayAdapter>(ro);
+        source = live::open_source("shdr://127.0.0.1:" + std::to_string(adapter->port()));
+        options.spec = demo_input(false).spec;
+        options.polled = true;
+        callbacks.samples = [this](const std::vector<force_model::ForceSample>& s, const std::vector<std::string>&) {
+            rows += s.size();
+        };
+    }
+    app::LiveResult run(const std::atomic<bool>& stop) { return app::run_live(*source, options, callbacks, stop); }
+};
 
 }  // namespace
 
@@ -156,53 +182,31 @@ TEST_CASE("live_run: the demo replayed at 10x gives the offline forces, blocks a
 }
 
 TEST_CASE("live_run: an explicit stop closes the run with what arrived", "[app][live]") {
-    live::ReplayOptions ro;
-    ro.log = source_path("data/demo_dryrun.csv");
-    ro.port = 0;
-    ro.speed = 5;
-    live::ReplayAdapter adapter(ro);
-    auto source = live::open_source("shdr://127.0.0.1:" + std::to_string(adapter.port()));
-    app::LiveOptions lo;
-    lo.spec = demo_input(false).spec;
-    lo.polled = true;
-    std::size_t rows = 0;
-    app::LiveCallbacks cb;
-    cb.samples = [&](const std::vector<force_model::ForceSample>& s, const std::vector<std::string>&) { rows += s.size(); };
+    DemoReplay replay(5);
     std::atomic<bool> stop{false};
     std::thread stopper([&] {
         std::this_thread::sleep_for(std::chrono::milliseconds(1000));
         stop = true;
     });
-    const app::LiveResult live = app::run_live(*source, lo, cb, stop);
+    const app::LiveResult live = replay.run(stop);
     stopper.join();
     CHECK(live.end == app::LiveEnd::Stopped);
-    CHECK(rows == live.force_rows);
-    CHECK(rows > 100);
+    CHECK(replay.rows == live.force_rows);
+    CHECK(replay.rows > 100);
     // Stopped after about 1 s of a 3 s replay: part of the 14.9 s log is in, not all of it.
     CHECK(live.prediction.stats.simulated_s > 1.0);
     CHECK(live.prediction.stats.simulated_s < 12.0);
 }
 
 TEST_CASE("live_run: a run that reaches its motion-sample limit closes with what arrived", "[app][live]") {
-    live::ReplayOptions ro;
-    ro.log = source_path("data/demo_dryrun.csv");
-    ro.port = 0;
-    ro.speed = 10;
-    live::ReplayAdapter adapter(ro);
-    auto source = live::open_source("shdr://127.0.0.1:" + std::to_string(adapter.port()));
-    app::LiveOptions lo;
-    lo.spec = demo_input(false).spec;
-    lo.polled = true;
+    DemoReplay replay(10);
     // 8 s of the 14.9 s log at the 1 ms grid (past the ~6 s a polled source's clock holds at the
     // start while it estimates the CNC period, which it then releases at once).
-    lo.max_motion_samples = 8000;
-    lo.clock_batch_readings = 64;   // the service's: motion comes out about 0.4 s at a time
-    lo.idle_timeout = std::chrono::milliseconds(2000);   // without the limit: closed idle, not hung
-    std::size_t rows = 0;
-    app::LiveCallbacks cb;
-    cb.samples = [&](const std::vector<force_model::ForceSample>& s, const std::vector<std::string>&) { rows += s.size(); };
+    replay.options.max_motion_samples = 8000;
+    replay.options.clock_batch_readings = 64;   // the service's: motion comes out about 0.4 s at a time
+    replay.options.idle_timeout = std::chrono::milliseconds(2000);   // without the limit: closed idle, not hung
     const std::atomic<bool> stop{false};
-    const app::LiveResult live = app::run_live(*source, lo, cb, stop);
+    const app::LiveResult live = replay.run(stop);
     CHECK(live.end == app::LiveEnd::Limit);
     CHECK(std::string(app::to_string(live.end)) == "limit");
     CHECK(live.end_reason.find("limit of 8000 motion samples") != std::string::npos);
@@ -210,8 +214,8 @@ TEST_CASE("live_run: a run that reaches its motion-sample limit closes with what
     // loaded machine), before the log's 14 900 samples.
     CHECK(live.motion.size() >= 8000);
     CHECK(live.motion.size() < 14000);
-    CHECK(rows == live.force_rows);
-    CHECK(rows > 100);
+    CHECK(replay.rows == live.force_rows);
+    CHECK(replay.rows > 100);
 }
 
 TEST_CASE("live_run: an M30 block or a completed execution state ends the program", "[app][live]") {
