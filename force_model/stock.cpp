@@ -91,13 +91,6 @@ bool Stock::untouched(std::size_t r) const {
 
 void StockDeleter::operator()(Stock* s) const { delete s; }
 
-double stock_cells(const StockBox& box, double grid_mm) {
-    // Rounded to whole cells as make_stock lays them out (a box that is a multiple of the grid
-    // exactly); at least one per axis.
-    const auto along = [&](int k) { return std::max(1.0, std::round((box.max_mm[k] - box.min_mm[k]) / grid_mm)); };
-    return along(0) * along(1);
-}
-
 std::size_t stock_bytes_per_cell() {
     return (kernels::kDexelFloats + kernels::kWallSlots * kernels::kWallFloats) * sizeof(float);
 }
