@@ -62,14 +62,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.program = &program;
         commanded.options.step_s = r.motion.step_s;
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
-        r.work = estimate_work(r.ingest, in.spec, commanded);
+        r.work = estimate_work(r.ingest, in.spec, commanded, in.rows_out.has_value());
         check_work(r.work, in.limits);
         track.begin(Phase::Mapping, 0, 0);
         r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
-        r.work = estimate_work(r.ingest, in.spec, commanded);
+        r.work = estimate_work(r.ingest, in.spec, commanded, in.rows_out.has_value());
         check_work(r.work, in.limits);
     }
     motion_io::MotionModel logged_commanded;
@@ -102,8 +102,18 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     po.max_rows = max_rows(in.limits);
     track.begin(Phase::Predict, 0, actual_share);
     po.progress = track.engine_progress();
+    std::size_t rows_out = 0;
+    if (in.rows_out) {
+        if (in.rows_out->begin) in.rows_out->begin(r.motion.block_names, r.work.force_rows);
+        po.rows_out = [&](std::span<const force_model::ForceSample> rows) {
+            rows_out += rows.size();
+            in.rows_out->rows(rows);
+        };
+    }
     r.prediction = force_model::predict(r.motion, in.spec, po);
-    if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.prediction.samples.size()));
+    po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
+    r.rows = rows_out + r.prediction.samples.size();
+    if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));
     if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);
     if (r.program) {
         track.begin(Phase::Commanded, actual_share, 1);

@@ -14,7 +14,9 @@
 #include "motion_io/motion_io.hpp"
 
 #include <cstddef>
+#include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -29,6 +31,15 @@ struct RunInput {
     const force_model::Stock* base_stock = nullptr;   // start from it (load_stock, load_stock_bytes)
     force_model::Device device = force_model::Device::Cpu;
     WorkLimits limits;                                // checked before predicting (TooMuchWork)
+    // Where the actual prediction's rows go as they become final, when set: RunResult's
+    // prediction.samples then stays empty and memory does not grow with the log's length.
+    // begin() gets the names the rows' block indices refer to and the rows expected at most
+    // (force_model::expected_rows), once, before the first rows.
+    struct RowsOut {
+        std::function<void(const std::vector<std::string>& block_names, double expected_rows)> begin;
+        std::function<void(std::span<const force_model::ForceSample> rows)> rows;
+    };
+    std::optional<RowsOut> rows_out;
 };
 
 struct RunResult {
@@ -42,6 +53,7 @@ struct RunResult {
                                                  // comparison, time warp (identity for the log's own)
     std::size_t commanded_samples = 0;           // commanded_from_log: samples of the commanded motion
     WorkEstimate work;                           // the work estimated before predicting
+    std::size_t rows = 0;                        // rows of the actual prediction (also those sent to rows_out)
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path

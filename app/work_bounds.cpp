@@ -26,7 +26,7 @@ motion_io::MotionExtent program_extent(const motion_io::NcProgram& program, cons
 }  // namespace
 
 WorkEstimate estimate_work(const motion_io::IngestReport& log, const force_model::RunSpec& spec,
-                           const CommandedWork& commanded) {
+                           const CommandedWork& commanded, bool actual_rows_streamed) {
     WorkEstimate w;
     w.log_duration_s = log.duration_s;
     w.spindle_max_rpm = log.spindle_max_rpm;
@@ -48,7 +48,8 @@ WorkEstimate estimate_work(const motion_io::IngestReport& log, const force_model
         w.stocks = 2;
     }
     w.stock_cells = force_model::stock_cells(spec.stock, spec.resolution.grid_mm);
-    const double bytes = w.total_rows() * kJobBytesPerForceRow + w.motion_samples * kJobBytesPerMotionSample +
+    const double rows_held = actual_rows_streamed ? w.commanded_rows : w.total_rows();
+    const double bytes = rows_held * kJobBytesPerForceRow + w.motion_samples * kJobBytesPerMotionSample +
                          w.stock_cells * (double(w.stocks) * double(force_model::stock_bytes_per_cell()) +
                                           kJobBytesPerStoredCell);
     w.memory_mb = bytes / (1024.0 * 1024.0);

@@ -20,7 +20,10 @@ namespace cutload::app {
 // The defaults suit the smallest machine cutload is run on (2 cores, 8 GB, two jobs at once):
 // docs/api.md, "Work limits", gives the figures they come from.
 struct WorkLimits {
-    double max_force_rows = 1e7;        // rows of the job's predictions together (--max-force-rows)
+    // Rows of the job's predictions together (--max-force-rows): the actual prediction's rows are
+    // streamed (RunInput::rows_out) so they bound the job's time and output, not its memory; about
+    // two hours of cutting at 10000 rpm and 2 deg steps.
+    double max_force_rows = 2e8;
     double max_stock_cells = 20e6;      // dexel cells of the stock (--max-stock-cells)
     double max_job_memory_mb = 3000;    // the estimate below (--max-job-memory-mb)
 };
@@ -59,8 +62,10 @@ struct WorkEstimate {
 };
 
 // `log` is the report of the log as the job reads it (inspect or ingest, same read options).
+// `actual_rows_streamed`: the actual prediction's rows leave as they come (RunInput::rows_out), so
+// they cost no memory (the commanded prediction's still do).
 WorkEstimate estimate_work(const motion_io::IngestReport& log, const force_model::RunSpec& spec,
-                           const CommandedWork& commanded = {});
+                           const CommandedWork& commanded = {}, bool actual_rows_streamed = false);
 
 // Too much work for the limits: key() names the quantity (force_rows, stock_cells, job_memory),
 // what() is "<key>: <the figures that give it, the limit and its option>".

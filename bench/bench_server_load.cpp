@@ -16,9 +16,12 @@
 //   bench_server_load [--duration S (30)] [--repeat N (3)] [--connections N (32)]
 //                     [--samples N (1000000)] [--channels plot|all] [--gzip] [--cache-mb MB (128)]
 //                     [--cutload PATH (the cutload built next to this program)]
+//                     [--db postgresql://... (an empty database; default: an SQLite file in a temporary folder)]
 //
 // Targets (issue 4): p99 < 50 ms, no errors, memory flat over 5 minutes (--duration 300 --repeat 1).
 #include "server/server.hpp"
+
+#include "bench_server.hpp"
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
@@ -43,17 +46,11 @@
 
 namespace {
 
+using cutload::bench::rss_kib;
+using cutload::bench::ServerProcess;
 namespace fs = std::filesystem;
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-
-long rss_kib(pid_t pid) {
-    std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-    std::string line;
-    while (std::getline(in, line))
-        if (line.rfind("VmRSS:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
-    return 0;
-}
 
 struct CpuTimes {
     double user_s = 0, sys_s = 0;
@@ -112,51 +109,11 @@ double percentile(std::vector<double> v, double p) {
 
 double median(std::vector<double> v) { return percentile(std::move(v), 0.5); }
 
-// `cutload serve` as a child process; its first stdout line names the port.
-struct ServerProcess {
-    pid_t pid = -1;
-    int port = 0;
-
-    ServerProcess(const std::string& cutload, const std::vector<std::string>& args) {
-        int out[2];
-        if (::pipe(out) != 0) throw std::runtime_error("pipe failed");
-        pid = ::fork();
-        if (pid == 0) {
-            ::dup2(out[1], STDOUT_FILENO);
-            ::close(out[0]);
-            ::close(out[1]);
-            std::vector<char*> argv{const_cast<char*>(cutload.c_str())};
-            for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-            argv.push_back(nullptr);
-            ::execv(cutload.c_str(), argv.data());
-            std::perror("exec cutload");
-            ::_exit(127);
-        }
-        ::close(out[1]);
-        FILE* f = ::fdopen(out[0], "r");
-        char line[512];
-        while (f && std::fgets(line, sizeof line, f)) {
-            if (const char* at = std::strstr(line, "listening on http://")) {
-                port = std::atoi(std::strrchr(at, ':') + 1);
-                break;
-            }
-        }
-        if (port <= 0) throw std::runtime_error("cutload serve did not start (see its log above)");
-        // Keep reading its stdout so the server never blocks on a full pipe.
-        std::thread([f] {
-            char buf[512];
-            while (std::fgets(buf, sizeof buf, f)) {
-            }
-            std::fclose(f);
-        }).detach();
-    }
-    ~ServerProcess() {
-        if (pid > 0) {
-            ::kill(pid, SIGTERM);
-            ::waitpid(pid, nullptr, 0);
-        }
-    }
-};
+std::string fmt_mib(std::uintmax_t bytes) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f MiB", static_cast<double>(bytes) / (1 << 20));
+    return buf;
+}
 
 enum Kind { Zoom, Overview, Blocks, kKinds };
 const char* kKindNames[kKinds] = {"zoom 0.05-5 s", "overview", "blocks"};
@@ -175,6 +132,7 @@ int main(int argc, char** argv) {
     bool gzip = false;
     std::string channels = "&channels=fx_N,fy_N,fz_N,f_N";
     fs::path cutload = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "cli" / "cutload";
+    std::string db_arg;   // --db: a store other than the default SQLite file (PostgreSQL)
     for (int i = 1; i < argc; i += 2) {
         if (std::string(argv[i]) == "--gzip") {
             gzip = true;
@@ -192,11 +150,12 @@ int main(int argc, char** argv) {
         else if (a == "--samples") samples_wanted = std::atof(v.c_str());
         else if (a == "--cache-mb") cache_mb = std::atof(v.c_str());
         else if (a == "--cutload") cutload = v;
+        else if (a == "--db") db_arg = v;
         else if (a == "--channels" && (v == "plot" || v == "all")) channels = v == "all" ? "" : channels;
         else {
             std::fprintf(stderr,
                          "usage: bench_server_load [--duration S] [--repeat N] [--connections N] [--samples N] "
-                         "[--channels plot|all] [--gzip] [--cache-mb MB] [--cutload PATH]\n");
+                         "[--channels plot|all] [--gzip] [--cache-mb MB] [--cutload PATH] [--db URL]\n");
             return 2;
         }
     }
@@ -208,14 +167,18 @@ int main(int argc, char** argv) {
     std::string tmpl = (fs::temp_directory_path() / "cutload-bench-XXXXXX").string();
     if (!::mkdtemp(tmpl.data())) return 1;
     const fs::path dir = tmpl;
-    const std::string db = (dir / "bench.db").string();
+    const std::string db = db_arg.empty() ? (dir / "bench.db").string() : db_arg;
     const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Read, "bench reader");
     const std::string writer = cutload::server::create_api_key(db, cutload::server::Role::Write, "bench writer");
     int rc = 0;
     {
-        ServerProcess srv(cutload.string(), {"serve", "--listen", "127.0.0.1:0", "--db", db, "--workers", "1", "--device", "cpu",
-                                             "--http-threads", std::to_string(connections + 8), "--cache-mb",
-                                             std::to_string(cache_mb)});
+        std::vector<std::string> serve_args{"serve", "--listen", "127.0.0.1:0", "--db", db, "--workers", "1", "--device", "cpu",
+                                            "--http-threads", std::to_string(connections + 8), "--cache-mb",
+                                            std::to_string(cache_mb)};
+        // A PostgreSQL URL names no folder for the upload.
+        if (!db_arg.empty()) serve_args.insert(serve_args.end(), {"--data-dir", (dir / "data").string()});
+        std::printf("store: %s\n", cutload::server::printable_db(db).c_str());
+        ServerProcess srv(cutload.string(), serve_args);
 
         // The run: enough cutting seconds for the samples wanted, plus the 0.3 s approach in air.
         const double cut_s = samples_wanted / 30000.0 * 1.02;
@@ -243,10 +206,11 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "run %s: %s\n", run["state"].get<std::string>().c_str(), run["error"].dump().c_str());
             return 1;
         }
-        std::printf("run ready in %.1f s: %lld force samples, %lld blocks; db %.0f MiB\n",
+        // A PostgreSQL database's files are its server's: its size is not shown.
+        const std::string db_size = db_arg.empty() ? fmt_mib(fs::file_size(db) + fs::file_size(db + "-wal")) : "in PostgreSQL";
+        std::printf("run ready in %.1f s: %lld force samples, %lld blocks; db %s\n",
                     std::chrono::duration<double>(Clock::now() - t_prep).count(),
-                    run["summary"]["samples"].get<long long>(), run["summary"]["blocks"].get<long long>(),
-                    static_cast<double>(fs::file_size(db) + fs::file_size(db + "-wal")) / (1 << 20));
+                    run["summary"]["samples"].get<long long>(), run["summary"]["blocks"].get<long long>(), db_size.c_str());
         std::printf("%d connections, %s channels, max_points=2000, %s, %d x %.0f s, cache %.0f MiB\n", connections,
                     channels.empty() ? "all 12" : "4 force", gzip ? "gzip offered" : "no compression", repeats,
                     duration_s, cache_mb);

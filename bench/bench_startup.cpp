@@ -84,45 +84,16 @@ Logs write_logs(const fs::path& dir) {
     return logs;
 }
 
-struct Run {
-    double wall_s = 0, cpu_s = 0;
-    int status = -1;
-};
-
-Run run_once(const std::vector<std::string>& args) {
-    std::vector<char*> argv;
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    Run r;
-    std::fflush(nullptr);   // or the child's copy of the buffered output is written twice
-    const auto t0 = std::chrono::steady_clock::now();
-    const pid_t pid = fork();
-    if (pid == 0) {
-        // The command's own output is not what is measured; its exit status is checked.
-        if (std::freopen("/dev/null", "w", stdout) == nullptr || std::freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
-        execv(argv[0], argv.data());
-        _exit(127);
-    }
-    if (pid < 0) return r;
-    int status = 0;
-    rusage u{};
-    if (wait4(pid, &status, 0, &u) != pid) return r;
-    r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    r.cpu_s = double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-    r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
 // Median wall and CPU time of `runs` runs after `warmup` untimed ones; false when any run fails.
 bool measure(const char* label, const std::vector<std::string>& args, int runs, int warmup) {
     for (int i = 0; i < warmup; ++i)
-        if (run_once(args).status != 0) {
+        if (run_child(args).status != 0) {
             std::printf("  %-34s failed (exit status non-zero): %s\n", label, args[1].c_str());
             return false;
         }
     std::vector<double> wall, cpu;
     for (int i = 0; i < runs; ++i) {
-        const Run r = run_once(args);
+        const ChildRun r = run_child(args);
         if (r.status != 0) {
             std::printf("  %-34s failed (exit status %d)\n", label, r.status);
             return false;

@@ -4,11 +4,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
 
 #include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace cutload::bench {
 
@@ -53,6 +56,40 @@ Timing median_seconds(int runs, F&& f) {
         wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
     return {median(wall), median(cpu)};
+}
+
+// A command run as a child process: its wall time, CPU time (user + system) and peak resident
+// memory (wait4's ru_maxrss), and its exit status (-1 when it did not exit normally).
+struct ChildRun {
+    double wall_s = 0, cpu_s = 0, peak_rss_mb = 0;
+    int status = -1;
+};
+
+// Runs args[0] with args, its stdout into `stdout_path` (its own output is not what is measured)
+// and its stderr discarded.
+inline ChildRun run_child(const std::vector<std::string>& args, const std::string& stdout_path = "/dev/null") {
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ChildRun r;
+    std::fflush(nullptr);   // or the child's copy of the buffered output is written twice
+    const auto t0 = std::chrono::steady_clock::now();
+    const pid_t pid = fork();
+    if (pid == 0) {
+        if (std::freopen(stdout_path.c_str(), "w", stdout) == nullptr || std::freopen("/dev/null", "w", stderr) == nullptr)
+            _exit(126);
+        execv(argv[0], argv.data());
+        _exit(127);
+    }
+    if (pid < 0) return r;
+    int status = 0;
+    rusage u{};
+    if (wait4(pid, &status, 0, &u) != pid) return r;
+    r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    r.cpu_s = double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+    r.peak_rss_mb = double(u.ru_maxrss) / 1024.0;
+    r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
 }
 
 }  // namespace cutload::bench

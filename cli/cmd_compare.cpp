@@ -66,7 +66,7 @@ void print_zero(const force_model::Comparison& c, bool keep_zero) {
 
 void run_compare(const CompareArgs& a) {
     try {
-        const force_model::PredictedTrace predicted = force_model::read_forces_csv(a.predicted);
+        const force_model::PredictedTrace predicted = force_model::read_predicted_forces(a.predicted);
         app::CompareSettings settings;
         if (!a.axes.empty()) settings.axes = force_model::parse_axis_matrix(a.axes);
         settings.measured_on_workpiece = a.measured_on == "workpiece";
@@ -117,7 +117,7 @@ void run_compare(const CompareArgs& a) {
 void add_compare(CLI::App& app) {
     auto a = std::make_shared<CompareArgs>();
     auto* cmd = app.add_subcommand("compare", "Compare predicted forces with a dynamometer measurement");
-    cmd->add_option("--predicted", a->predicted, "FORCES.csv written by cutload predict")
+    cmd->add_option("--predicted", a->predicted, "FORCES.csv or FORCES.bin written by cutload predict")
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("--measured", a->measured, "Dynamometer record: DynoWare CSV export or plain CSV t,fx,fy,fz")

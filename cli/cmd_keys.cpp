@@ -28,7 +28,7 @@ void print_keys(const std::string& db) {
         std::printf("%-10s  %-5s  %-20s  %-24s  %-24s  %s\n", k.prefix.c_str(), server::role_name(k.role),
                     k.name.empty() ? "-" : k.name.c_str(), k.created_at.c_str(), k.last_used_at.value_or("never").c_str(),
                     k.revoked_at.value_or("-").c_str());
-    std::printf("%zu key(s) in %s\n", keys.size(), db.c_str());
+    std::printf("%zu key(s) in %s\n", keys.size(), server::printable_db(db).c_str());
 }
 
 void revoke_key(const std::string& db, const std::string& prefix) {
@@ -52,21 +52,21 @@ void add_keys(CLI::App& app) {
     create->add_option("--role", a->role, "read: GET only; write: also upload, cancel, edit libraries; admin: everything")
         ->check(CLI::IsMember({"read", "write", "admin"}))
         ->capture_default_str();
-    create->add_option("--db", a->db, "SQLite database of the service")->capture_default_str();
+    create->add_option("--db", a->db, "Store of the service: SQLite file or postgresql:// URL")->capture_default_str();
     create->add_option("--name", a->name, "Label shown in key listings (e.g. who holds it)");
     create->callback([a] {
         const std::string key = server::create_api_key(a->db, server::parse_role(a->role), a->name);
-        std::printf("created %s key in %s (only its hash is stored; keep it now):\n%s\n", a->role.c_str(), a->db.c_str(),
+        std::printf("created %s key in %s (only its hash is stored; keep it now):\n%s\n", a->role.c_str(), server::printable_db(a->db).c_str(),
                     key.c_str());
     });
 
     auto* list = keys->add_subcommand("list", "List keys: prefix, role, name, created, last used, revoked");
-    list->add_option("--db", a->db, "SQLite database of the service")->capture_default_str();
+    list->add_option("--db", a->db, "Store of the service: SQLite file or postgresql:// URL")->capture_default_str();
     list->callback([a] { print_keys(a->db); });
 
     auto* revoke = keys->add_subcommand("revoke", "Revoke a key: its requests get 401 from now on");
     revoke->add_option("PREFIX", a->prefix, "The key's prefix as `keys list` shows it (or the whole key)")->required();
-    revoke->add_option("--db", a->db, "SQLite database of the service")->capture_default_str();
+    revoke->add_option("--db", a->db, "Store of the service: SQLite file or postgresql:// URL")->capture_default_str();
     revoke->callback([a] { revoke_key(a->db, a->prefix); });
 }
 

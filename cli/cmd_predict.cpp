@@ -39,6 +39,11 @@ void run_predict(const PredictArgs& a) {
     in.device = choose_device(a.device);
     in.limits = a.limits;
 
+    // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
+    const std::unique_ptr<force_model::ForcesWriter> forces = force_model::open_forces_writer(a.out);
+    in.rows_out = app::RunInput::RowsOut{[&](const std::vector<std::string>& names, double) { forces->set_block_names(names); },
+                                         [&](std::span<const force_model::ForceSample> rows) { forces->write(rows); }};
+
     app::Control control;
     int last_pct = -1;
     const bool show_progress = !a.quiet && isatty(STDERR_FILENO);
@@ -62,7 +67,7 @@ void run_predict(const PredictArgs& a) {
     for (const std::string& w : r.warnings) std::fprintf(stderr, "cutload: warning: %s\n", w.c_str());
     const force_model::Prediction& p = r.prediction;
 
-    force_model::write_forces_csv(p, a.out);
+    forces->commit();
     // With a commanded path, BLOCKS.csv also carries the comparison: finish_program_run writes it.
     if (!a.blocks.empty() && !r.commanded) force_model::write_blocks_csv(p, a.blocks);
     if (!a.save_stock.empty()) force_model::save_stock(*p.final_stock, a.save_stock);
@@ -96,7 +101,7 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--spec", a->spec, "Run spec (RUN.json: tool, material, stock, limits, resolution)")
         ->required()
         ->check(CLI::ExistingFile);
-    cmd->add_option("--out", a->out, "FORCES.csv: one row per angle step while cutting")->required();
+    cmd->add_option("--out", a->out, "FORCES.csv: one row per angle step while cutting (a name ending in .bin: FORCES.bin, compact binary)")->required();
     cmd->add_option("--blocks", a->blocks, "BLOCKS.csv: one row per NC block with peaks and flags");
     cmd->add_option("--device", a->device, "opencl, cpu, or auto (OpenCL when a device exists)")
         ->check(CLI::IsMember({"opencl", "cpu", "auto"}))

@@ -38,12 +38,7 @@ void run_replay(ReplayArgs& a) {
     if (a.max_pause_s >= 0) a.opt.max_pause_s = a.max_pause_s;
 
     // Signals go to this thread only (sigtimedwait), never to the replay thread.
-    sigset_t set;
-    sigemptyset(&set);
-    sigaddset(&set, SIGINT);
-    sigaddset(&set, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set, nullptr);
-    std::signal(SIGPIPE, SIG_IGN);
+    const sigset_t set = block_stop_signals();
 
     std::unique_ptr<live::ReplayAdapter> made;
     try {

@@ -18,36 +18,14 @@ struct ServeArgs {
     std::string device = "opencl";
 };
 
-void split_listen(const std::string& listen, server::ServerOptions& opt) {
-    const auto colon = listen.rfind(':');
-    if (colon == std::string::npos || colon == 0) throw UsageError("--listen: expected HOST:PORT, got '" + listen + "'");
-    std::string host = listen.substr(0, colon);
-    if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
-    int port = -1;
-    try {
-        std::size_t used = 0;
-        port = std::stoi(listen.substr(colon + 1), &used);
-        if (used != listen.size() - colon - 1) port = -1;
-    } catch (const std::exception&) {
-    }
-    if (port < 0 || port > 65535) throw UsageError("--listen: '" + listen.substr(colon + 1) + "' is not a port (0..65535)");
-    opt.host = host;
-    opt.port = port;
-}
-
 void run_serve(ServeArgs& a) {
-    split_listen(a.listen, a.opt);
+    split_listen(a.listen, "--listen", a.opt.host, a.opt.port);
     a.opt.max_body_bytes = static_cast<std::size_t>(a.max_body_mb * 1024 * 1024);
     a.opt.cache_bytes = static_cast<std::size_t>(a.cache_mb * 1024 * 1024);
     a.opt.use_opencl = a.device == "opencl";
 
     // Signals go to this thread only, via sigwait: no work in a signal handler.
-    sigset_t set;
-    sigemptyset(&set);
-    sigaddset(&set, SIGINT);
-    sigaddset(&set, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set, nullptr);
-    std::signal(SIGPIPE, SIG_IGN);
+    sigset_t set = block_stop_signals();
 
     server::Server srv(a.opt);
     srv.start();
@@ -64,14 +42,11 @@ void add_serve(CLI::App& app) {
     auto a = std::make_shared<ServeArgs>();
     auto* sub = app.add_subcommand("serve", "Run the HTTP service: REST API, prediction jobs, alerts");
     sub->add_option("--listen", a->listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
-    sub->add_option("--db", a->opt.db_path, "SQLite database file (created if missing)")->capture_default_str();
-    sub->add_option("--data-dir", a->opt.data_dir, "Where uploaded logs are kept (default: <db>.data)");
+    add_store_options(*sub, a->opt);
     sub->add_option("--web", a->opt.web_dir, "Directory of static files served at / (default: none)");
-    sub->add_option("--workers", a->opt.workers, "Prediction jobs computed at once")
-        ->check(CLI::Range(1, 64))
-        ->capture_default_str();
-    sub->add_option("--device", a->device, "Force engine device")
-        ->check(CLI::IsMember({"opencl", "cpu"}))
+    sub->add_option("--workers", a->opt.workers,
+                    "Prediction jobs computed at once; 0: none, this server only answers the API (PostgreSQL, with cutload worker processes)")
+        ->check(CLI::Range(0, 64))
         ->capture_default_str();
     sub->add_option("--http-threads", a->opt.http_threads, "Requests processed at once (idle and slow connections hold none)")
         ->check(CLI::Range(4, 1024))
@@ -98,7 +73,7 @@ void add_serve(CLI::App& app) {
         ->check(CLI::Range(0.001, 4096.0))
         ->capture_default_str();
     sub->add_option("--max-log-rows", a->opt.max_log_rows, "Most rows in an uploaded log (413 beyond)")->capture_default_str();
-    add_work_limit_options(*sub, a->opt.max_force_rows, a->opt.max_stock_cells, a->opt.max_job_memory_mb);
+    add_job_options(*sub, a->opt, a->device);
     sub->add_option("--max-pending-jobs", a->opt.max_pending_jobs, "Most runs queued or running (429 beyond)")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();
@@ -110,31 +85,6 @@ void add_serve(CLI::App& app) {
         ->capture_default_str();
     sub->add_flag("--anonymous-loopback-reads", a->opt.anonymous_loopback_reads,
                   "Allow GET requests without an API key from 127.0.0.1 / ::1 addressed to localhost, 127.0.0.1 or [::1]");
-    sub->add_flag("!--no-limit-alerts", a->opt.limit_alerts,
-                  "Do not raise an alert for blocks over the run's own limits (only thresholds raise alerts)");
-    sub->add_option("--drain-s", a->opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")
-        ->check(CLI::Range(0.0, 3600.0))
-        ->capture_default_str();
-    sub->add_option("--max-attempts", a->opt.max_attempts,
-                    "Times one job may be claimed across server crashes before it is failed with the reason")
-        ->check(CLI::Range(1, 100))
-        ->capture_default_str();
-    sub->add_option_function<std::string>(
-           "--umask",
-           [a](const std::string& text) {
-               std::size_t used = 0;
-               unsigned long mask = 0;
-               try {
-                   mask = std::stoul(text, &used, 8);
-               } catch (const std::exception&) {
-                   used = 0;
-               }
-               if (used != text.size() || mask > 0777)
-                   throw CLI::ValidationError("--umask", "'" + text + "' is not an octal umask 000..777");
-               a->opt.file_umask = static_cast<unsigned>(mask);
-           },
-           "Permission bits the database, uploads and folders are created without (octal; default 077: owner only)")
-        ->default_str("077");
     sub->add_option("--webhook-backoff-s", a->opt.webhook_backoff_s, "First webhook retry delay (doubles per attempt)")
         ->check(CLI::Range(0.01, 3600.0))
         ->capture_default_str();

@@ -3,8 +3,11 @@
 #pragma once
 
 #include "app/inputs.hpp"
+#include "server/server.hpp"
 
 #include <CLI/CLI.hpp>
+
+#include <csignal>
 
 #include <stdexcept>
 #include <string>
@@ -35,6 +38,20 @@ void add_log_options(CLI::App& sub, app::LogFormat& format);
 
 // The reader's options from those and the resampling step; a bad value exits 2 naming the option.
 motion_io::ReadOptions reader_options(const app::LogFormat& format, double step_ms = motion_io::ReadOptions{}.step_ms);
+
+// Blocks SIGINT and SIGTERM for this thread and every thread it starts (they are then taken
+// with sigwait / sigtimedwait, never in a handler) and ignores SIGPIPE; returns the set.
+sigset_t block_stop_signals();
+
+// HOST:PORT of a listen option into host and port; a bad value is a UsageError naming the option.
+void split_listen(const std::string& listen, const char* option, std::string& host, int& port);
+
+// --db and --data-dir of the commands that open the service's store (serve, worker).
+void add_store_options(CLI::App& sub, server::ServerOptions& opt);
+
+// What computing jobs takes, the same for serve and worker: --device, the work limits,
+// --max-raw-rows, --no-limit-alerts, --drain-s, --max-attempts, --lease-s, --umask.
+void add_job_options(CLI::App& sub, server::ServerOptions& opt, std::string& device);
 
 // --max-force-rows, --max-stock-cells, --max-job-memory-mb (app::WorkLimits; docs/api.md, "Work limits").
 void add_work_limit_options(CLI::App& sub, double& max_force_rows, double& max_stock_cells, double& max_job_memory_mb);

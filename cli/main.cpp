@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <pthread.h>
 #include <unistd.h>
 #include <cstdio>
 #include <iostream>
@@ -27,6 +28,16 @@ std::vector<Entry>& registry() {
 bool register_command(const char* name, AddCommandFn add) {
     registry().push_back({name, add});
     return true;
+}
+
+sigset_t block_stop_signals() {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &set, nullptr);
+    std::signal(SIGPIPE, SIG_IGN);
+    return set;
 }
 
 void check_output_path(const std::string& path, const char* option) {

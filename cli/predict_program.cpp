@@ -158,7 +158,7 @@ void finish_program_run(const ProgramOptions& o, const app::RunResult& r, const 
     if (!r.commanded) return;
     const force_model::Prediction& commanded = r.commanded->commanded;
     const std::vector<force_model::BlockComparison>& rows = r.commanded->blocks;
-    if (!o.commanded_out.empty()) force_model::write_forces_csv(commanded, o.commanded_out);
+    if (!o.commanded_out.empty()) force_model::write_forces_file(commanded, o.commanded_out);
     if (!o.compare_csv.empty()) force_model::write_comparison_csv(rows, o.compare_csv);
     if (!blocks_csv.empty())
         force_model::write_blocks_csv(r.prediction, blocks_csv, force_model::comparison_block_columns(rows));

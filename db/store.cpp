@@ -5,12 +5,15 @@
 #include "db/alerts.hpp"
 #include "db/jobs.hpp"
 #include "schema.hpp"
+#include "postgres/store.hpp"
 #include "sqlite/store.hpp"
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <ctime>
+#include <stdexcept>
 
 namespace cutload::db {
 
@@ -35,20 +38,44 @@ void Store::give_back(std::unique_ptr<Session> s) {
     idle_.push_back(std::move(s));
 }
 
-std::unique_ptr<Store> Store::open(const std::string& location, Open mode) {
+Backend backend_of(const std::string& location) {
     const auto scheme_end = location.find("://");
-    if (scheme_end != std::string::npos) {
-        const std::string scheme = location.substr(0, scheme_end);
-        if (scheme == "postgresql" || scheme == "postgres")
-            throw std::invalid_argument(
-                fmt::format("{}: PostgreSQL is not supported yet; give the path of an SQLite database file", location));
-        throw std::invalid_argument(fmt::format("{}: unknown database scheme '{}'; give the path of an SQLite database file",
-                                                location, scheme));
-    }
+    if (scheme_end == std::string::npos) return Backend::Sqlite;
+    const std::string scheme = location.substr(0, scheme_end);
+    if (scheme == "postgresql" || scheme == "postgres") return Backend::Postgres;
+    throw std::invalid_argument(
+        fmt::format("{}: unknown database scheme '{}'; give the path of an SQLite database file or a postgresql:// URL",
+                    printable_location(location), scheme));
+}
+
+std::unique_ptr<Store> Store::open(const std::string& location, Open mode) {
+    if (backend_of(location) == Backend::Postgres) return postgres::open_store(location, mode == Open::MustExist);
     return sqlite::open_store(location, mode == Open::MustExist);
 }
 
 int schema_version() { return kSchemaVersion; }
+
+std::string printable_location(const std::string& location) {
+    const auto scheme_end = location.find("://");
+    if (scheme_end == std::string::npos) return location;
+    std::string out = location;
+    // user:password@ in the authority (before the first '/' after the scheme).
+    const auto auth_begin = scheme_end + 3;
+    const auto auth_end = std::min(out.find('/', auth_begin), out.size());
+    const auto at = out.rfind('@', auth_end);
+    if (at != std::string::npos && at >= auth_begin) {
+        const auto colon = out.find(':', auth_begin);
+        if (colon != std::string::npos && colon < at) out.replace(colon + 1, at - colon - 1, "***");
+    }
+    // password=... among the query parameters.
+    for (auto p = out.find("password="); p != std::string::npos; p = out.find("password=", p + 1)) {
+        if (p > 0 && out[p - 1] != '?' && out[p - 1] != '&') continue;
+        const auto v = p + 9;
+        const auto end = std::min(out.find('&', v), out.size());
+        out.replace(v, end - v, "***");
+    }
+    return out;
+}
 
 std::string iso_time(std::chrono::system_clock::time_point t) {
     using namespace std::chrono;
@@ -95,6 +122,12 @@ DeliveryState delivery_state_from_text(std::string_view text) {
     for (std::size_t i = 0; i < kDeliveryStateText.size(); ++i)
         if (kDeliveryStateText[i] == text) return static_cast<DeliveryState>(i);
     throw std::invalid_argument(fmt::format("'{}' is not a delivery state", text));
+}
+
+std::string_view job_table(const JobQueue& q) {
+    const bool plain = !q.name.empty() && q.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz_0123456789") == std::string_view::npos;
+    if (!plain) throw std::logic_error(fmt::format("job queue '{}' is not a table name", q.name));
+    return q.name;
 }
 
 }  // namespace cutload::db

@@ -113,13 +113,26 @@ private:
     std::unique_ptr<Session> s_;
 };
 
+// Tells a process that another one queued a job (PostgreSQL's LISTEN/NOTIFY, on a connection of
+// its own), so idle workers start at once rather than at their next look at the queue. Used by
+// one thread.
+class JobSignal {
+public:
+    virtual ~JobSignal() = default;
+    // Waits up to timeout_s; true when a job was queued (or re-queued) since the last call. A lost
+    // connection is made again and answers true once (a signal may have been missed meanwhile).
+    virtual bool wait(double timeout_s) = 0;
+};
+
 class Store {
 public:
     enum class Open { CreateIfMissing, MustExist };
 
-    // "path/to/cutload.db" (or any location without a scheme) opens an SQLite file. MustExist
-    // throws std::invalid_argument "no database at <location>" rather than creating one.
-    // PostgreSQL ("postgresql://...", issue 18) is refused with a message saying so.
+    // "path/to/cutload.db" (or any location without a scheme) opens an SQLite file;
+    // "postgresql://user:password@host:port/database?..." (or "postgres://...": a libpq URL)
+    // connects to PostgreSQL, whose database must exist (CreateIfMissing creates cutload's tables
+    // in it at migrate()). MustExist throws std::invalid_argument "no database at <location>"
+    // rather than creating one (PostgreSQL: a database without cutload's tables).
     static std::unique_ptr<Store> open(const std::string& location, Open mode = Open::CreateIfMissing);
 
     Store(const Store&) = delete;
@@ -132,6 +145,10 @@ public:
 
     // A pooled session: an idle one, or a new connection.
     SessionLease session();
+
+    // Signals of jobs queued by other processes; null where only one process uses the store
+    // (SQLite: the server wakes its own workers).
+    virtual std::unique_ptr<JobSignal> job_signal() { return nullptr; }
 
 protected:
     explicit Store(std::string location) : location_(std::move(location)) {}
@@ -149,6 +166,15 @@ private:
 // The schema version this build migrates to. One numbered sequence of schema changes for every
 // backend: version N means the same tables and columns whatever the dialect.
 int schema_version();
+
+// Which backend a location names: a postgresql:// or postgres:// URL, else an SQLite file (a
+// path without a scheme). Throws std::invalid_argument for any other scheme.
+enum class Backend { Sqlite, Postgres };
+Backend backend_of(const std::string& location);
+
+// The location as messages and logs may show it: a URL's password replaced by "***" (in
+// "user:password@" and in a "password=" parameter); an SQLite path as it is.
+std::string printable_location(const std::string& location);
 
 // UTC "YYYY-MM-DDTHH:MM:SS.sssZ", the form of every stored time: such texts sort as the times do.
 std::string iso_time(std::chrono::system_clock::time_point t);

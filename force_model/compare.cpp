@@ -283,8 +283,21 @@ PredictedTrace predicted_trace(const Prediction& p) {
 
 PredictedTrace read_forces_csv(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    const std::string shown = textio::printable(path);
-    if (!in) throw MeasurementError(shown + ": cannot open the predicted forces file");
+    if (!in) throw MeasurementError(textio::printable(path) + ": cannot open the predicted forces file");
+    return read_forces_csv(in, path);
+}
+
+PredictedTrace read_predicted_forces(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw MeasurementError(textio::printable(path) + ": cannot open the predicted forces file");
+    // FORCES.csv begins with its header's `t`; FORCES.bin with 0x89, which no text file starts with
+    // (so a pipe can be told apart without reading it twice).
+    if (in.peek() == 0x89) return read_forces_bin(in, path);
+    return read_forces_csv(in, path);
+}
+
+PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
+    const std::string shown = textio::printable(source);
     textio::CsvReader csv(in, shown);
     try {
         if (!csv.next()) throw MeasurementError(shown + ":1: empty file (expected the FORCES.csv header)");
@@ -315,12 +328,20 @@ PredictedTrace read_forces_csv(const std::string& path) {
                                                                                : p.error)));
                 return p.value;
             };
+            // A force past float's range would be stored as infinity; no prediction gives one.
+            auto force = [&](std::size_t c) {
+                const double v = num(c);
+                if (!(std::abs(v) <= 1e6))
+                    csv.fail(c, fmt::format("column {} ({}): force {:g} N is beyond \u00b11e+06 N", c + 1, header[c], v));
+                return static_cast<float>(v);
+            };
             ForceSample s;
             s.t_s = num(ct);
+            if (!(std::abs(s.t_s) <= 1e9)) csv.fail(ct, fmt::format("column {} (t_s): time {:g} s is beyond \u00b11e+09 s", ct + 1, s.t_s));
             s.spindle_angle_deg = num(ca);
-            s.fx_N = static_cast<float>(num(cf[0]));
-            s.fy_N = static_cast<float>(num(cf[1]));
-            s.fz_N = static_cast<float>(num(cf[2]));
+            s.fx_N = force(cf[0]);
+            s.fy_N = force(cf[1]);
+            s.fz_N = force(cf[2]);
             if (const std::string_view name = csv[cb]; !name.empty()) {
                 auto it = blocks.find(name);
                 if (it == blocks.end()) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include <array>
+#include <istream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +29,12 @@ PredictedTrace predicted_trace(const Prediction& p);
 // Reads FORCES.csv as written by write_forces_csv (columns t_s, spindle_angle_deg, block, fx_N, fy_N,
 // fz_N at least); throws MeasurementError naming line and column.
 PredictedTrace read_forces_csv(const std::string& path);
+PredictedTrace read_forces_csv(std::istream& in, const std::string& source);
+// Reads FORCES.bin (docs/formats.md): every column it knows, so the rows equal FORCES.csv's read
+// back; throws MeasurementError naming the byte offset and what is wrong there.
+PredictedTrace read_forces_bin(std::istream& in, const std::string& source);
+// FORCES.csv or FORCES.bin, told apart by the first byte (so a pipe works too).
+PredictedTrace read_predicted_forces(const std::string& path);
 
 // Zero-phase low-pass: a Butterworth filter run forward and backward (squared magnitude response,
 // no phase shift), with odd-reflection padding at both ends. cutoff_Hz must be below rate_Hz / 2.

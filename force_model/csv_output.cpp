@@ -1,7 +1,8 @@
-// FORCES.csv and BLOCKS.csv, written to a temporary file and renamed, so a reader never sees a
+// FORCES.csv and BLOCKS.csv (FORCES.bin: forces_bin.cpp), written to a temporary file and renamed, so a reader never sees a
 // half-written file.
 #include "force_model/force_model.hpp"
 
+#include "staged_file.hpp"
 #include "textio/csv.hpp"
 
 #include <charconv>
@@ -9,7 +10,7 @@
 #include <vector>
 #include <filesystem>
 #include <fmt/format.h>
-#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace cutload::force_model {
@@ -18,71 +19,107 @@ namespace {
 
 using textio::csv_field;
 
+// Small files (BLOCKS.csv) are formatted whole, then staged: an error leaves nothing behind.
 template <typename Fill>
 void write_atomically(const std::string& path, Fill fill) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        if (!out) throw std::runtime_error("cannot write " + tmp);
-        fill(out);
-        out.flush();
-        if (!out) throw std::runtime_error("writing " + tmp + " failed");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) throw std::runtime_error("cannot rename " + tmp + " to " + path + ": " + ec.message());
+    std::ostringstream out;
+    fill(out);
+    StagedFile file(path);
+    file.append(out.view());
+    file.commit();
 }
 
 }  // namespace
 
-void write_forces_csv(const Prediction& p, const std::string& path) {
-    write_atomically(path, [&](std::ofstream& out) {
-        out << "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
-               "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
-        // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
-        // through it is several times faster than stream or fmt float formatting.
-        std::vector<std::string> names;
-        for (const auto& n : p.block_names) names.push_back(csv_field(n));
-        std::string buf;
-        buf.reserve(1 << 20);
-        char tmp[64];
-        auto num = [&](double v, int digits) {
-            const auto r = std::to_chars(tmp, tmp + sizeof tmp, v, std::chars_format::fixed, digits);
+struct ForcesCsvWriter::Impl {
+    StagedFile file;
+    std::vector<std::string> names;   // CSV fields of the block names
+    std::string buf;
+
+    explicit Impl(const std::string& path) : file(path) {}
+    void flush() {
+        file.append(buf);
+        buf.clear();
+    }
+};
+
+ForcesCsvWriter::ForcesCsvWriter(const std::string& path) : impl_(std::make_unique<Impl>(path)) {
+    impl_->buf.reserve(1 << 20);
+    impl_->buf += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+                  "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
+}
+
+ForcesCsvWriter::~ForcesCsvWriter() = default;
+
+void ForcesCsvWriter::set_block_names(const std::vector<std::string>& block_names) {
+    impl_->names.clear();
+    for (const auto& n : block_names) impl_->names.push_back(csv_field(n));
+}
+
+void ForcesCsvWriter::write(std::span<const ForceSample> rows) {
+    Impl& w = *impl_;
+    // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
+    // through it is several times faster than stream or fmt float formatting.
+    std::string& buf = w.buf;
+    char tmp[64];
+    auto num = [&](double v, int digits) {
+        const auto r = std::to_chars(tmp, tmp + sizeof tmp, v, std::chars_format::fixed, digits);
+        buf.append(tmp, r.ptr);
+        buf += ',';
+    };
+    for (const ForceSample& s : rows) {
+        num(s.t_s, 6);
+        num(s.spindle_angle_deg, 3);
+        if (s.block >= 0 && std::size_t(s.block) < w.names.size()) buf += w.names[std::size_t(s.block)];
+        buf += ',';
+        if (s.tool >= 0) {
+            const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
             buf.append(tmp, r.ptr);
-            buf += ',';
-        };
-        for (const ForceSample& s : p.samples) {
-            num(s.t_s, 6);
-            num(s.spindle_angle_deg, 3);
-            if (s.block >= 0 && std::size_t(s.block) < names.size()) buf += names[s.block];
-            buf += ',';
-            if (s.tool >= 0) {
-                const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
-                buf.append(tmp, r.ptr);
-            }
-            buf += ',';
-            num(s.fx_N, 3);
-            num(s.fy_N, 3);
-            num(s.fz_N, 3);
-            num(s.torque_Nm, 4);
-            num(s.power_kW, 4);
-            num(s.chip_mm, 5);
-            num(s.bending_MPa, 3);
-            num(s.radial_engagement_mm, 3);
-            num(s.axial_engagement_mm, 3);
-            num(s.removed_mm3, 5);
-            buf += s.holder_contact ? "1\n" : "0\n";
-            if (buf.size() > (1 << 20) - 512) {
-                out << buf;
-                buf.clear();
-            }
         }
-        out << buf;
-    });
+        buf += ',';
+        num(s.fx_N, 3);
+        num(s.fy_N, 3);
+        num(s.fz_N, 3);
+        num(s.torque_Nm, 4);
+        num(s.power_kW, 4);
+        num(s.chip_mm, 5);
+        num(s.bending_MPa, 3);
+        num(s.radial_engagement_mm, 3);
+        num(s.axial_engagement_mm, 3);
+        num(s.removed_mm3, 5);
+        buf += s.holder_contact ? "1\n" : "0\n";
+        if (buf.size() > (1 << 20) - 512) w.flush();
+    }
+}
+
+std::uint64_t ForcesCsvWriter::bytes_written() const { return impl_->file.bytes() + impl_->buf.size(); }
+
+void ForcesCsvWriter::commit() {
+    impl_->flush();
+    impl_->file.commit();
+}
+
+void write_forces_csv(const Prediction& p, const std::string& path) {
+    ForcesCsvWriter w(path);
+    w.set_block_names(p.block_names);
+    w.write(p.samples);
+    w.commit();
+}
+
+std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path) {
+    if (path.size() >= 4 && path.compare(path.size() - 4, 4, ".bin") == 0) return std::make_unique<ForcesBinWriter>(path);
+    return std::make_unique<ForcesCsvWriter>(path);
+}
+
+void write_forces_file(const Prediction& p, const std::string& path) {
+    const auto w = open_forces_writer(path);
+    w->set_block_names(p.block_names);
+    w->write(p.samples);
+    w->commit();
 }
 
 void write_blocks_csv(const Prediction& p, const std::string& path, const BlockCsvExtra& extra) {
-    write_atomically(path, [&](std::ofstream& out) {
+    write_atomically(path, [&](std::ostringstream& out) {
         out << "block,tool,t_start_s,t_end_s,peak_force_N,mean_force_N,peak_torque_Nm,peak_power_kW,max_chip_mm,"
                "max_bending_MPa,max_radial_engagement_mm,max_axial_engagement_mm,removed_mm3,flags,flag_details"
             << extra.header << '\n';

@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <stdexcept>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -28,8 +29,9 @@ public:
 };
 
 // Flat, ball and bull-nose end mills; Drill: a sharp cone point (twist drill, spot drill);
-// Chamfer: a cone from a flat tip (chamfer mill, spot drill with a flat).
-enum class ToolShape { Flat, Ball, Bull, Drill, Chamfer };
+// Chamfer: a cone from a flat tip (chamfer mill, spot drill with a flat); Barrel: a tip ball and a
+// large flank arc (document 003's barrel tool, docs/run_spec.md).
+enum class ToolShape { Flat, Ball, Bull, Drill, Chamfer, Barrel };
 
 struct Holder {
     double diameter_mm = 0;
@@ -47,10 +49,20 @@ struct ToolSpec {
     // flat, ball, bull: half angle of a tapered flank (0: cylindrical). diameter_mm is then the
     // diameter at the tip and the flank widens by tan(taper) per mm up to flute_length_mm.
     double taper_deg = 0;
+    // barrel: radius r1 of the flank arc (> diameter_mm / 2) and r2 of the tip ball centred on the
+    // axis (< diameter_mm / 2); diameter_mm is the barrel's widest, where the arc turns vertical.
+    double barrel_radius_mm = 0;
+    double tip_radius_mm = 0;
     double flute_length_mm = 20;
     double stickout_mm = 30;       // tip to holder face
     Holder holder;
 };
+
+// Step-over (pick feed) between parallel passes over a flat surface that leaves a cusp of
+// cusp_height_mm under an arc of arc_radius_mm: 2 sqrt(h (2 rho - h)). A barrel tool's flank arc
+// (barrel_radius_mm) gives a far larger step than a ball of the same diameter (document 003: r1 96 mm,
+// 5 um: 1.960 mm; a 3 mm ball: 0.346 mm). Throws std::invalid_argument unless 0 < h <= rho.
+double pick_feed_mm(double arc_radius_mm, double cusp_height_mm);
 
 // Altintas' convention: dFt = Ktc h db + Kte db, dFr = Krc h db + Kre db, dFa = Kac h db + Kae db.
 struct Material {
@@ -219,7 +231,13 @@ struct PredictOptions {
     // Most rows the prediction may hold (0: unchecked): checked as rows are written, so a run
     // whose estimate (expected_rows) was too low still stops (TooManyRows) instead of growing.
     std::size_t max_rows = 0;
+    // When set, the rows are handed here in time order as they become final, in pieces of about
+    // kRowsOutPiece rows, and Prediction::samples comes back empty: memory then stays bounded by
+    // the motion model and the stock, whatever the run's length (a run of an hour writes about 10^8
+    // rows). Blocks, stats and the final stock are as without it, and so are the rows.
+    std::function<void(std::span<const ForceSample> rows)> rows_out;
 };
+inline constexpr std::size_t kRowsOutPiece = std::size_t(1) << 16;
 
 class Cancelled : public std::runtime_error {
 public:
@@ -247,6 +265,62 @@ std::size_t stock_bytes_per_cell();
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 
 void write_forces_csv(const Prediction& p, const std::string& path);
+// Where a prediction's rows go as they come (PredictOptions::rows_out), so the run's rows are never
+// all held in memory: into PATH.tmp, renamed to PATH by commit(). Destroyed without commit() (an
+// error, a cancel) a writer removes its temporary file: a reader never sees a half-written file.
+class ForcesWriter {
+public:
+    virtual ~ForcesWriter() = default;
+    // The names the rows' block indices refer to (MotionModel::block_names), before their rows.
+    virtual void set_block_names(const std::vector<std::string>& block_names) = 0;
+    virtual void write(std::span<const ForceSample> rows) = 0;
+    virtual void commit() = 0;
+    virtual std::uint64_t bytes_written() const = 0;
+};
+
+// FORCES.csv (docs/formats.md): about 90 bytes a row.
+class ForcesCsvWriter final : public ForcesWriter {
+public:
+    explicit ForcesCsvWriter(const std::string& path);   // throws std::runtime_error when it cannot write
+    ~ForcesCsvWriter() override;
+    ForcesCsvWriter(const ForcesCsvWriter&) = delete;
+    ForcesCsvWriter& operator=(const ForcesCsvWriter&) = delete;
+    void set_block_names(const std::vector<std::string>& block_names) override;
+    void write(std::span<const ForceSample> rows) override;
+    void commit() override;
+    std::uint64_t bytes_written() const override;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// FORCES.bin (docs/formats.md, "FORCES.bin"): FORCES.csv's columns at FORCES.csv's resolution,
+// column by column in chunks of kForcesBinChunkRows rows, each value the zigzag varint of its
+// difference from the row before: about a fifth of the CSV's size, and exact to the CSV's digits.
+// Throws std::runtime_error for a value it cannot carry (not finite, or beyond 9e15 quanta).
+inline constexpr std::size_t kForcesBinChunkRows = std::size_t(1) << 16;
+class ForcesBinWriter final : public ForcesWriter {
+public:
+    explicit ForcesBinWriter(const std::string& path);
+    ~ForcesBinWriter() override;
+    ForcesBinWriter(const ForcesBinWriter&) = delete;
+    ForcesBinWriter& operator=(const ForcesBinWriter&) = delete;
+    void set_block_names(const std::vector<std::string>& block_names) override;
+    void write(std::span<const ForceSample> rows) override;
+    void commit() override;
+    std::uint64_t bytes_written() const override;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// FORCES.bin when the path ends in ".bin", else FORCES.csv.
+std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path);
+// All of a prediction's rows at once, in the format open_forces_writer picks.
+void write_forces_file(const Prediction& p, const std::string& path);
+
 // Columns appended to BLOCKS.csv: `header` starts with ',', fields(block) gives the block's
 // fields, also starting with ','. (The NC program comparison adds its columns this way.)
 struct BlockCsvExtra {

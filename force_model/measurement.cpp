@@ -75,6 +75,13 @@ std::optional<double> time_scale(std::string_view unit) {
     return std::nullopt;
 }
 
+// Readings no instrument gives: they come from a wrong unit or a damaged file, and a force past
+// float's range would turn into infinity in the stored channel. The largest dynamometers measure
+// some hundreds of kN.
+constexpr double kMaxForce_N = 1e6;
+constexpr double kMaxTime_s = 1e9;
+constexpr double kMaxRate_Hz = 1e7;
+
 std::optional<double> force_scale(std::string_view unit) {
     const std::string u = lower(trim(unit));
     if (u == "n") return 1.0;
@@ -285,6 +292,8 @@ private:
                 const auto v = number(csv_[*col_time_], decimal_comma_);
                 if (!v) fail_column(*col_time_, not_a_number(*col_time_));
                 t = *v * time_scale_;
+                if (!(std::abs(t) <= kMaxTime_s))
+                    fail_column(*col_time_, fmt::format("time {:g} s is beyond \u00b1{:g} s (a wrong time unit?)", t, kMaxTime_s));
             } else {
                 t = static_cast<double>(rows) / *header_rate_Hz_;
             }
@@ -292,7 +301,11 @@ private:
             for (int a = 0; a < 3; ++a) {
                 const auto v = number(csv_[*col_f_[a]], decimal_comma_);
                 if (!v) fail_column(*col_f_[a], not_a_number(*col_f_[a]));
-                f[a] = static_cast<float>(*v * force_scale_[a]);
+                const double force_N = *v * force_scale_[a];
+                if (!(std::abs(force_N) <= kMaxForce_N))
+                    fail_column(*col_f_[a], fmt::format("force {:g} N is beyond \u00b1{:g} N (not a dynamometer reading)",
+                                                        force_N, kMaxForce_N));
+                f[a] = static_cast<float>(force_N);
             }
             if (rows == 0) {
                 t_first = t;
@@ -311,6 +324,10 @@ private:
         if (rows == 0) fail("no data rows after the column names");
         if (rows < 2) fail("a single data row: the sampling rate is unknown");
         const double rate = static_cast<double>(rows - 1) / (t_prev - t_first);
+        if (!(rate <= kMaxRate_Hz))
+            throw MeasurementError(fmt::format("{}: the time column gives {:.6g} samples a second, beyond {:g} "
+                                               "(a wrong time unit?)",
+                                               m_.source, rate, kMaxRate_Hz));
         if (header_rate_Hz_ && std::abs(rate / *header_rate_Hz_ - 1) > 1e-3)
             throw MeasurementError(fmt::format("{}: the time column gives {:.6g} Hz but the header says {:.6g} Hz",
                                                m_.source, rate, *header_rate_Hz_));

@@ -63,14 +63,18 @@ void check_plan(const ToolPlan& plan) {
 
 // No NaN or infinity reaches FORCES.csv, BLOCKS.csv or a JSON answer: a row or summary that holds
 // one is an engine fault, reported as one rather than written.
-void check_outputs(const Prediction& p) {
-    for (const ForceSample& s : p.samples)
+void check_rows(std::span<const ForceSample> rows) {
+    for (const ForceSample& s : rows)
         for (const double v : {s.t_s, s.spindle_angle_deg, double(s.fx_N), double(s.fy_N), double(s.fz_N),
                                double(s.torque_Nm), double(s.power_kW), double(s.chip_mm), double(s.bending_MPa),
                                double(s.radial_engagement_mm), double(s.axial_engagement_mm), double(s.removed_mm3)})
             if (!std::isfinite(v))
                 throw std::runtime_error("predict: the engine computed a non-finite value at t = " +
                                          std::to_string(s.t_s) + " s; nothing is written");
+}
+
+void check_outputs(const Prediction& p) {
+    check_rows(p.samples);
     for (const BlockSummary& b : p.blocks)
         for (const double v : {b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N, b.peak_torque_Nm, b.peak_power_kW,
                                b.max_chip_mm, b.max_bending_MPa, b.max_radial_engagement_mm, b.max_axial_engagement_mm,
@@ -85,21 +89,40 @@ void check_outputs(const Prediction& p) {
                                          "; nothing is written");
 }
 
-Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup) {
+std::vector<Limits> slot_limits(const ToolPlan& plan) {
+    std::vector<Limits> limits;
+    for (const PlannedTool& t : plan.tools) limits.push_back(t.limits);
+    return limits;
+}
+
+// PredictOptions::rows_out: the rows leave the engine as they become final and only their block
+// summaries and counts stay.
+struct RowsOut {
+    BlockSummaries blocks;
+    std::size_t cutting_steps = 0;
+    RowsOut(const motion_io::MotionModel& motion, const ToolPlan& plan) : blocks(motion, slot_limits(plan)) {}
+};
+
+Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup,
+                   RowsOut* rows_out) {
     setup.backend->download(*setup.stock);
     Prediction p;
     RowTable& rows = engine.rows();
     p.block_names = motion.block_names;
-    std::vector<Limits> limits;
-    for (const PlannedTool& t : plan.tools) limits.push_back(t.limits);
-    p.blocks = summarise_blocks(motion, rows.samples, rows.extra, limits);
+    if (rows_out) {
+        engine.drain_rows();
+        p.blocks = rows_out->blocks.result();
+        p.stats.cutting_steps = rows_out->cutting_steps;
+    } else {
+        p.blocks = summarise_blocks(motion, rows.samples, rows.extra, slot_limits(plan));
+        for (const RowExtra& x : rows.extra) p.stats.cutting_steps += x.engaged > 0 ? 1 : 0;
+        p.samples = std::move(rows.samples);
+    }
     p.stats.unknown_tool_samples = plan.unknown_samples;
     p.stats.unknown_tools = plan.unknown_tools;
-    p.samples = std::move(rows.samples);
     p.final_stock = std::move(setup.stock);
     p.stats.simulated_s = simulated_seconds(motion);
     p.stats.steps = engine.steps();
-    for (const RowExtra& x : rows.extra) p.stats.cutting_steps += x.engaged > 0 ? 1 : 0;
     p.stats.device = setup.backend->name();
     setup.backend.reset();
     check_outputs(p);
@@ -115,13 +138,24 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
     std::optional<PhaseTimer> setup_timer(std::in_place, phases.setup_s);
     EngineSetup setup(spec, plan, opt, settings);
     Engine engine(motion, spec, plan, opt, settings, setup, phases);
+    std::optional<RowsOut> rows_out;
+    if (opt.rows_out) {
+        rows_out.emplace(motion, plan);
+        engine.take_rows_as_they_come([&](const RowTable& rows, std::size_t n) {
+            const std::span<const ForceSample> piece(rows.samples.data(), n);
+            check_rows(piece);
+            rows_out->blocks.add_rows(rows.samples.data(), rows.extra.data(), n);
+            for (std::size_t r = 0; r < n; ++r) rows_out->cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
+            opt.rows_out(piece);
+        });
+    }
     setup_timer.reset();
     {
         PhaseTimer timer(phases.walk_s);
         engine.run();
     }
     std::optional<PhaseTimer> finish_timer(std::in_place, phases.finish_s);
-    Prediction p = collect(motion, plan, engine, setup);
+    Prediction p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr);
     finish_timer.reset();
     // The walk's own share: what the timed phases inside it leave over (step generation, batching,
     // air checks).

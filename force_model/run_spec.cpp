@@ -1,6 +1,7 @@
 // RUN.json: parsing and validation. Every error names the key path (e.g. "tool.diameter_mm") and
 // says what was expected, because the person reading it is fixing a file by hand.
 #include "force_model/force_model.hpp"
+#include "cutters/barrel.hpp"
 #include "cutters/taper.hpp"
 #include "run_spec_reads.hpp"
 
@@ -14,6 +15,7 @@
 #include <cmath>
 #include <functional>
 #include <initializer_list>
+#include <iomanip>
 #include <numbers>
 #include <set>
 #include <sstream>
@@ -182,7 +184,8 @@ constexpr std::pair<const char*, ToolShape> kShapes[] = {{"flat", ToolShape::Fla
                                                          {"ball", ToolShape::Ball},
                                                          {"bull", ToolShape::Bull},
                                                          {"drill", ToolShape::Drill},
-                                                         {"chamfer", ToolShape::Chamfer}};
+                                                         {"chamfer", ToolShape::Chamfer},
+                                                         {"barrel", ToolShape::Barrel}};
 
 ToolShape parse_shape(const std::string& s, const std::string& path) {
     for (const auto& [name, shape] : kShapes)
@@ -206,6 +209,11 @@ constexpr double kMaxToolNumber = 99999999;
 // Draft tapers are a few degrees per side; beyond 15 a tool is a cone (a chamfer tool).
 constexpr double kMaxTaperDeg = 15;
 
+// Barrel radii of real tools run to about 1500 mm; far beyond, the arc is a cylinder for any depth
+// the flutes allow (and for most tools the widest point's height passes the flute length limit
+// first).
+constexpr double kMaxBarrelRadiusMm = 10000;
+
 // The cutting radius where the flutes end: the tip's unless the flank is tapered.
 double top_radius_mm(const ToolSpec& t) {
     if (t.taper_deg == 0) return t.diameter_mm / 2;
@@ -228,23 +236,29 @@ ToolSpec parse_tool(ObjectReader& r) {
     require(t.helix_deg >= 0 && t.helix_deg < 70, r.key_path("helix_deg"), "must be in [0, 70) degrees");
 
     // The corner radius is implied by the shape for flat and ball tools; when given it must agree.
-    const double default_corner = t.shape == ToolShape::Bull ? -1.0 : t.shape == ToolShape::Ball ? R : 0.0;
-    if (t.shape == ToolShape::Bull && !r.has("corner_radius_mm"))
-        fail(r.key_path("corner_radius_mm"), "required for a bull-nose tool");
-    t.corner_radius_mm = t.shape == ToolShape::Bull ? r.number("corner_radius_mm")
-                                                    : r.number_or("corner_radius_mm", default_corner);
+    // A barrel's tip is its own key (tip_radius_mm, a ball on the axis rather than a corner).
     const std::string cr = r.key_path("corner_radius_mm");
-    switch (t.shape) {
-        case ToolShape::Flat: require(t.corner_radius_mm == 0, cr, "must be 0 for a flat end mill"); break;
-        case ToolShape::Ball:
-            require(std::abs(t.corner_radius_mm - R) < 1e-9, cr, "must equal diameter_mm / 2 for a ball end mill");
-            break;
-        case ToolShape::Bull:
-            require(t.corner_radius_mm > 0 && t.corner_radius_mm < R, cr,
-                    "must be in (0, diameter_mm / 2) for a bull-nose end mill");
-            break;
-        case ToolShape::Drill:
-        case ToolShape::Chamfer: require(t.corner_radius_mm == 0, cr, "must be 0 for a drill or chamfer tool (a cone)"); break;
+    if (t.shape == ToolShape::Barrel) {
+        if (r.has("corner_radius_mm")) fail(cr, "not for a barrel tool (its tip ball is tip_radius_mm)");
+    } else {
+        const double default_corner = t.shape == ToolShape::Bull ? -1.0 : t.shape == ToolShape::Ball ? R : 0.0;
+        if (t.shape == ToolShape::Bull && !r.has("corner_radius_mm"))
+            fail(r.key_path("corner_radius_mm"), "required for a bull-nose tool");
+        t.corner_radius_mm = t.shape == ToolShape::Bull ? r.number("corner_radius_mm")
+                                                        : r.number_or("corner_radius_mm", default_corner);
+        switch (t.shape) {
+            case ToolShape::Flat: require(t.corner_radius_mm == 0, cr, "must be 0 for a flat end mill"); break;
+            case ToolShape::Ball:
+                require(std::abs(t.corner_radius_mm - R) < 1e-9, cr, "must equal diameter_mm / 2 for a ball end mill");
+                break;
+            case ToolShape::Bull:
+                require(t.corner_radius_mm > 0 && t.corner_radius_mm < R, cr,
+                        "must be in (0, diameter_mm / 2) for a bull-nose end mill");
+                break;
+            case ToolShape::Drill:
+            case ToolShape::Chamfer: require(t.corner_radius_mm == 0, cr, "must be 0 for a drill or chamfer tool (a cone)"); break;
+            case ToolShape::Barrel: break;   // handled above
+        }
     }
 
     // Cones: the included point angle, and for a chamfer tool the flat at its tip.
@@ -264,6 +278,30 @@ ToolSpec parse_tool(ObjectReader& r) {
     } else {
         for (const char* key : {"point_angle_deg", "tip_diameter_mm"})
             if (r.has(key)) fail(r.key_path(key), "only for a drill or chamfer tool");
+    }
+    if (t.shape == ToolShape::Barrel) {
+        // Document 003's r1 and r2 (diameter_mm is 2 r): the arc's centre lies across the axis, so
+        // r1 must pass the widest radius, and the tip ball must fit inside it.
+        t.barrel_radius_mm = r.number("barrel_radius_mm");
+        require(t.barrel_radius_mm > R && t.barrel_radius_mm <= kMaxBarrelRadiusMm, r.key_path("barrel_radius_mm"),
+                "must be greater than diameter_mm / 2 (the flank arc's centre lies across the axis) and at most 10000 mm");
+        t.tip_radius_mm = r.number("tip_radius_mm");
+        require(t.tip_radius_mm > 0 && t.tip_radius_mm < R, r.key_path("tip_radius_mm"),
+                "must be in (0, diameter_mm / 2) mm (the tip ball, centred on the axis, inside the barrel)");
+        if (r.has("taper_deg")) fail(r.key_path("taper_deg"), "only for a flat, ball or bull end mill (a barrel's flank is barrel_radius_mm)");
+        // The flutes must reach the widest point (below), and they are at most 500 mm long.
+        const double widest_mm = barrel_widest_height_mm(t.diameter_mm, t.barrel_radius_mm, t.tip_radius_mm);
+        if (widest_mm > 500) {
+            std::ostringstream msg;
+            msg << std::fixed << std::setprecision(1) << "puts the barrel's widest point " << widest_mm
+                << " mm above the tip, beyond the longest flutes (500 mm): a smaller barrel radius";
+            fail(r.key_path("barrel_radius_mm"), msg.str());
+        }
+    } else {
+        for (const char* key : {"barrel_radius_mm", "tip_radius_mm"})
+            if (r.has(key)) fail(r.key_path(key), "only for a barrel tool");
+    }
+    if (!is_cone(t.shape) && t.shape != ToolShape::Barrel) {
         // A tapered flank (draft walls, deep ribs): the half angle; diameter_mm stays the tip's.
         t.taper_deg = r.number_or("taper_deg", 0);
         require(t.taper_deg >= 0 && t.taper_deg <= kMaxTaperDeg, r.key_path("taper_deg"),
@@ -284,6 +322,16 @@ ToolSpec parse_tool(ObjectReader& r) {
             std::ostringstream msg;
             msg << "with taper_deg " << t.taper_deg << " the flutes end at a diameter of " << top_diameter_mm
                 << " mm (limit 200 mm): a shorter flute length or a smaller taper";
+            fail(r.key_path("flute_length_mm"), msg.str());
+        }
+    }
+    if (t.shape == ToolShape::Barrel) {
+        const double widest_mm = barrel_widest_height_mm(t.diameter_mm, t.barrel_radius_mm, t.tip_radius_mm);
+        if (t.flute_length_mm < widest_mm - 1e-9) {
+            std::ostringstream msg;
+            msg << std::fixed << std::setprecision(3) << "must reach the barrel's widest point, "
+                << std::ceil(widest_mm * 1000) / 1000
+                << " mm above the tip (where the arc of barrel_radius_mm from the tip ball reaches diameter_mm)";
             fail(r.key_path("flute_length_mm"), msg.str());
         }
     }
@@ -537,6 +585,9 @@ json tool_json(const ToolSpec& t) {
     if (is_cone(t.shape)) {
         tool["point_angle_deg"] = t.point_angle_deg;
         if (t.shape == ToolShape::Chamfer) tool["tip_diameter_mm"] = t.tip_diameter_mm;
+    } else if (t.shape == ToolShape::Barrel) {
+        tool["barrel_radius_mm"] = t.barrel_radius_mm;
+        tool["tip_radius_mm"] = t.tip_radius_mm;
     } else {
         tool["corner_radius_mm"] = t.corner_radius_mm;
         if (t.taper_deg > 0) tool["taper_deg"] = t.taper_deg;

@@ -26,7 +26,8 @@ const std::map<std::string, std::string>& titles() {
         {"tool", "Tool"}, {"tools", "Tool table"}, {"number", "T number"},
         {"shape", "Shape"}, {"diameter_mm", "Diameter"}, {"flutes", "Flutes"}, {"helix_deg", "Helix"},
         {"corner_radius_mm", "Corner radius"}, {"point_angle_deg", "Point angle"},
-        {"tip_diameter_mm", "Tip diameter"}, {"taper_deg", "Taper per side"}, {"flute_length_mm", "Flute length"}, {"stickout_mm", "Stick-out"},
+        {"tip_diameter_mm", "Tip diameter"}, {"taper_deg", "Taper per side"}, {"barrel_radius_mm", "Barrel radius"},
+        {"tip_radius_mm", "Tip ball radius"}, {"flute_length_mm", "Flute length"}, {"stickout_mm", "Stick-out"},
         {"holder", "Holder"}, {"holder.diameter_mm", "Holder diameter"}, {"holder.length_mm", "Holder length"},
         {"material", "Material"}, {"name", "Material name"},
         {"Ktc_N_mm2", "Ktc"}, {"Krc_N_mm2", "Krc"}, {"Kac_N_mm2", "Kac"},
@@ -96,6 +97,10 @@ json tool_json(const char* shape) {
     if (s == "chamfer") {
         tool["point_angle_deg"] = 90;
         tool["tip_diameter_mm"] = 2;
+    }
+    if (s == "barrel") {
+        tool["barrel_radius_mm"] = 50;
+        tool["tip_radius_mm"] = 1;
     }
     return tool;
 }

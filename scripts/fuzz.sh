@@ -26,7 +26,7 @@ case "$BUILD_DIR" in /*) ;; *) BUILD_DIR="$ROOT/$BUILD_DIR" ;; esac
 JOBS=${CUTLOAD_JOBS:-$(nproc)}
 TIMEOUT_S=${CUTLOAD_FUZZ_TIMEOUT_S:-10}
 RSS_MB=${CUTLOAD_FUZZ_RSS_MB:-2048}
-ALL_TARGETS="log_csv shdr nc_program run_spec dyno_csv channel_map"
+ALL_TARGETS="log_csv shdr nc_program run_spec dyno_csv channel_map forces_bin"
 TARGETS=${CUTLOAD_FUZZ_TARGETS:-$ALL_TARGETS}
 
 # ---- clang and libFuzzer present? (Debian: clang, libclang-rt-dev) ----

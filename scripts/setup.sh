@@ -10,6 +10,9 @@ PACKAGES=(
   nlohmann-json3-dev libcpp-httplib-dev libsqlite3-dev sqlite3 catch2
   libcli11-dev libspdlog-dev libfmt-dev libpugixml-dev
   curl
+  # The PostgreSQL store (docs/deploy.md): libpq to build against; the server binaries (Debian
+  # keeps them in /usr/lib/postgresql/15/bin) for the throw-away cluster the server-pg tests start.
+  libpq-dev postgresql
   # The fuzz test (scripts/fuzz.sh, docs/fuzzing.md): clang and its runtime libraries (libFuzzer,
   # the address and undefined-behaviour sanitizers). Without them that one test is skipped.
   clang libclang-rt-dev

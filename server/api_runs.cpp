@@ -351,7 +351,9 @@ void create_run(Core& core, Ctx& x) {
             commanded.options.rapid_mm_min = program_read->rapid_mm_min;
         }
         try {
-            app::check_work(app::estimate_work(report, force_model::parse_run_spec(r.spec), commanded), work_limits(core.opt));
+            // The job streams the actual rows (job_kinds.cpp).
+            app::check_work(app::estimate_work(report, force_model::parse_run_spec(r.spec), commanded, true),
+                            work_limits(core.opt));
         } catch (const app::TooMuchWork& e) {
             throw ApiError(400, "too_much_work", e.what());
         }

@@ -120,7 +120,7 @@ ApiKeyInfo revoke_api_key(const std::string& db_path, const std::string& prefix_
     db::Transaction tx(*s);
     // A whole key matches by its hash; anything shorter by the stored prefix.
     const auto found = s->api_keys().matching(sha256_hex(prefix_or_key), prefix_or_key);
-    if (found.empty()) throw std::invalid_argument(fmt::format("no API key with prefix '{}' in {}", prefix_or_key, db_path));
+    if (found.empty()) throw std::invalid_argument(fmt::format("no API key with prefix '{}' in {}", prefix_or_key, db::printable_location(db_path)));
     if (found.size() > 1) {
         std::string which;
         for (const auto& k : found) which += (which.empty() ? "" : ", ") + k.prefix + " (" + k.name.value_or("") + ")";
@@ -137,6 +137,8 @@ ApiKeyInfo revoke_api_key(const std::string& db_path, const std::string& prefix_
     tx.commit();
     return k;
 }
+
+std::string printable_db(const std::string& db_path) { return db::printable_location(db_path); }
 
 std::string create_api_key(const std::string& db_path, Role role, const std::string& name) {
     auto store = db::Store::open(db_path);

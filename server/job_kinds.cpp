@@ -11,10 +11,15 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <functional>
+#include <string_view>
+
 
 namespace cutload::server {
 namespace fs = std::filesystem;
 namespace {
+
+constexpr std::string_view kSpoolPrefix = "forces-";
 
 // Predicts run ctx.id from its stored inputs and stores the results, alerts and webhook deliveries
 // with state done. The use case checks ctx.cancel between its phases (ingest, program, mapping,
@@ -37,10 +42,22 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
     const force_model::StockPtr base = load_base_stock(store, base_run);
     in.base_stock = base.get();
 
+    // The forces series is built as the engine writes its rows, spooled beside the uploads, so
+    // the job's memory does not grow with the log's length. One spool per claim: a claimant that
+    // lost its lease (stalled) may still be writing its own while the next one writes another.
+    std::optional<ForceSeriesSpool> forces;
+    const std::string spool_name = fmt::format("{}{:016x}.spool", kSpoolPrefix, std::hash<std::string>{}(ctx.claim));
+    in.rows_out = app::RunInput::RowsOut{
+        [&](const std::vector<std::string>&, double expected_rows) {
+            forces.emplace(dir / spool_name, force_series_first_level(expected_rows, opt.max_raw_rows));
+        },
+        [&](std::span<const force_model::ForceSample> rows) { forces->add(rows); }};
+
     app::Control control;
     control.cancel = &ctx.cancel;
     control.progress = [&](app::Phase, double f) { ctx.progress(f); };
     const app::RunResult r = app::predict_run(in, control);
+    if (forces) forces->finish();
     const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
 
     if (ctx.cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
@@ -49,8 +66,19 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         auto s = store.session();
         std::optional<ProgramResult> program_result;
         if (r.program) program_result.emplace(ProgramResult{*r.program, *r.commanded, inputs["nc_program"].value("filename", "")});
+        // Only the claim that holds the run stores it: one whose lease ended (the process stalled
+        // and another claimed the run) finds the run no longer its own and stores nothing.
+        db::Transaction tx(*s);
+        if (!s->jobs().holds(db::kRunQueue, id, ctx.claim)) return std::nullopt;
         alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
-                              opt.limit_alerts, &ctx.cancel);
+                              opt.limit_alerts, &ctx.cancel, forces ? &*forces : nullptr);
+        tx.commit();
+        // Spools of earlier claims of this run whose process died: the run is stored, they are not needed.
+        std::error_code ec;
+        for (const auto& e : fs::directory_iterator(dir, ec)) {
+            const std::string name = e.path().filename().string();
+            if (name.starts_with(kSpoolPrefix) && name.ends_with(".spool")) fs::remove(e.path(), ec);
+        }
         // One run's results are one transaction, so the WAL grew by about their size: empty it
         // now rather than leave it at the journal_size_limit until the next checkpoint
         // (docs/api.md, "Disk").
@@ -64,7 +92,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         metrics.alerts_raised(alerts);
         on_alerts();
     }
-    return fmt::format(" ({} samples, {} alerts{})", r.prediction.samples.size(), alerts,
+    return fmt::format(" ({} samples, {} alerts{})", r.rows, alerts,
                        r.program ? ", with the commanded prediction" : "");
 }
 
@@ -82,7 +110,7 @@ std::vector<JobKind> service_job_kinds(db::Store& store, const ServerOptions& op
     kinds.push_back(JobKind{
         "optimization", db::kOptimizationQueue, {},
         [&store, &opt, data_dir](JobContext& ctx) -> std::optional<std::string> {
-            if (!run_optimization(store, data_dir, opt.use_opencl, ctx.id, ctx.cancel, ctx.progress)) return std::nullopt;
+            if (!run_optimization(store, data_dir, opt.use_opencl, ctx.id, ctx.claim, ctx.cancel, ctx.progress)) return std::nullopt;
             return std::string();
         },
         {"cutload_optimizations_total", "Feed optimization jobs finished, by final state.", "cutload_optimizations_queued",

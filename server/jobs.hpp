@@ -3,11 +3,16 @@
 // Each kind's table is its queue (db/jobs.hpp). A worker claims a job of the first kind in the
 // registry that has one queued (runs before feed optimizations), computes it outside any
 // transaction and lets the kind's handler write every result with state 'done' in one
-// transaction. A crash at any point leaves the job 'queued' or 'running' with no results;
-// start() re-queues 'running' jobs of every kind, up to an attempt cap: a job whose computing
-// killed the server max_attempts times fails with the reason instead of looping. Claiming, dispatch, finishing, cancelling,
-// re-queueing and metrics go through the registry, so a new kind is one JobKind in
-// service_job_kinds() plus its handler (docs/architecture.md, "a new job kind").
+// transaction. A crash at any point leaves the job 'queued' or 'running' with no results.
+// A claim is a lease (db::Lease) renewed while the job computes. On a store one server owns
+// (SQLite), start() re-queues every 'running' job; on a shared store (PostgreSQL, several
+// servers and `cutload worker`s) each pool re-queues the jobs whose lease ended, and a job whose
+// claim is gone (cancelled or deleted by another process, or re-queued after a stall) is
+// cancelled here at the next renewal. Only the claim that holds a job stores its results
+// (JobContext::claim, db::JobRepository::holds). Either way a job whose computing killed its
+// process max_attempts times fails with the reason instead of looping. Claiming, dispatch,
+// finishing, cancelling, re-queueing and metrics go through the registry, so a new kind is one
+// JobKind in service_job_kinds() plus its handler (docs/architecture.md, "a new job kind").
 #pragma once
 
 #include "app/predict_run.hpp"
@@ -39,6 +44,9 @@ force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64
 // What a handler gets for the job it computes.
 struct JobContext {
     std::int64_t id;
+    // The claim's token: the handler stores its results in a transaction that first checks the
+    // claim still holds the job (db::JobRepository::holds), and stores nothing otherwise.
+    std::string claim;
     const std::atomic<bool>& cancel;   // set: throw force_model::Cancelled at the next step
     // Progress 0..1; written a few times a second at most (it is for people polling).
     std::function<void(double)> progress;
@@ -47,11 +55,11 @@ struct JobContext {
 struct JobKind {
     std::string name;      // in logs: "run 12 done in 3.1 s"
     db::JobQueue queue;    // its table
-    // Marks the next job running and returns its id; empty: the oldest queued one.
-    std::function<std::optional<std::int64_t>(db::Session&)> claim;
+    // Marks the next job running under the lease and returns its id; empty: the oldest queued one.
+    std::function<std::optional<std::int64_t>(db::Session&, const db::Lease&)> claim;
     // Computes the job and stores its results with state done in one transaction. Returns what
-    // the log line adds after "done in N s", or nullopt when the job's row was gone (deleted
-    // meanwhile: nothing stored, nothing counted). Throws force_model::Cancelled when
+    // the log line adds after "done in N s", or nullopt when the claim no longer held the job
+    // (deleted or re-queued meanwhile: nothing stored, nothing counted). Throws force_model::Cancelled when
     // ctx.cancel is set; any other exception fails the job with its message.
     std::function<std::optional<std::string>(JobContext& ctx)> handler;
     JobMetricNames metrics;
@@ -63,11 +71,16 @@ std::vector<JobKind> service_job_kinds(db::Store& store, const ServerOptions& op
 
 // How the pool runs jobs.
 struct JobPoolOptions {
-    int workers = 2;
-    // Claims of one job before a server start stops re-queueing it: a job left running by a
-    // process that died that often fails with the reason. A graceful stop's re-queue gives its
-    // claim back, so only crashes count.
+    int workers = 2;       // jobs computed at once; 0: none (a server that only answers the API)
+    // Claims of one job before it is no longer re-queued: a job left running by a process that
+    // died that often fails with the reason. A graceful stop's re-queue gives its claim back, so
+    // only crashes count.
     int max_attempts = 3;
+    // Other processes claim from the same store (PostgreSQL): jobs are re-queued when their lease
+    // ends, not all at start, and leases are renewed every lease_s / 3.
+    bool shared_store = false;
+    double lease_s = 30;
+    std::string name = "cutload serve";   // in the re-queue error: who died
 };
 
 class Jobs {
@@ -75,10 +88,13 @@ public:
     Jobs(db::Store& store, JobPoolOptions opt, Metrics& metrics, std::vector<JobKind> kinds);
     ~Jobs();
 
-    // Re-queues (or, at the attempt cap, fails) the jobs a dead server left running; starts the workers.
+    // Re-queues (or, at the attempt cap, fails) the jobs a dead process left running (on a shared
+    // store: those whose lease ended, and from then on every lease_s / 3); starts the workers.
     void start();
     void notify();   // a job was queued
-    // Sets the cancel flag of the job a worker computes; true if one was computing it.
+    // Sets the cancel flag of the job a worker here computes; on a shared store, a job another
+    // process computes is cancelled in the store (it stops at its next lease renewal). True if
+    // the job was running.
     bool cancel_running(const db::JobQueue& queue, std::int64_t id);
     // Waits up to timeout_s until no worker computes the job; true once none does.
     bool wait_released(const db::JobQueue& queue, std::int64_t id, double timeout_s);
@@ -92,10 +108,21 @@ private:
     struct Claimed {
         const JobKind* kind;
         std::int64_t id;
+        std::string token;
+    };
+    struct Running {
+        std::shared_ptr<std::atomic<bool>> cancel;
+        int misses = 0;      // renewals in a row that did not find it running under this process
+        bool lost = false;   // its claim is gone from the store (two renewals did not find it)
     };
     void worker();
     std::optional<Claimed> claim();
     void run(const Claimed& job, const std::atomic<bool>& cancel);
+    std::string lease_until() const;   // a lease taken or renewed now ends then
+    db::Lease next_lease();
+    void requeue(bool expired_only);
+    void keeper();   // renews leases, cancels lost claims, re-queues expired ones
+    void listener(); // wakes the workers when another process queues a job
 
     db::Store& store_;
     const JobPoolOptions opt_;
@@ -105,10 +132,14 @@ private:
     mutable std::mutex mu_;
     std::condition_variable cv_, idle_cv_;
     bool stopping_ = false;
+    bool workers_joined_ = false;   // after a stop: the keeper ends
     std::uint64_t wake_seq_ = 0;   // bumped by notify(), so a sleeping worker sees new jobs
     std::atomic<bool> requeue_on_cancel_{false};
-    std::map<std::pair<std::string_view, std::int64_t>, std::shared_ptr<std::atomic<bool>>> running_;
+    std::map<std::pair<std::string_view, std::int64_t>, Running> running_;
     std::vector<std::thread> threads_;
+    std::thread keeper_, listener_;
+    const std::string token_prefix_;   // this pool's claims: host:pid:random/
+    std::uint64_t claims_ = 0;
 };
 
 }  // namespace cutload::server

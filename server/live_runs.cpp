@@ -257,7 +257,7 @@ void LiveRuns::run_worker(std::shared_ptr<Worker> w) {
         try {
             auto s = store_.session();
             db::Transaction tx(*s);
-            s->jobs().finish(db::kRunQueue, id, db::JobState::Failed, std::string(e.what()), db::now_iso());
+            s->jobs().finish(db::kRunQueue, id, db::JobState::Failed, std::string(e.what()), db::now_iso(), std::nullopt);
             s->live().close(id, "failed", db::now_iso());
             tx.commit();
         } catch (const std::exception& e2) {

@@ -240,7 +240,8 @@ json optimization_params(const json& body) {
 }
 
 bool run_optimization(db::Store& store, const fs::path& data_dir, bool use_opencl, std::int64_t id,
-                      const std::atomic<bool>& cancel, const std::function<void(double)>& progress) {
+                      const std::string& claim, const std::atomic<bool>& cancel,
+                      const std::function<void(double)>& progress) {
     json params, inputs;
     fs::path dir;
     std::optional<std::int64_t> base_run;
@@ -308,7 +309,12 @@ bool run_optimization(db::Store& store, const fs::path& data_dir, bool use_openc
                       {"cycle_before_s", r.before.stats.simulated_s},
                       {"cycle_after_s", r.after.stats.simulated_s}};
     if (cancel) throw force_model::Cancelled();
-    return store.session()->optimizations().mark_done(id, result.dump(), o.program_text, db::now_iso());
+    auto s = store.session();
+    db::Transaction tx(*s);
+    if (!s->jobs().holds(db::kOptimizationQueue, id, claim)) return false;
+    const bool stored = s->optimizations().mark_done(id, result.dump(), o.program_text, db::now_iso());
+    tx.commit();
+    return stored;
 }
 
 }  // namespace cutload::server

@@ -34,10 +34,11 @@ std::string comparison_csv(const json& blocks);
 // Feed optimization request body as stored params; ApiError 400 naming the key.
 json optimization_params(const json& body);
 
-// Computes optimization `id` (claimed, state 'running') and stores its result; false when its row
-// was deleted meanwhile (nothing stored). Throws force_model::Cancelled when `cancel` is set;
-// other exceptions are the job's failure.
+// Computes optimization `id` (claimed under `claim`, state 'running') and stores its result; false
+// when the claim no longer holds it (deleted, cancelled or re-queued meanwhile: nothing stored).
+// Throws force_model::Cancelled when `cancel` is set; other exceptions are the job's failure.
 bool run_optimization(db::Store& store, const std::filesystem::path& data_dir, bool use_opencl, std::int64_t id,
-                      const std::atomic<bool>& cancel, const std::function<void(double)>& progress);
+                      const std::string& claim, const std::atomic<bool>& cancel,
+                      const std::function<void(double)>& progress);
 
 }  // namespace cutload::server

@@ -13,6 +13,7 @@
 #include <set>
 
 namespace cutload::server {
+namespace fs = std::filesystem;
 namespace {
 
 json block_json(std::size_t idx, const force_model::BlockSummary& b) {
@@ -39,23 +40,28 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
             {"flags", flags}};
 }
 
-// `block_of` maps the prediction's block indices to the stored block names (identity: empty).
+// One row of the forces series (series_channels(Forces) order). `block_of` maps the prediction's
+// block indices to the stored block names (identity: empty).
+void force_row(const force_model::ForceSample& s, const std::vector<std::int32_t>& block_of, float* row) {
+    const float f = std::sqrt(s.fx_N * s.fx_N + s.fy_N * s.fy_N + s.fz_N * s.fz_N);
+    // Wrapped: the unwrapped angle of a long run exceeds float precision.
+    const auto angle = static_cast<float>(std::fmod(s.spindle_angle_deg, 360.0));
+    const std::int32_t block =
+        s.block >= 0 && static_cast<std::size_t>(s.block) < block_of.size() ? block_of[static_cast<std::size_t>(s.block)] : s.block;
+    const float values[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(block), s.fx_N, s.fy_N, s.fz_N, f,
+                            s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
+                            s.axial_engagement_mm};
+    std::copy(std::begin(values), std::end(values), row);
+}
+
 SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of = {}) {
     SeriesData d;
     const std::size_t k = series_channels(SeriesId::Forces).size();
     d.t_s.reserve(p.samples.size());
-    d.values.reserve(p.samples.size() * k);
-    for (const auto& s : p.samples) {
-        d.t_s.push_back(s.t_s);
-        const float f = std::sqrt(s.fx_N * s.fx_N + s.fy_N * s.fy_N + s.fz_N * s.fz_N);
-        // Wrapped: the unwrapped angle of a long run exceeds float precision.
-        const auto angle = static_cast<float>(std::fmod(s.spindle_angle_deg, 360.0));
-        const std::int32_t block =
-            s.block >= 0 && static_cast<std::size_t>(s.block) < block_of.size() ? block_of[static_cast<std::size_t>(s.block)] : s.block;
-        const float row[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(block), s.fx_N, s.fy_N, s.fz_N, f,
-                             s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
-                             s.axial_engagement_mm};
-        d.values.insert(d.values.end(), std::begin(row), std::end(row));
+    d.values.resize(p.samples.size() * k);
+    for (std::size_t i = 0; i < p.samples.size(); ++i) {
+        d.t_s.push_back(p.samples[i].t_s);
+        force_row(p.samples[i], block_of, &d.values[i * k]);
     }
     return d;
 }
@@ -203,7 +209,7 @@ int raise_alerts(db::Session& s, std::int64_t run_id, const force_model::Predict
 
 namespace {
 
-json summary_json(const force_model::Prediction& p, double final_volume_mm3) {
+json summary_json(const force_model::Prediction& p, double final_volume_mm3, std::size_t rows) {
     double peak_f = 0, peak_t = 0, peak_p = 0, chip = 0, bend = 0, removed = 0;
     std::size_t flagged = 0;
     std::map<std::string, int> flag_counts;
@@ -217,7 +223,7 @@ json summary_json(const force_model::Prediction& p, double final_volume_mm3) {
         if (!b.flags.empty()) ++flagged;
         for (const auto& f : b.flags) ++flag_counts[f.flag];
     }
-    return {{"samples", p.samples.size()},
+    return {{"samples", rows},
             {"blocks", p.blocks.size()},
             {"flagged_blocks", flagged},
             {"flags", flag_counts},
@@ -274,7 +280,8 @@ namespace {
 // store_result and store_live_result: `alerts_raised` set means the alerts were raised already.
 int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion, const force_model::Prediction& p,
               const std::string* stock_bytes, const ProgramResult* program, bool limit_alerts,
-              std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel) {
+              std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel,
+              ForceSeriesSpool* forces = nullptr) {
     db::Transaction tx(s);
     // Cancelled or deleted while computing: nothing to store.
     const auto status = s.runs().status(run_id);
@@ -285,11 +292,18 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
         runs.add_block(run_id, static_cast<std::int64_t>(i), block_json(i, p.blocks[i]).dump(), !p.blocks[i].flags.empty());
         flagged = flagged || !p.blocks[i].flags.empty();
     }
-    write_series(runs, run_id, SeriesId::Forces, force_series(p));
+    if (forces) {
+        forces->replay(runs, run_id);
+        // Gone before the run is seen done: a rollback after this fails the job, whose retry
+        // writes a new spool.
+        forces->remove_file();
+    }
+    else write_series(runs, run_id, SeriesId::Forces, force_series(p));
     write_series(runs, run_id, SeriesId::Motion, motion_series(motion));
     if (stock_bytes) runs.set_final_stock(run_id, *stock_bytes);
     const int alerts = alerts_raised ? *alerts_raised : raise_alerts(s, run_id, p, limit_alerts);
-    json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0);
+    json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0,
+                                forces ? forces->rows() : p.samples.size());
     summary["alerts"] = alerts;
     if (live) summary["live"] = *live;
     std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;
@@ -306,7 +320,8 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
         SeriesData cmd_series = force_series(cmd, block_of);
         for (double& t : cmd_series.t_s) t = program->prediction.to_actual_time(t);
         write_series(runs, run_id, SeriesId::CommandedForces, cmd_series);
-        const json commanded_summary = summary_json(cmd, cmd.final_stock ? force_model::stock_volume_mm3(*cmd.final_stock) : 0.0);
+        const json commanded_summary =
+            summary_json(cmd, cmd.final_stock ? force_model::stock_volume_mm3(*cmd.final_stock) : 0.0, cmd.samples.size());
         runs.set_program_body(run_id, program_body(*program, commanded_summary).dump());
         const auto& q = program->run.mapping.quality;
         summary["program"] = {{"program_blocks", program->run.program.blocks.size()},
@@ -325,8 +340,84 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
 
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts, const std::atomic<bool>* cancel) {
-    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel);
+                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces) {
+    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel, forces);
+}
+
+namespace {
+
+// A spooled chunk: its SeriesChunkInfo and blob size, then the blob.
+struct SpoolHeader {
+    std::int32_t series = 0, level = 0;
+    std::int64_t chunk = 0;
+    double t0_s = 0, t1_s = 0;
+    std::int64_t n = 0;
+    std::uint64_t bytes = 0;
+};
+
+}  // namespace
+
+int force_series_first_level(double expected_rows, double max_raw_rows) {
+    int level = 0;
+    while (max_raw_rows > 0 && expected_rows > max_raw_rows) {
+        expected_rows /= static_cast<double>(kFanout);
+        ++level;
+    }
+    return level;
+}
+
+ForceSeriesSpool::ForceSeriesSpool(fs::path file, int first_level)
+    : file_(std::move(file)), out_(file_, std::ios::binary | std::ios::trunc),
+      builder_(SeriesId::Forces,
+               [this](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
+                   const SpoolHeader h{info.series, info.level, info.chunk, info.t0_s, info.t1_s, info.n, blob.size()};
+                   out_.write(reinterpret_cast<const char*>(&h), sizeof h);
+                   out_.write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+                   if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
+                   bytes_ += sizeof h + blob.size();
+               },
+               first_level),
+      first_level_(first_level) {
+    if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
+}
+
+ForceSeriesSpool::~ForceSeriesSpool() { remove_file(); }
+
+void ForceSeriesSpool::remove_file() {
+    out_.close();
+    std::error_code ec;
+    fs::remove(file_, ec);
+}
+
+void ForceSeriesSpool::add(std::span<const force_model::ForceSample> rows) {
+    float row[12];
+    static_assert(sizeof row / sizeof row[0] == 12, "forces series channels");
+    for (const force_model::ForceSample& r : rows) {
+        force_row(r, {}, row);
+        builder_.add(r.t_s, row);
+    }
+}
+
+void ForceSeriesSpool::finish() {
+    builder_.finish();
+    out_.flush();
+    if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
+    out_.close();
+}
+
+std::size_t ForceSeriesSpool::rows() const { return builder_.rows(); }
+
+void ForceSeriesSpool::replay(db::RunRepository& runs, std::int64_t run_id) const {
+    std::ifstream in(file_, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read the force series spool " + file_.string());
+    SpoolHeader h;
+    std::vector<unsigned char> blob;
+    while (in.read(reinterpret_cast<char*>(&h), sizeof h)) {
+        blob.resize(h.bytes);
+        if (!in.read(reinterpret_cast<char*>(blob.data()), static_cast<std::streamsize>(h.bytes)))
+            throw std::runtime_error("the force series spool " + file_.string() + " ends inside a chunk");
+        runs.add_series_chunk(run_id, db::SeriesChunkInfo{h.series, h.level, h.chunk, h.t0_s, h.t1_s, h.n}, blob);
+    }
 }
 
 json block_summary_json(std::size_t idx, const force_model::BlockSummary& b) { return block_json(idx, b); }

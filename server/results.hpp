@@ -5,19 +5,55 @@
 #include "app/predict_run.hpp"
 #include "common.hpp"
 #include "db/alerts.hpp"
+#include "series.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <span>
 
 namespace cutload::server {
 
 struct ProgramResult;
+
+// The stored level a run's forces series starts at: 0 (every row) when the rows it expects fit
+// max_raw_rows (0: no limit), else the first envelope level that fits (docs/api.md, "Long runs").
+int force_series_first_level(double expected_rows, double max_raw_rows);
+
+// A run's forces series built while the engine runs (app::RunInput::rows_out), its chunks spooled
+// to a file beside the run's uploads rather than held in memory, and copied into the store by
+// store_result in the transaction that marks the run done. The file is removed on destruction.
+class ForceSeriesSpool {
+public:
+    ForceSeriesSpool(std::filesystem::path file, int first_level);
+    ~ForceSeriesSpool();
+    ForceSeriesSpool(const ForceSeriesSpool&) = delete;
+    ForceSeriesSpool& operator=(const ForceSeriesSpool&) = delete;
+    void add(std::span<const force_model::ForceSample> rows);
+    void finish();   // after the last rows
+    std::size_t rows() const;
+    int first_level() const { return first_level_; }
+    std::uint64_t bytes() const { return bytes_; }
+    void replay(db::RunRepository& runs, std::int64_t run_id) const;
+    void remove_file();
+
+private:
+    std::filesystem::path file_;
+    std::ofstream out_;
+    SeriesBuilder builder_;
+    int first_level_;
+    std::uint64_t bytes_ = 0;
+};
 
 // Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
 // the commanded prediction and comparison of a run uploaded with an NC program, or null.
 // `cancel`, when set before the commit, rolls everything back and throws force_model::Cancelled
 // (a cancel while storing leaves nothing half-written).
 // `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
+// `forces`: the forces series built while predicting (p.samples is then empty), else built from p.
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr);
+                 bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr,
+                 ForceSeriesSpool* forces = nullptr);
 
 // A live run's close (live_runs.cpp): the same rows as store_result, but its alerts were raised
 // block by block while it ran (`alerts_raised` of them, none now), `live` goes into the summary

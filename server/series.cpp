@@ -11,41 +11,8 @@
 namespace cutload::server {
 namespace {
 
-// One level of the pyramid in memory, structure of arrays.
-struct Level {
-    std::vector<double> t0, t1;
-    std::vector<float> mins, maxs;   // row-major, K per element
-};
-
 std::size_t elem_bytes(std::size_t level, std::size_t k) {
     return level == 0 ? sizeof(double) + k * sizeof(float) : 2 * sizeof(double) + 2 * k * sizeof(float);
-}
-
-Level reduce(const std::vector<double>& t0, const std::vector<double>& t1, const std::vector<float>& mins,
-             const std::vector<float>& maxs, std::size_t k) {
-    Level out;
-    const std::size_t n = t0.size();
-    for (std::size_t b = 0; b < n; b += kFanout) {
-        const std::size_t e = std::min(n, b + kFanout);
-        out.t0.push_back(t0[b]);
-        out.t1.push_back(t1[e - 1]);
-        for (std::size_t j = 0; j < k; ++j) {
-            float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-            for (std::size_t i = b; i < e; ++i) {
-                lo = std::min(lo, mins[i * k + j]);
-                hi = std::max(hi, maxs[i * k + j]);
-            }
-            out.mins.push_back(lo);
-            out.maxs.push_back(hi);
-        }
-    }
-    return out;
-}
-
-void put_chunk(db::RunRepository& runs, std::int64_t run_id, SeriesId s, int level, std::int64_t chunk, double t0,
-               double t1, std::size_t n, const std::vector<unsigned char>& blob) {
-    runs.add_series_chunk(run_id, db::SeriesChunkInfo{static_cast<int>(s), level, chunk, t0, t1, static_cast<std::int64_t>(n)},
-                          blob);
 }
 
 }  // namespace
@@ -58,41 +25,101 @@ const std::vector<std::string>& series_channels(SeriesId s) {
     return s == SeriesId::Motion ? motion : forces;
 }
 
+// Level L holds the chunk being filled and the group of up to kFanout elements that becomes one
+// element of level L + 1.
+struct SeriesBuilder::Level {
+    std::vector<unsigned char> chunk;
+    std::size_t chunk_n = 0;
+    double chunk_t0 = 0, chunk_t1 = 0;
+    std::int64_t next_chunk = 0;
+    std::size_t total = 0;   // elements so far
+    std::size_t group_n = 0;
+    double group_t0 = 0, group_t1 = 0;
+    std::vector<float> group_lo, group_hi;
+};
+
+SeriesBuilder::SeriesBuilder(SeriesId s, ChunkSink sink, int first_level)
+    : series_(s), k_(series_channels(s).size()), first_level_(std::max(first_level, 0)), sink_(std::move(sink)) {}
+
+SeriesBuilder::~SeriesBuilder() = default;
+
+void SeriesBuilder::add(double t_s, const float* values) { add_element(0, t_s, t_s, values, values); }
+
+void SeriesBuilder::add_element(std::size_t level, double t0, double t1, const float* lo, const float* hi) {
+    if (levels_.size() <= level) levels_.resize(level + 1);
+    Level& l = levels_[level];
+    ++l.total;
+    if (int(level) >= first_level_) {
+        if (l.chunk_n == 0) l.chunk_t0 = t0;
+        l.chunk_t1 = t1;
+        const std::size_t at = l.chunk.size();
+        l.chunk.resize(at + elem_bytes(level, k_));
+        unsigned char* p = l.chunk.data() + at;
+        std::memcpy(p, &t0, sizeof(double));
+        if (level == 0) {
+            std::memcpy(p + sizeof(double), lo, k_ * sizeof(float));
+        } else {
+            std::memcpy(p + sizeof(double), &t1, sizeof(double));
+            std::memcpy(p + 2 * sizeof(double), lo, k_ * sizeof(float));
+            std::memcpy(p + 2 * sizeof(double) + k_ * sizeof(float), hi, k_ * sizeof(float));
+        }
+        if (++l.chunk_n == kChunkElems) flush_chunk(level);
+    }
+    if (l.group_n == 0) {
+        l.group_t0 = t0;
+        l.group_lo.assign(lo, lo + k_);
+        l.group_hi.assign(hi, hi + k_);
+    } else {
+        for (std::size_t j = 0; j < k_; ++j) {
+            l.group_lo[j] = std::min(l.group_lo[j], lo[j]);
+            l.group_hi[j] = std::max(l.group_hi[j], hi[j]);
+        }
+    }
+    l.group_t1 = t1;
+    if (++l.group_n == kFanout) flush_group(level);
+}
+
+void SeriesBuilder::flush_group(std::size_t level) {
+    Level& l = levels_[level];
+    if (l.group_n == 0) return;
+    l.group_n = 0;
+    // The group's figures are copied: add_element may grow levels_ (and move this one).
+    const double t0 = l.group_t0, t1 = l.group_t1;
+    const std::vector<float> lo = l.group_lo, hi = l.group_hi;
+    add_element(level + 1, t0, t1, lo.data(), hi.data());
+}
+
+void SeriesBuilder::flush_chunk(std::size_t level) {
+    Level& l = levels_[level];
+    if (l.chunk_n == 0) return;
+    sink_(db::SeriesChunkInfo{static_cast<int>(series_), static_cast<int>(level), l.next_chunk++, l.chunk_t0, l.chunk_t1,
+                              static_cast<std::int64_t>(l.chunk_n)},
+          l.chunk);
+    l.chunk.clear();
+    l.chunk_n = 0;
+}
+
+void SeriesBuilder::finish() {
+    if (levels_.empty() || levels_[0].total == 0) return;
+    // Up to the first level (1 or above) of at most kFanout elements, as one pass over all the rows
+    // would build it; its group is not carried further.
+    for (std::size_t level = 0; level < levels_.size(); ++level) {
+        const bool top = level >= 1 && levels_[level].total <= kFanout;
+        if (!top) flush_group(level);
+        flush_chunk(level);
+        if (top) break;
+    }
+}
+
+std::size_t SeriesBuilder::rows() const { return levels_.empty() ? 0 : levels_[0].total; }
+
 void write_series(db::RunRepository& runs, std::int64_t run_id, SeriesId s, const SeriesData& d) {
     const std::size_t k = series_channels(s).size();
-    const std::size_t n = d.t_s.size();
-    std::vector<unsigned char> blob;
-    for (std::size_t b = 0, chunk = 0; b < n; b += kChunkElems, ++chunk) {
-        const std::size_t e = std::min(n, b + kChunkElems);
-        blob.resize((e - b) * elem_bytes(0, k));
-        unsigned char* p = blob.data();
-        for (std::size_t i = b; i < e; ++i) {
-            std::memcpy(p, &d.t_s[i], sizeof(double));
-            std::memcpy(p + sizeof(double), &d.values[i * k], k * sizeof(float));
-            p += elem_bytes(0, k);
-        }
-        put_chunk(runs, run_id, s, 0, static_cast<std::int64_t>(chunk), d.t_s[b], d.t_s[e - 1], e - b, blob);
-    }
-    // Envelope levels until one chunk's worth of elements is left.
-    Level cur = reduce(d.t_s, d.t_s, d.values, d.values, k);
-    for (int level = 1; !cur.t0.empty(); ++level) {
-        const std::size_t m = cur.t0.size();
-        for (std::size_t b = 0, chunk = 0; b < m; b += kChunkElems, ++chunk) {
-            const std::size_t e = std::min(m, b + kChunkElems);
-            blob.resize((e - b) * elem_bytes(level, k));
-            unsigned char* p = blob.data();
-            for (std::size_t i = b; i < e; ++i) {
-                std::memcpy(p, &cur.t0[i], sizeof(double));
-                std::memcpy(p + sizeof(double), &cur.t1[i], sizeof(double));
-                std::memcpy(p + 2 * sizeof(double), &cur.mins[i * k], k * sizeof(float));
-                std::memcpy(p + 2 * sizeof(double) + k * sizeof(float), &cur.maxs[i * k], k * sizeof(float));
-                p += elem_bytes(level, k);
-            }
-            put_chunk(runs, run_id, s, level, static_cast<std::int64_t>(chunk), cur.t0[b], cur.t1[e - 1], e - b, blob);
-        }
-        if (m <= kFanout) break;
-        cur = reduce(cur.t0, cur.t1, cur.mins, cur.maxs, k);
-    }
+    SeriesBuilder b(s, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
+        runs.add_series_chunk(run_id, info, blob);
+    });
+    for (std::size_t i = 0; i < d.t_s.size(); ++i) b.add(d.t_s[i], &d.values[i * k]);
+    b.finish();
 }
 
 std::size_t SeriesCache::KeyHash::operator()(const Key& k) const {
@@ -239,10 +266,22 @@ double rows_in(const ChunkIndex::Level& l0, double from_s, double to_s) {
 
 }  // namespace
 
+namespace {
+
+// The finest level stored: 0 unless the run kept envelopes only (SeriesBuilder's first_level).
+std::size_t first_stored(const ChunkIndex& idx) {
+    for (std::size_t l = 0; l < idx.levels.size(); ++l)
+        if (!idx.levels[l].t0.empty()) return l;
+    return idx.levels.size();
+}
+
+}  // namespace
+
 bool series_extent(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s) {
     const auto idx = load_index(c, cache, run, s);
-    if (idx->levels.empty() || idx->levels[0].t0.empty()) return false;
-    const auto& l0 = idx->levels[0];
+    const std::size_t first = first_stored(*idx);
+    if (first >= idx->levels.size()) return false;
+    const auto& l0 = idx->levels[first];
     *t0_s = *std::min_element(l0.t0.begin(), l0.t0.end());
     *t1_s = *std::max_element(l0.t1.begin(), l0.t1.end());
     return true;
@@ -255,10 +294,13 @@ Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, Serie
     w.lo.resize(k);
     w.hi.resize(k);
     const auto idx = load_index(c, cache, run, s);
-    if (idx->levels.empty()) return w;
+    const std::size_t first = first_stored(*idx);
+    if (first >= idx->levels.size()) return w;
 
-    const double rows = rows_in(idx->levels[0], from_s, to_s);
-    int level = 0;
+    // Raw rows in the window, estimated from the finest level stored (each of its elements covers
+    // kFanout^first rows).
+    const double rows = rows_in(idx->levels[first], from_s, to_s) * std::pow(static_cast<double>(kFanout), first);
+    int level = static_cast<int>(first);
     if (rows > static_cast<double>(max_points)) {
         // The coarsest level that still gives every output bucket about one element or more.
         while (level + 1 < static_cast<int>(idx->levels.size()) &&
@@ -266,7 +308,8 @@ Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, Serie
             ++level;
     }
     w.level = level;
-    w.decimated = rows > static_cast<double>(max_points);
+    // A run that kept envelopes only answers them, however narrow the window.
+    w.decimated = rows > static_cast<double>(max_points) || level > 0;
 
     // Pass 1, times only: which elements of which chunks fall in the window, and the output
     // element (bucket, or row when raw) each one goes to.

@@ -15,6 +15,7 @@
 #include <list>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -34,6 +35,38 @@ const std::vector<std::string>& series_channels(SeriesId s);
 struct SeriesData {
     std::vector<double> t_s;
     std::vector<float> values;
+};
+
+// Where a builder's chunks go (the store, inside an open transaction, or a spool file).
+using ChunkSink = std::function<void(const db::SeriesChunkInfo& info, std::span<const unsigned char> blob)>;
+
+// A series' chunks and envelope pyramid built as its rows come, holding one chunk and one group
+// per level: the memory a run's series needs does not grow with its length. The chunks are those
+// one pass over all the rows gives (write_series). Levels below `first_level` are reduced but not
+// stored: a long run keeps envelopes (level 2: 64 rows, about a tooth pass at 2 deg steps and two
+// flutes) rather than every row (docs/api.md, "Long runs").
+class SeriesBuilder {
+public:
+    SeriesBuilder(SeriesId s, ChunkSink sink, int first_level = 0);
+    ~SeriesBuilder();
+    SeriesBuilder(const SeriesBuilder&) = delete;
+    SeriesBuilder& operator=(const SeriesBuilder&) = delete;
+    // One raw row: its time and series_channels(s).size() values.
+    void add(double t_s, const float* values);
+    // The last chunks of every level; nothing is added after it.
+    void finish();
+    std::size_t rows() const;
+
+private:
+    struct Level;
+    void add_element(std::size_t level, double t0, double t1, const float* lo, const float* hi);
+    void flush_group(std::size_t level);
+    void flush_chunk(std::size_t level);
+    SeriesId series_;
+    std::size_t k_;
+    int first_level_;
+    ChunkSink sink_;
+    std::vector<Level> levels_;
 };
 
 // Inside an open transaction.

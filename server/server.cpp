@@ -45,17 +45,29 @@ const char* status_code_name(int status) {
 
 fs::path default_data_dir(const ServerOptions& o) {
     if (!o.data_dir.empty()) return o.data_dir;
+    // Uploads are files: beside an SQLite file by default; a PostgreSQL URL names no folder.
+    if (db::backend_of(o.db_path) == db::Backend::Postgres)
+        throw std::invalid_argument(fmt::format("{}: a PostgreSQL store needs --data-dir (the folder for uploaded logs)",
+                                                db::printable_location(o.db_path)));
     return fs::path(o.db_path + ".data");
 }
 
-// Uploads that never got their run row (crash between the file write and the commit).
-void remove_orphan_uploads(db::RunRepository& runs, const fs::path& data_dir) {
+// How old an upload folder without its run must be before a server on a shared store removes it:
+// another server may be between writing that folder and committing its run.
+constexpr auto kSharedOrphanAge = std::chrono::hours(1);
+
+// Uploads that never got their run row (crash between the file write and the commit). On a
+// shared store (several servers, one --data-dir) only folders older than kSharedOrphanAge go,
+// and tmp/ is left to the others' uploads in progress.
+void remove_orphan_uploads(db::RunRepository& runs, const fs::path& data_dir, bool shared) {
     std::error_code ec;
-    fs::remove_all(data_dir / "tmp", ec);
+    if (!shared) fs::remove_all(data_dir / "tmp", ec);
     fs::create_directories(data_dir / "tmp");
     fs::create_directories(data_dir / "uploads");
+    const auto now = fs::file_time_type::clock::now();
     for (const auto& e : fs::directory_iterator(data_dir / "uploads")) {
         const std::string rel = "uploads/" + e.path().filename().string();
+        if (shared && now - fs::last_write_time(e.path(), ec) < kSharedOrphanAge) continue;
         if (!runs.upload_dir_in_use(rel)) {
             spdlog::warn("removing orphan upload {}", (data_dir / rel).string());
             fs::remove_all(e.path(), ec);
@@ -337,12 +349,23 @@ static void restrict_file_modes(unsigned file_umask, const std::string& db_path)
 
 Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))) {
     auto& c = *impl_;
-    restrict_file_modes(c.opt.file_umask, c.opt.db_path);
-    // One server per database: the job queue assumes no other process claims runs.
-    c.lock_fd = ::open((c.opt.db_path + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (c.lock_fd < 0 || ::flock(c.lock_fd, LOCK_EX | LOCK_NB) != 0)
-        throw std::runtime_error(fmt::format("{} is in use by another cutload serve (lock {}.lock)", c.opt.db_path,
-                                             c.opt.db_path));
+    if (db::backend_of(c.opt.db_path) == db::Backend::Sqlite) {
+        if (c.opt.workers < 1)
+            throw std::runtime_error(fmt::format("--workers {}: no other process can compute the jobs of an SQLite store; "
+                                                 "use 1 or more (cutload worker needs PostgreSQL)",
+                                                 c.opt.workers));
+        restrict_file_modes(c.opt.file_umask, c.opt.db_path);
+        // One server per SQLite file: its claims are safe across processes, but re-queueing the
+        // jobs left running at start takes every running job for a dead process's.
+        c.lock_fd = ::open((c.opt.db_path + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (c.lock_fd < 0 || ::flock(c.lock_fd, LOCK_EX | LOCK_NB) != 0)
+            throw std::runtime_error(fmt::format("{} is in use by another cutload serve (lock {}.lock)", c.opt.db_path,
+                                                 c.opt.db_path));
+    } else {
+        // PostgreSQL: no lock file (several processes may share the database; claims lock rows
+        // with FOR UPDATE SKIP LOCKED). The umask still applies to uploads.
+        ::umask(static_cast<mode_t>(c.opt.file_umask & 0777u));
+    }
     c.store = db::Store::open(c.opt.db_path);
     c.store->migrate();
     fs::create_directories(c.data_dir);
@@ -351,9 +374,13 @@ Server::Server(ServerOptions opt) : impl_(std::make_unique<Impl>(std::move(opt))
         std::error_code ec;
         fs::permissions(c.data_dir, static_cast<fs::perms>(c.opt.file_umask & 0777u), fs::perm_options::remove, ec);
     }
-    remove_orphan_uploads(c.session()->runs(), c.data_dir);
+    const bool shared = db::backend_of(c.opt.db_path) != db::Backend::Sqlite;
+    remove_orphan_uploads(c.session()->runs(), c.data_dir, shared);
     c.hooks = std::make_unique<Webhooks>(*c.store, c.opt, c.metrics);
-    c.jobs = std::make_unique<Jobs>(*c.store, JobPoolOptions{c.opt.workers, c.opt.max_attempts}, c.metrics,
+    JobPoolOptions pool{c.opt.workers, c.opt.max_attempts};
+    pool.shared_store = shared;
+    pool.lease_s = c.opt.lease_s;
+    c.jobs = std::make_unique<Jobs>(*c.store, pool, c.metrics,
                                     service_job_kinds(*c.store, c.opt, c.data_dir, c.metrics, [&c] { c.hooks->notify(); }));
     // Before the job workers start: they would re-queue the 'running' runs a dead process left.
     c.live = std::make_unique<LiveRuns>(*c.store, c.opt, [&c] { c.hooks->notify(); });
@@ -423,7 +450,7 @@ void Server::start() {
     c.listener = std::thread([&c] { c.http.listen_after_bind(); });
     c.started = true;
     spdlog::info("cutload serve: listening on http://{}:{} (db {}, {} worker(s))", c.opt.host, c.bound_port,
-                 c.opt.db_path, c.opt.workers);
+                 db::printable_location(c.opt.db_path), c.opt.workers);
 }
 
 void Server::stop() {

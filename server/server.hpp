@@ -14,10 +14,12 @@ namespace cutload::server {
 struct ServerOptions {
     std::string host = "127.0.0.1";
     int port = 8080;                       // 0: any free port (see Server::port())
-    std::string db_path = "cutload.db";
-    std::string data_dir;                  // uploads; empty: "<db_path>.data" next to the db
+    std::string db_path = "cutload.db";      // SQLite file, or postgresql://user:password@host/db
+    std::string data_dir;                  // uploads; empty: "<db_path>.data" next to an SQLite db
+                                           // (required with PostgreSQL)
     std::string web_dir;                   // static files at "/"; empty: none
-    int workers = 2;                       // prediction jobs run at once
+    int workers = 2;                       // prediction jobs run at once; 0: none (API only,
+                                           // `cutload worker`s compute; PostgreSQL)
     int http_threads = 64;                 // requests processed at once (idle or slow connections hold none)
     std::size_t max_body_bytes = 256u << 20;
     // Slow clients: a connection's request line and headers must arrive within header_timeout_s of
@@ -34,7 +36,10 @@ struct ServerOptions {
     std::size_t max_log_rows = 20'000'000;
     // Work limits (app::WorkLimits; docs/api.md, "Work limits"): a run whose estimated work passes
     // one is refused at upload (400 too_much_work) and stopped by the engine should it pass the rows.
-    double max_force_rows = 1e7;
+    double max_force_rows = 2e8;   // as app::WorkLimits
+    // A run expecting more force rows stores envelopes from the first pyramid level that fits
+    // (docs/api.md, "Long runs"); 0: every row, whatever the run's length.
+    double max_raw_rows = 4e6;
     double max_stock_cells = 20e6;
     double max_job_memory_mb = 3000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429
@@ -44,6 +49,9 @@ struct ServerOptions {
     bool use_opencl = true;                // force engine device
     double drain_s = 10;                   // on stop: running jobs get this long, then re-queue
     int max_attempts = 3;                  // claims of one job across server crashes; then 'failed'
+    // A job's claim is held this long unless renewed (every lease_s / 3): on PostgreSQL, a job
+    // whose process died is re-queued by another process this long after its last renewal.
+    double lease_s = 30;
     // The process umask while serving: the database, its WAL, uploads and their folders are
     // created without these permission bits (077: owner only, files 0600, folders 0700). The
     // database files that exist already are brought to the same mode at start.
@@ -55,6 +63,28 @@ struct ServerOptions {
     // any threshold set up: critical for a collision (rapid in material, holder contact), else a
     // warning. Flags an enabled flag threshold applying to the run covers are left to it.
     bool limit_alerts = true;
+};
+
+// `cutload worker`: computes the jobs of a PostgreSQL store that `cutload serve` processes answer
+// for (docs/deploy.md); no API. Its claims are leases it renews while it computes; a worker that
+// dies has its jobs re-queued by the other processes once the lease ends. Uses db_path, data_dir
+// (the serve processes' uploads, shared), workers, use_opencl, the work limits, max_raw_rows,
+// limit_alerts, max_attempts, lease_s and drain_s; `host`/`port` serve GET /metrics and
+// GET /healthz (port -1: no listener).
+class Worker {
+public:
+    explicit Worker(ServerOptions opt);   // opens and migrates the store; refuses SQLite
+    ~Worker();                            // stop() if still running
+    Worker(const Worker&) = delete;
+    Worker& operator=(const Worker&) = delete;
+    void start();
+    // Graceful: no new claims, running jobs get drain_s to finish, then are re-queued.
+    void stop();
+    int port() const;   // of the metrics listener; -1 without one
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
 };
 
 class Server {
@@ -83,6 +113,10 @@ private:
 enum class Role { Read = 0, Write = 1, Admin = 2 };
 Role parse_role(const std::string& s);          // throws std::invalid_argument
 const char* role_name(Role r);
+
+// The store location (an SQLite path or a postgresql:// URL, db/store.hpp) as output may show
+// it: a URL's password replaced by "***".
+std::string printable_db(const std::string& db_path);
 
 // Creates an API key in the database (migrating it if new) and returns the key; only its
 // SHA-256 is stored.

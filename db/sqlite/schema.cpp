@@ -224,7 +224,17 @@ CREATE TABLE live_blocks (
 );
 )SQL";
 
-constexpr std::array<const char*, 4> kMigrations{kV1, kV2, kV3, kV4};
+// Job leases (issue 18): a claim names itself (claim_token) and holds the job until lease_until
+// unless renewed, so a job whose worker died is re-queued once its lease ends, and only the claim
+// that holds a job stores its results.
+constexpr const char* kV5 = R"SQL(
+ALTER TABLE runs ADD COLUMN claim_token TEXT;
+ALTER TABLE runs ADD COLUMN lease_until TEXT;
+ALTER TABLE optimizations ADD COLUMN claim_token TEXT;
+ALTER TABLE optimizations ADD COLUMN lease_until TEXT;
+)SQL";
+
+constexpr std::array<const char*, 5> kMigrations{kV1, kV2, kV3, kV4, kV5};
 
 int user_version(Connection& c) {
     auto st = c.prepare("PRAGMA user_version");

@@ -102,10 +102,4 @@ void SqliteSession::rollback_transaction() noexcept {
     --depth_;
 }
 
-std::string_view job_table(const JobQueue& q) {
-    const bool plain = !q.name.empty() && q.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz_0123456789") == std::string_view::npos;
-    if (!plain) throw std::logic_error(fmt::format("job queue '{}' is not a table name", q.name));
-    return q.name;
-}
-
 }  // namespace cutload::db::sqlite

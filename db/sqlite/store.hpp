@@ -10,6 +10,7 @@
 #include "db/optimizations.hpp"
 #include "db/runs.hpp"
 #include "db/store.hpp"
+#include "schema.hpp"
 #include "sqlite/connection.hpp"
 
 #include <memory>
@@ -153,11 +154,17 @@ private:
 class Jobs final : public JobRepository {
 public:
     explicit Jobs(Connection& c) : c_(c) {}
-    std::optional<std::int64_t> claim_oldest(const JobQueue& q, const std::string& now) override;
+    std::optional<std::int64_t> claim_oldest(const JobQueue& q, const std::string& now, const Lease& lease) override;
+    std::vector<std::int64_t> renew_leases(const JobQueue& q, const std::string& token_prefix,
+                                           const std::string& until) override;
     Requeued requeue_interrupted(const JobQueue& q, int max_attempts, const std::string& error,
                                  const std::string& now) override;
+    Requeued requeue_expired(const JobQueue& q, int max_attempts, const std::string& error,
+                             const std::string& now) override;
+    bool holds(const JobQueue& q, std::int64_t id, const std::string& token) override;
     void finish(const JobQueue& q, std::int64_t id, JobState state, const std::optional<std::string>& error,
-                const std::string& now) override;
+                const std::string& now, const std::optional<std::string>& token) override;
+    bool cancel_running(const JobQueue& q, std::int64_t id, const std::string& now) override;
     bool cancel_queued(const JobQueue& q, std::int64_t id, const std::string& now) override;
     void set_progress(const JobQueue& q, std::int64_t id, double fraction) override;
     std::int64_t count(const JobQueue& q, std::initializer_list<JobState> states) override;
@@ -218,8 +225,5 @@ private:
     LiveRuns live_{c_};
 };
 
-// The table of a job queue, for SQL text: the queue's name, checked to be a plain identifier
-// (queues are constants of the code; the check keeps anything else out of the SQL text).
-std::string_view job_table(const JobQueue& q);
 
 }  // namespace cutload::db::sqlite

@@ -13,7 +13,8 @@ double corner_radius_mm(const ToolSpec& tool) {
         case ToolShape::Ball: return tool.diameter_mm / 2;
         case ToolShape::Bull: return tool.corner_radius_mm;
         case ToolShape::Drill:
-        case ToolShape::Chamfer: return 0;
+        case ToolShape::Chamfer:
+        case ToolShape::Barrel: return 0;
     }
     return tool.corner_radius_mm;
 }
@@ -23,6 +24,8 @@ CutterProfile profile_from_spec(const ToolSpec& tool) {
         case ToolShape::Drill: return cone_profile(tool.diameter_mm, 0, tool.point_angle_deg, tool.flute_length_mm);
         case ToolShape::Chamfer:
             return cone_profile(tool.diameter_mm, tool.tip_diameter_mm, tool.point_angle_deg, tool.flute_length_mm);
+        case ToolShape::Barrel:
+            return barrel_profile(tool.diameter_mm, tool.barrel_radius_mm, tool.tip_radius_mm, tool.flute_length_mm);
         default:
             return tapered_end_mill_profile(tool.diameter_mm, corner_radius_mm(tool), tool.taper_deg, tool.flute_length_mm);
     }

@@ -26,4 +26,10 @@ CutterProfile tapered_end_mill_profile(double diameter_mm, double corner_radius_
 // small point angle (twice the taper per side) reaching diameter_mm at the end of the flutes.
 CutterProfile cone_profile(double diameter_mm, double tip_diameter_mm, double point_angle_deg, double flute_length_mm);
 
+// barrel.cpp: document 003's barrel tool: a tip ball of tip_radius_mm centred on the axis, then the
+// flank arc of barrel_radius_mm (centre across the axis) from where it touches the ball up to its
+// widest point, diameter_mm, at barrel_widest_height_mm (cutters/barrel.hpp); then a cylinder of
+// that diameter up to flute_length_mm, which must reach the widest point.
+CutterProfile barrel_profile(double diameter_mm, double barrel_radius_mm, double tip_radius_mm, double flute_length_mm);
+
 }  // namespace cutload::force_model

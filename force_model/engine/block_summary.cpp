@@ -75,30 +75,41 @@ BlockSummary BlockAccumulator::summary() const {
     return b;
 }
 
-std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
-                                           const std::vector<RowExtra>& extra, const std::vector<Limits>& slot_limits) {
-    // One summary per block in order of first appearance in the motion; rows without a block
-    // (a negative index) are summarised as "(none)". Block indices are small: a flat table maps
-    // them to summaries.
-    std::vector<BlockAccumulator> acc;
+BlockSummaries::BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits)
+    : block_names_(motion.block_names), limits_(std::move(limits)) {
     std::int32_t max_block = -1;
     for (std::int32_t b : motion.block) max_block = std::max(max_block, b);
-    for (const ForceSample& s : rows) max_block = std::max(max_block, s.block);
-    std::vector<std::ptrdiff_t> index(std::size_t(max_block) + 2, -1);
-    auto at = [&](std::int32_t block, double t_s) -> BlockAccumulator& {
-        std::ptrdiff_t& k = index[std::size_t(std::max(block, std::int32_t(-1)) + 1)];
-        if (k < 0) {
-            k = std::ptrdiff_t(acc.size());
-            acc.emplace_back(block_name(motion.block_names, block), t_s);
-        }
-        return acc[std::size_t(k)];
-    };
+    index_.assign(std::size_t(max_block) + 2, -1);
     for (std::size_t i = 0; i < motion.size(); ++i) at(motion.block[i], motion.t_s[i]).add_motion(motion.t_s[i]);
-    for (std::size_t r = 0; r < rows.size(); ++r) at(rows[r].block, rows[r].t_s).add_row(rows[r], extra[r], slot_limits);
+}
+
+BlockAccumulator& BlockSummaries::at(std::int32_t block, double t_s) {
+    const std::size_t slot = std::size_t(std::max(block, std::int32_t(-1)) + 1);
+    if (slot >= index_.size()) index_.resize(slot + 1, -1);
+    std::ptrdiff_t& k = index_[slot];
+    if (k < 0) {
+        k = std::ptrdiff_t(acc_.size());
+        acc_.emplace_back(block_name(block_names_, block), t_s);
+    }
+    return acc_[std::size_t(k)];
+}
+
+void BlockSummaries::add_rows(const ForceSample* rows, const RowExtra* extra, std::size_t n) {
+    for (std::size_t r = 0; r < n; ++r) at(rows[r].block, rows[r].t_s).add_row(rows[r], extra[r], limits_);
+}
+
+std::vector<BlockSummary> BlockSummaries::result() const {
     std::vector<BlockSummary> out;
-    out.reserve(acc.size());
-    for (const BlockAccumulator& a : acc) out.push_back(a.summary());
+    out.reserve(acc_.size());
+    for (const BlockAccumulator& a : acc_) out.push_back(a.summary());
     return out;
+}
+
+std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
+                                           const std::vector<RowExtra>& extra, const std::vector<Limits>& slot_limits) {
+    BlockSummaries s(motion, slot_limits);
+    s.add_rows(rows.data(), extra.data(), rows.size());
+    return s.result();
 }
 
 }  // namespace cutload::force_model

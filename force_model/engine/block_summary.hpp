@@ -35,8 +35,26 @@ private:
     std::vector<ToolCount> tools_;   // cutting rows per T number (a block rarely sees more than one)
 };
 
-// `limits`: by the rows' cutter slot (RowExtra::slot; the tool's own limits over the run's). Rows of
-// an unknown tool (slot -1) flag unknown_tool.
+// Every block's summary over a whole motion model, its rows added as they come (in any number of
+// pieces): one summary per block in order of first appearance in the motion, then blocks that only
+// rows name; rows without a block (a negative index) are summarised as "(none)".
+class BlockSummaries {
+public:
+    // `limits`: by the rows' cutter slot (RowExtra::slot; the tool's own limits over the run's).
+    // Rows of an unknown tool (slot -1) flag unknown_tool.
+    BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits);
+    void add_rows(const ForceSample* rows, const RowExtra* extra, std::size_t n);
+    std::vector<BlockSummary> result() const;
+
+private:
+    BlockAccumulator& at(std::int32_t block, double t_s);
+    const std::vector<std::string>& block_names_;
+    std::vector<Limits> limits_;
+    std::vector<BlockAccumulator> acc_;
+    std::vector<std::ptrdiff_t> index_;   // by block index + 1: position in acc_, -1 none yet
+};
+
+// BlockSummaries over all the rows at once.
 std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion, const std::vector<ForceSample>& rows,
                                            const std::vector<RowExtra>& extra, const std::vector<Limits>& limits);
 

@@ -47,6 +47,26 @@ void Engine::run() {
     complete();
 }
 
+void Engine::take_rows_as_they_come(RowTaker take) {
+    take_rows_ = std::move(take);
+    // A piece and the batch that completes past it, not the whole run.
+    rows_.samples = {};
+    rows_.extra = {};
+    rows_.reserve(2 * kRowsOutPiece);
+}
+
+void Engine::hand_out_rows(std::size_t keep) {
+    const std::size_t n = rows_.size();
+    if (!take_rows_ || n <= keep) return;
+    const std::size_t take = n - keep;
+    take_rows_(rows_, take);
+    rows_.samples.erase(rows_.samples.begin(), rows_.samples.begin() + std::ptrdiff_t(take));
+    rows_.extra.erase(rows_.extra.begin(), rows_.extra.begin() + std::ptrdiff_t(take));
+    rows_taken_ += take;
+}
+
+void Engine::drain_rows() { hand_out_rows(0); }
+
 void Engine::use_tool(std::int32_t slot, std::int32_t number) {
     // What the old cutter walked is removed with its own shape before the next one cuts.
     flush_batch();
@@ -81,6 +101,9 @@ void Engine::end_session() {
 void Engine::walk_interval(std::size_t i) {
     if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
     check_rows();
+    // Rows already written are final (a batch in flight appends its own); the last one may still
+    // take a stop's removed volume.
+    if (rows_.size() >= kRowsOutPiece) hand_out_rows(1);
     if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)
         use_tool(slot, number);
     if (slot_ < 0) {
@@ -196,10 +219,11 @@ void Engine::complete() {
 
 // The estimate before a run is an upper bound; this is the net under it should it ever be wrong.
 void Engine::check_rows() const {
-    if (options_.max_rows == 0 || rows_.size() <= options_.max_rows) return;
+    const std::size_t rows = rows_taken_ + rows_.size();
+    if (options_.max_rows == 0 || rows <= options_.max_rows) return;
     throw TooManyRows(fmt::format("the prediction passed {} force rows at t = {:.3f} s of the motion, above the limit "
                                   "of {:.4g}: it was stopped",
-                                  rows_.size(), motion_.t_s[current_interval_], double(options_.max_rows)));
+                                  rows, motion_.t_s[current_interval_], double(options_.max_rows)));
 }
 
 void Engine::report_progress() {

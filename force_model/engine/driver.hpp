@@ -17,6 +17,8 @@
 #include "engine/setup.hpp"
 #include "engine/stock_map.hpp"
 
+#include <functional>
+
 namespace cutload::force_model {
 
 class Engine {
@@ -37,6 +39,14 @@ public:
     void walk(std::size_t from, std::size_t to);
     void settle();
     void end_session();
+
+    // Rows taken out as they become final (PredictOptions::rows_out): whenever the table holds a
+    // piece's worth, `take(rows, n)` gets its first n rows, which the engine then drops; the last
+    // row always stays (the volume of a stop's path is booked onto it). drain_rows() takes what is
+    // left once every batch is complete.
+    using RowTaker = std::function<void(const RowTable& rows, std::size_t n)>;
+    void take_rows_as_they_come(RowTaker take);
+    void drain_rows();
 
     RowTable& rows() { return rows_; }
     std::size_t steps() const { return steps_; }   // angle steps evaluated
@@ -59,6 +69,7 @@ private:
     void complete();
     void report_progress();
     void check_rows() const;   // TooManyRows past options_.max_rows
+    void hand_out_rows(std::size_t keep);
 
     const motion_io::MotionModel& motion_;
     const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates
@@ -75,6 +86,8 @@ private:
     StepBatcher batcher_;       // the batch being walked
     Engagement engagement_;     // the batch (and removal) queued on the backend
     RowTable rows_;
+    RowTaker take_rows_;
+    std::size_t rows_taken_ = 0;   // rows handed out and dropped from rows_
     std::size_t steps_ = 0;
     std::size_t current_interval_ = 0;   // for progress
     double last_progress_ = -1;

@@ -58,7 +58,10 @@ TEST_CASE("cutload compare and calibrate end to end", "[calib][cli]") {
         dyno.noise_rel = 0.005;
         write_dyno_file(p, file.string(), dyno);
         tests += fmt::format(" --test {}:10000:{}:2:{}:{}", file.string(), t.c * 2 * 10000, t.ae, t.mode);
-        if (t.side == Side::Down) force_model::write_forces_csv(p, (dir / "FORCES.csv").string());
+        if (t.side == Side::Down) {
+            force_model::write_forces_csv(p, (dir / "FORCES.csv").string());
+            force_model::write_forces_file(p, (dir / "FORCES.bin").string());
+        }
     }
 
     const clitest::Result cal = clitest::run(fmt::format("calibrate --tool {} {} --out {}{}", (dir / "TOOL.json").string(),
@@ -89,6 +92,17 @@ TEST_CASE("cutload compare and calibrate end to end", "[calib][cli]") {
     CHECK(report["overall"]["resultant"]["correlation"].get<double>() > 0.98);
     CHECK(report["blocks"].size() == 1);
     CHECK(std::filesystem::file_size(dir / "metrics.csv") > 100);
+
+    // FORCES.bin holds FORCES.csv's digits: the same comparison, to the last printed digit.
+    const clitest::Result from_bin = clitest::run(fmt::format("compare --predicted {} --measured {} {} --json",
+                                             (dir / "FORCES.bin").string(), measured, kSeedAxesArg));
+    INFO(from_bin.output);
+    REQUIRE(from_bin.exit_code == 0);
+    nlohmann::json bin_report = nlohmann::json::parse(from_bin.output), csv_report = report;
+    bin_report.erase("predicted");
+    csv_report.erase("predicted");
+    CHECK(bin_report == csv_report);
+    CHECK(nlohmann::json::parse(from_bin.output)["predicted"]["rows"] == report["predicted"]["rows"]);
 
     const clitest::Result given = clitest::run(fmt::format("compare --predicted {} --measured {} {} --offset-s -0.15123 --average rev",
                                           (dir / "FORCES.csv").string(), measured, kSeedAxesArg));

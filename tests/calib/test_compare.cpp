@@ -247,6 +247,16 @@ TEST_CASE("FORCES.csv is read back, bad windows and unmapped measurements are er
         bad << "t_s,spindle_angle_deg,block,fx_N,fy_N\n";
     }
     CHECK_THROWS_WITH(read_forces_csv(path), Catch::Contains(":1: no `fz_N` column"));
+    {
+        std::ofstream bad(path);
+        bad << "t_s,spindle_angle_deg,block,fx_N,fy_N,fz_N\n0,0,,1,2,3\n0.001,1,,1,-4e40,3\n";
+    }
+    CHECK_THROWS_WITH(read_forces_csv(path), Catch::Contains(":3:") && Catch::Contains("column 5 (fy_N): force -4e+40 N"));
+    {
+        std::ofstream bad(path);
+        bad << "t_s,spindle_angle_deg,block,fx_N,fy_N,fz_N\n0,0,,1,2,3\n1e12,1,,1,2,3\n";
+    }
+    CHECK_THROWS_WITH(read_forces_csv(path), Catch::Contains(":3:") && Catch::Contains("time 1e+12 s is beyond"));
     std::filesystem::remove_all(dir);
 
     const PredictedTrace p = trace_of(sines, 0.11, 5e-5);

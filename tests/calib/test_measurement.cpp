@@ -166,6 +166,19 @@ TEST_CASE("bad files name the line, the column and the reason", "[calib][measure
         const std::string e = error_of("t,fx,fy,fz\n0,1,2,3\n0.001,1,abc,3\n");
         CHECK_THAT(e, Catch::Contains("test.csv:3:9: column 3 (fy): 'abc' is not a number"));
     }
+    SECTION("a force past any dynamometer's range (found by the dyno_csv fuzz target: 1e39 overflowed the float channel)") {
+        CHECK_THAT(error_of("t,fx,fy,fz\n0,1,2,3\n0.001,1,1e39,3\n"),
+                   Catch::Contains("test.csv:3:9: column 3 (fy): force 1e+39 N is beyond \u00b11e+06 N"));
+        CHECK_THAT(error_of("t,fx [kN],fy,fz\n0,-2000,2,3\n0.001,1,2,3\n"),
+                   Catch::Contains("test.csv:2:3: column 2 (fx [kN]): force -2e+06 N"));
+        CHECK_NOTHROW(read_text("t,fx [kN],fy,fz\n0,-999,2,3\n0.001,1,2,3\n"));
+    }
+    SECTION("times past any record's span, or more samples a second than an instrument gives") {
+        CHECK_THAT(error_of("t,fx,fy,fz\n0,1,2,3\n2e9,1,2,3\n"),
+                   Catch::Contains("test.csv:3:1: column 1 (t): time 2e+09 s is beyond"));
+        CHECK_THAT(error_of("t [us],fx,fy,fz\n0,1,2,3\n1e-5,1,2,3\n2e-5,1,2,3\n"),
+                   Catch::Contains("1e+11 samples a second") && Catch::Contains("wrong time unit"));
+    }
     SECTION("short row") {
         CHECK_THAT(error_of("t,fx,fy,fz\n0,1,2,3\n0.001,1,2\n"),
                    Catch::Contains("test.csv:3: 3 columns where the names row has 4"));

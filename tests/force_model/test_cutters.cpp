@@ -1,6 +1,8 @@
 // The cutter geometry module (force_model/cutters/): profiles built from segments, their edge
 // elements and lower surfaces, against the closed forms of each shape's geometry.
+#include "force_model/cutters/barrel.hpp"
 #include "force_model/cutters/shapes.hpp"
+#include "force_model/force_model.hpp"
 #include "force_model/cutters/tool_geometry.hpp"
 
 #include <catch2/catch.hpp>
@@ -149,6 +151,65 @@ TEST_CASE("cutters: a barrel profile (document 003) is a chain of arcs", "[cutte
     CHECK(barrel.lower_surface_mm(r_mid) == Approx(centre_z - std::sqrt(r1 * r1 - (r_mid - centre_r) * (r_mid - centre_r))));
     const ToolGeometry g = build_tool_geometry(cutter_of(barrel), 0.2);
     CHECK(sums_below(g.edges, g.flute_length_mm).length_mm == Approx(r2 * kappa_joint + r1 * (kPi / 2 - kappa_joint)));
+}
+
+TEST_CASE("cutters: barrel_profile builds document 003's barrel from r, r1 and r2", "[cutters][barrel]") {
+    const double r = 3, r1 = 96, r2 = 1;
+    // docs/five_axis.md §5.2, by hand: z_b = 1 + sqrt(95^2 - 93^2) = 1 + sqrt(376) = 20.391 mm; the
+    // arc meets the ball at (0.979, 0.796) mm.
+    const double z_b = 1 + std::sqrt(376.0);
+    CHECK(barrel_widest_height_mm(2 * r, r1, r2) == Approx(z_b).epsilon(1e-14));
+    const CutterProfile p = barrel_profile(2 * r, r1, r2, z_b);
+    REQUIRE(p.segments().size() == 2);
+    CHECK(p.radius_mm() == Approx(r).epsilon(1e-14));
+    CHECK(p.length_mm() == Approx(z_b).epsilon(1e-14));
+    const ProfilePoint joint = segment_end(p.segments()[0]);
+    CHECK(joint.r_mm == Approx(93.0 / 95).epsilon(1e-12));
+    CHECK(joint.z_mm == Approx(1 - std::sqrt(376.0) / 95).epsilon(1e-12));
+    CHECK(joint.z_mm == Approx(0.796).margin(5e-4));
+    // Every flank element sits on the circle of radius r1 about (r - r1, z_b), normal along the radius.
+    const ToolGeometry g = build_tool_geometry(cutter_of(p), 0.1);
+    int on_arc = 0;
+    for (std::size_t e = 0; e < g.edges.size(); ++e) {
+        const double u = g.edges.r_mm[e] - (r - r1), w = g.edges.z_mm[e] - z_b;
+        if (g.edges.z_mm[e] < joint.z_mm) continue;
+        ++on_arc;
+        CHECK(std::hypot(u, w) == Approx(r1).epsilon(1e-12));
+        CHECK(g.edges.nr[e] == Approx(u / r1).epsilon(1e-12));
+        CHECK(g.edges.nz[e] == Approx(w / r1).margin(1e-12));
+    }
+    CHECK(on_arc == int(std::ceil(r1 * (kPi / 2 - std::asin(93.0 / 95)) / 0.1)));
+    // Longer flutes continue as a cylinder of the widest radius, tangent to the arc's top.
+    const CutterProfile longer = barrel_profile(2 * r, r1, r2, 30);
+    REQUIRE(longer.segments().size() == 3);
+    CHECK(longer.length_mm() == 30);
+    CHECK(longer.radius_mm() == Approx(r).epsilon(1e-14));
+    CHECK(longer.lower_surface_mm(2.5) == Approx(z_b - std::sqrt(r1 * r1 - (2.5 - (r - r1)) * (2.5 - (r - r1)))));
+    // Inconsistent numbers are refused: r1 not past r, r2 not inside r, flutes short of the widest point.
+    CHECK_THROWS_AS(barrel_profile(6, 3, 1, 30), std::invalid_argument);
+    CHECK_THROWS_AS(barrel_profile(6, 96, 3, 30), std::invalid_argument);
+    CHECK_THROWS_AS(barrel_profile(6, 96, 0, 30), std::invalid_argument);
+    CHECK_THROWS_AS(barrel_profile(6, 96, 1, 20), std::invalid_argument);
+}
+
+TEST_CASE("cutters: the pick feed for a 5 um cusp is 1.960 mm under document 003's barrel, 0.346 mm under a 3 mm ball",
+          "[cutters][barrel]") {
+    // Figures of docs/five_axis.md §5.2 (issue 15): 2 sqrt(0.005 x 191.995) and 2 sqrt(0.005 x 5.995).
+    CHECK(pick_feed_mm(96, 0.005) == Approx(1.959566).margin(5e-7));
+    CHECK(std::round(pick_feed_mm(96, 0.005) * 1000) / 1000 == 1.960);
+    CHECK(pick_feed_mm(3, 0.005) == Approx(0.346266).margin(5e-7));
+    // The inverse: the cusp between two circles of radius r1, s apart, is r1 - sqrt(r1^2 - s^2 / 4).
+    for (double rho : {0.5, 3.0, 96.0, 1500.0})
+        for (double h : {1e-4, 0.005, 0.1}) {
+            if (h > rho) continue;
+            const double s = pick_feed_mm(rho, h);
+            CHECK(rho - std::sqrt(rho * rho - s * s / 4) == Approx(h).epsilon(1e-9));
+        }
+    CHECK(pick_feed_mm(2, 2) == Approx(4));   // a cusp as deep as the radius: circles side by side
+    CHECK_THROWS_AS(pick_feed_mm(96, 0), std::invalid_argument);
+    CHECK_THROWS_AS(pick_feed_mm(96, -0.005), std::invalid_argument);
+    CHECK_THROWS_AS(pick_feed_mm(3, 3.5), std::invalid_argument);
+    CHECK_THROWS_AS(pick_feed_mm(0, 0.005), std::invalid_argument);
 }
 
 TEST_CASE("cutters: a broken profile is refused, naming the segment", "[cutters]") {

@@ -103,7 +103,7 @@ TEST_CASE("run spec: errors name the key and what was expected", "[spec][errors]
         {"/tool/diameter_mm", -8, "tool.diameter_mm", "(0, 200]"},
         {"/tool/diameter_mm", "8", "tool.diameter_mm", "expected a number"},
         {"/tool/flutes", 2.5, "tool.flutes", "whole number"},
-        {"/tool/shape", "barrel", "tool.shape", "\"flat\", \"ball\", \"bull\""},
+        {"/tool/shape", "lollipop", "tool.shape", "\"flat\", \"ball\", \"bull\""},
         {"/tool/helix_deg", 80, "tool.helix_deg", "[0, 70)"},
         {"/tool/stickout_mm", 10, "tool.stickout_mm", "at least flute_length_mm"},
         {"/tool/holder/diameter_mm", 6, "tool.holder.diameter_mm", "at least the tool diameter"},
@@ -375,4 +375,71 @@ TEST_CASE("run spec: a tapered end mill is named by its half angle, the diameter
     table.erase("tool");
     table["tools"] = json::array({entry});
     CHECK(error_of(table).rfind("tools[0].taper_deg: must be in [0, 15] degrees per side", 0) == 0);
+}
+
+TEST_CASE("run spec: a barrel tool is named by its widest diameter, barrel radius and tip ball radius", "[spec][tools]") {
+    // Document 003's tool: r 3, r1 96, r2 1 mm; its widest point is 20.391 mm above the tip.
+    json j = seed_spec();
+    j["tool"] = {{"shape", "barrel"},       {"diameter_mm", 6},      {"flutes", 4},         {"helix_deg", 30},
+                 {"barrel_radius_mm", 96}, {"tip_radius_mm", 1},     {"flute_length_mm", 22}, {"stickout_mm", 40},
+                 {"holder", {{"diameter_mm", 25}, {"length_mm", 50}}}};
+    const auto spec = parse_run_spec(j);
+    CHECK(spec.tool.shape == cutload::force_model::ToolShape::Barrel);
+    CHECK(spec.tool.barrel_radius_mm == 96);
+    CHECK(spec.tool.tip_radius_mm == 1);
+    CHECK(spec.tool.corner_radius_mm == 0);
+    CHECK(cutload::force_model::to_json(spec)["tool"] == j["tool"]);
+
+    auto with = [&](auto change) {
+        json k = j;
+        change(k);
+        return error_of(k);
+    };
+    // r1 must pass the widest radius (the arc's centre lies across the axis).
+    const std::string r1_rule =
+        "tool.barrel_radius_mm: must be greater than diameter_mm / 2 (the flank arc's centre lies across the axis) "
+        "and at most 10000 mm";
+    CHECK(with([](json& k) { k["tool"]["barrel_radius_mm"] = 2.5; }) == r1_rule);
+    CHECK(with([](json& k) { k["tool"]["barrel_radius_mm"] = 3; }) == r1_rule);
+    CHECK(with([](json& k) { k["tool"]["barrel_radius_mm"] = 20000; }) == r1_rule);
+    // r1 10 m with a 200 mm tool and a 1 mm tip: 1 + sqrt(99 x 19899) = 1404.6 mm to the widest point.
+    CHECK(with([](json& k) {
+              k["tool"]["diameter_mm"] = 200;
+              k["tool"]["barrel_radius_mm"] = 10000;
+              k["tool"]["holder"]["diameter_mm"] = 250;
+          }) == "tool.barrel_radius_mm: puts the barrel's widest point 1404.6 mm above the tip, beyond the longest "
+                "flutes (500 mm): a smaller barrel radius");
+    CHECK(with([](json& k) { k["tool"].erase("barrel_radius_mm"); }) == "tool.barrel_radius_mm: required key is missing");
+    const std::string r2_rule =
+        "tool.tip_radius_mm: must be in (0, diameter_mm / 2) mm (the tip ball, centred on the axis, inside the barrel)";
+    CHECK(with([](json& k) { k["tool"]["tip_radius_mm"] = 3; }) == r2_rule);
+    CHECK(with([](json& k) { k["tool"]["tip_radius_mm"] = 0; }) == r2_rule);
+    CHECK(with([](json& k) { k["tool"]["tip_radius_mm"] = "1"; }) == "tool.tip_radius_mm: expected a number");
+    // The flutes must reach the widest point: 1 + sqrt(376) = 20.3907 mm, named rounded up.
+    CHECK(with([](json& k) { k["tool"]["flute_length_mm"] = 20; }) ==
+          "tool.flute_length_mm: must reach the barrel's widest point, 20.391 mm above the tip (where the arc of "
+          "barrel_radius_mm from the tip ball reaches diameter_mm)");
+    CHECK(with([](json& k) { k["tool"]["flute_length_mm"] = 20.391; }).empty());
+    CHECK(with([](json& k) { k["tool"]["holder"]["diameter_mm"] = 5.9; }) ==
+          "tool.holder.diameter_mm: must be at least the tool diameter and at most 500 mm");
+    // Other shapes' keys are refused on a barrel, and the barrel's on other shapes.
+    CHECK(with([](json& k) { k["tool"]["corner_radius_mm"] = 1; }) ==
+          "tool.corner_radius_mm: not for a barrel tool (its tip ball is tip_radius_mm)");
+    CHECK(with([](json& k) { k["tool"]["taper_deg"] = 2; }) ==
+          "tool.taper_deg: only for a flat, ball or bull end mill (a barrel's flank is barrel_radius_mm)");
+    CHECK(with([](json& k) { k["tool"]["point_angle_deg"] = 90; }) == "tool.point_angle_deg: only for a drill or chamfer tool");
+    json flat = seed_spec();
+    flat["tool"]["barrel_radius_mm"] = 96;
+    CHECK(error_of(flat) == "tool.barrel_radius_mm: only for a barrel tool");
+    flat = seed_spec();
+    flat["tool"]["tip_radius_mm"] = 1;
+    CHECK(error_of(flat) == "tool.tip_radius_mm: only for a barrel tool");
+    // In a tool table too, named by entry.
+    json table = j;
+    json entry = table["tool"];
+    entry["number"] = 3;
+    entry["tip_radius_mm"] = 4;
+    table.erase("tool");
+    table["tools"] = json::array({entry});
+    CHECK(error_of(table).rfind("tools[0].tip_radius_mm: must be in (0, diameter_mm / 2) mm", 0) == 0);
 }

@@ -33,6 +33,10 @@ json full_spec(const std::string& shape) {
         tool["point_angle_deg"] = 90;
         tool["tip_diameter_mm"] = 1;
     }
+    if (shape == "barrel") {   // widest point 2 + sqrt(448) = 23.2 mm above the tip, below the flutes' end
+        tool["barrel_radius_mm"] = 60;
+        tool["tip_radius_mm"] = 2;
+    }
     json t7 = tool;
     t7["number"] = 7;
     t7["limits"] = {{"force_N", 900}, {"torque_Nm", 12}, {"power_kW", 7.5}, {"chip_mm", 0.25}, {"bending_MPa", 350}};
@@ -47,7 +51,7 @@ json full_spec(const std::string& shape) {
             {"resolution", {{"angle_step_deg", 3}, {"axial_step_mm", 0.25}, {"grid_mm", 0.4}}}};
 }
 
-const std::vector<std::string> kShapes = {"flat", "ball", "bull", "drill", "chamfer"};
+const std::vector<std::string> kShapes = {"flat", "ball", "bull", "drill", "chamfer", "barrel"};
 
 std::string error_of(const json& j) {
     try {
@@ -197,14 +201,21 @@ TEST_CASE("run spec schema: shapes, shape-only keys, types, units and titles", "
     for (const std::string& shape : kShapes) CHECK(error_of(full_spec(shape)).empty());
     json oval = full_spec("flat");
     oval["tool"]["shape"] = "oval";
-    CHECK(error_of(oval).find("tool.shape: expected one of \"flat\", \"ball\", \"bull\", \"drill\", \"chamfer\"") == 0);
+    CHECK(error_of(oval).find("tool.shape: expected one of \"flat\", \"ball\", \"bull\", \"drill\", \"chamfer\", \"barrel\"") == 0);
 
     CHECK(tool["properties"]["point_angle_deg"]["x-tool-shapes"] == json({"chamfer", "drill"}));
     CHECK(tool["properties"]["point_angle_deg"]["x-required-shapes"] == json({"chamfer", "drill"}));
     CHECK(tool["properties"]["tip_diameter_mm"]["x-tool-shapes"] == json({"chamfer"}));
     CHECK_FALSE(tool["properties"]["tip_diameter_mm"].contains("x-required-shapes"));
     CHECK(tool["properties"]["corner_radius_mm"]["x-required-shapes"] == json({"bull"}));
-    CHECK_FALSE(tool["properties"]["corner_radius_mm"].contains("x-tool-shapes"));
+    CHECK(tool["properties"]["corner_radius_mm"]["x-tool-shapes"] == json({"ball", "bull", "chamfer", "drill", "flat"}));
+    for (const char* key : {"barrel_radius_mm", "tip_radius_mm"}) {
+        INFO(key);
+        CHECK(tool["properties"][key]["x-tool-shapes"] == json({"barrel"}));
+        CHECK(tool["properties"][key]["x-required-shapes"] == json({"barrel"}));
+        CHECK(tool["properties"][key]["x-unit"] == "mm");
+    }
+    CHECK(tool["properties"]["barrel_radius_mm"]["title"] == "Barrel radius");
     CHECK_FALSE(tool["properties"]["diameter_mm"].contains("x-tool-shapes"));
     CHECK(tool["properties"]["taper_deg"]["x-tool-shapes"] == json({"ball", "bull", "flat"}));
     CHECK_FALSE(tool["properties"]["taper_deg"].contains("x-required-shapes"));

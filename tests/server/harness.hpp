@@ -3,6 +3,7 @@
 #pragma once
 
 #include "server/server.hpp"
+#include "test_store.hpp"
 
 #include <catch2/catch.hpp>
 #include <httplib.h>
@@ -73,7 +74,8 @@ inline json slot_spec() {
 struct TestServer {
     explicit TestServer(std::function<void(server::ServerOptions&)> tweak = {}) {
         opt.port = 0;
-        opt.db_path = (dir.path() / "test.db").string();
+        opt.db_path = store_location(dir.path(), "test.db");
+        opt.data_dir = (dir.path() / "test.db.data").string();
         opt.workers = 1;
         opt.use_opencl = false;   // tiny jobs: the scalar path avoids OpenCL start-up per test
         opt.webhook_backoff_s = 0.05;
@@ -95,7 +97,7 @@ struct TestServer {
     }
     httplib::Client admin() const { return client(admin_key); }
 
-    fs::path data_dir() const { return fs::path(opt.db_path + ".data"); }
+    fs::path data_dir() const { return fs::path(opt.data_dir); }
 
     TempDir dir;
     server::ServerOptions opt;

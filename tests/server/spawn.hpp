@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <fcntl.h>
 #include <regex>
+#include <csignal>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -24,6 +26,8 @@ inline pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
     pid_t pid = ::fork();
     REQUIRE(pid >= 0);
     if (pid == 0) {
+        // Gone with the test: a test that fails (or is timed out) leaves no server or worker behind.
+        ::prctl(PR_SET_PDEATHSIG, SIGKILL);
         int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
         ::dup2(fd, 1);
         ::dup2(fd, 2);
@@ -48,6 +52,11 @@ inline Proc start_server(const fs::path& db, const fs::path& log, const std::vec
                                   "--device", "cpu"};
     // --drain-s 0 unless the caller gives its own.
     if (std::find(extra.begin(), extra.end(), "--drain-s") == extra.end()) args.insert(args.end(), {"--drain-s", "0"});
+    // A PostgreSQL URL names no folder for uploads: beside the log, in the test's directory. Its
+    // jobs left running by a killed server are re-queued when their lease ends: a short one.
+    if (on_postgres()) args.insert(args.end(), {"--data-dir", (log.parent_path() / "data").string()});
+    if (on_postgres() && std::find(extra.begin(), extra.end(), "--lease-s") == extra.end())
+        args.insert(args.end(), {"--lease-s", "1"});
     args.insert(args.end(), extra.begin(), extra.end());
     p.pid = spawn(args, log);
     static const std::regex listening(R"(listening on http://127\.0\.0\.1:(\d+))");

@@ -148,7 +148,7 @@ TEST_CASE("openapi: the run spec's schemas are the parser's, not a hand-kept cop
     }
     const json& schemas = doc["components"]["schemas"];
     // Every shape the parser takes, with the keys only some shapes read.
-    CHECK(schemas["Tool"]["properties"]["shape"]["enum"] == json({"flat", "ball", "bull", "drill", "chamfer"}));
+    CHECK(schemas["Tool"]["properties"]["shape"]["enum"] == json({"flat", "ball", "bull", "drill", "chamfer", "barrel"}));
     CHECK(schemas["Tool"]["properties"]["point_angle_deg"]["x-tool-shapes"] == json({"chamfer", "drill"}));
     CHECK(schemas["NumberedTool"]["properties"]["number"]["type"] == "integer");
     CHECK(schemas["RunSpec"]["properties"]["tool"] == schemas["Tool"]);

@@ -31,12 +31,13 @@ std::string read_text(const fs::path& p) {
 // A `cutload serve` child on a free loopback port with an admin and a read key; killed at the end.
 struct Served {
     explicit Served(std::vector<std::string> extra = {}) {
-        db = dir.path() / "h.db";
+        db = store_location(dir.path(), "h.db");
         log = dir.path() / "serve.log";
         admin_key = cutload::server::create_api_key(db.string(), cutload::server::Role::Admin, "admin");
         read_key = cutload::server::create_api_key(db.string(), cutload::server::Role::Read, "reader");
         std::vector<std::string> args{CUTLOAD_BINARY, "serve", "--listen", "127.0.0.1:0", "--db", db.string(),
                                       "--workers", "1", "--device", "cpu", "--drain-s", "0"};
+        if (on_postgres()) args.insert(args.end(), {"--data-dir", (dir.path() / "data").string()});
         args.insert(args.end(), extra.begin(), extra.end());
         pid = ::fork();
         REQUIRE(pid >= 0);

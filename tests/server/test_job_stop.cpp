@@ -84,6 +84,7 @@ TEST_CASE("job stop: cancel and DELETE stop a run mid-prediction, DELETE answers
 }
 
 TEST_CASE("job stop: DELETE of 10 runs shrinks the database file, the WAL stays under its bound, files are owner-only") {
+    CUTLOAD_SQLITE_ONLY("the database file, its WAL and their modes are SQLite's (PostgreSQL's files are its server's)");
     TestServer ts;
     auto c = ts.admin();
     std::vector<std::int64_t> ids;
@@ -120,7 +121,7 @@ TEST_CASE("job stop: DELETE of 10 runs shrinks the database file, the WAL stays 
 
 TEST_CASE("job stop: a cancel that lands while a run's results are written rolls them back, without one they commit") {
     TempDir dir;
-    const std::string path = (dir.path() / "store.db").string();
+    const std::string path = store_location(dir.path(), "store.db");
     auto store = cutload::db::Store::open(path);
     store->migrate();
     auto s = store->session();
@@ -129,7 +130,7 @@ TEST_CASE("job stop: a cancel that lands while a run's results are written rolls
         nr.inputs_json = "{}";
         nr.created_at = cutload::db::now_iso();
         const std::int64_t id = s->runs().create(nr);
-        REQUIRE(s->jobs().claim_oldest(cutload::db::kRunQueue, cutload::db::now_iso()) == id);
+        REQUIRE(s->jobs().claim_oldest(cutload::db::kRunQueue, cutload::db::now_iso(), {"test/1", "9999-12-31T00:00:00.000Z"}) == id);
         return id;
     };
     // Two samples and one block: enough for every table store_result writes.

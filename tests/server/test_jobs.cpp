@@ -5,8 +5,6 @@
 #include "harness.hpp"
 #include "server/jobs.hpp"
 
-#include <sqlite3.h>
-
 #include <atomic>
 #include <mutex>
 #include <set>
@@ -17,41 +15,13 @@ using cutload::server::JobKind;
 
 namespace {
 
-// Test-only kinds have no repository: their handlers use the database directly.
-class Sql {
-public:
-    explicit Sql(const std::string& path) {
-        REQUIRE(sqlite3_open(path.c_str(), &h_) == SQLITE_OK);
-        sqlite3_busy_timeout(h_, 10000);
-    }
-    ~Sql() { sqlite3_close(h_); }
-    void exec(const std::string& sql) {
-        char* err = nullptr;
-        const int rc = sqlite3_exec(h_, sql.c_str(), nullptr, nullptr, &err);
-        INFO(sql << ": " << (err ? err : ""));
-        sqlite3_free(err);
-        REQUIRE(rc == SQLITE_OK);
-    }
-    // The first column of the first row, as text ("" for none or NULL).
-    std::string text(const std::string& sql) {
-        sqlite3_stmt* st = nullptr;
-        REQUIRE(sqlite3_prepare_v2(h_, sql.c_str(), -1, &st, nullptr) == SQLITE_OK);
-        std::string out;
-        if (sqlite3_step(st) == SQLITE_ROW && sqlite3_column_type(st, 0) != SQLITE_NULL)
-            out = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
-        sqlite3_finalize(st);
-        return out;
-    }
-
-private:
-    sqlite3* h_ = nullptr;
-};
+// Test-only kinds have no repository: their handlers use the database directly (Sql, test_store.hpp).
 
 // The job columns every queue table has (db/jobs.hpp), then the kind's own.
-std::string job_table(const std::string& name, const std::string& own_columns) {
-    return "CREATE TABLE " + name +
-           " (id INTEGER PRIMARY KEY, state TEXT NOT NULL, progress REAL NOT NULL DEFAULT 0, error TEXT, "
-           "attempts INTEGER NOT NULL DEFAULT 0, started_at TEXT, finished_at TEXT, " +
+std::string job_table(const Sql& sql, const std::string& name, const std::string& own_columns) {
+    return "CREATE TABLE " + name + " (" + sql.id_column() +
+           ", state TEXT NOT NULL, progress DOUBLE PRECISION NOT NULL DEFAULT 0, error TEXT, "
+           "attempts INTEGER NOT NULL DEFAULT 0, started_at TEXT, finished_at TEXT, claim_token TEXT, lease_until TEXT, " +
            own_columns + ");";
 }
 
@@ -68,15 +38,15 @@ bool wait_for(const std::function<bool()>& done, double timeout_s = 20) {
 
 TEST_CASE("jobs: a test-only kind is one registration plus its handler, claimed in registry order, failed, cancelled, re-queued and counted") {
     TempDir dir;
-    const std::string path = (dir.path() / "jobs.db").string();
+    const std::string path = store_location(dir.path(), "jobs.db");
     auto store = cutload::db::Store::open(path);
     store->migrate();
     Sql sql(path);
     // Squares: x -> x2; the one at x = 13 fails. The running row was left by a server that died.
-    sql.exec(job_table("squares", "x INTEGER NOT NULL, x2 INTEGER") +
+    sql.exec(job_table(sql, "squares", "x INTEGER NOT NULL, x2 INTEGER") +
              "INSERT INTO squares(state, x) VALUES ('queued', 3), ('queued', -4), ('queued', 13), ('running', 5);");
     // Waits: a job that computes until it is cancelled.
-    sql.exec(job_table("waits", "note TEXT") + "INSERT INTO waits(state) VALUES ('queued'), ('queued');");
+    sql.exec(job_table(sql, "waits", "note TEXT") + "INSERT INTO waits(state) VALUES ('queued'), ('queued');");
 
     std::mutex mu;
     std::vector<std::string> order;
@@ -159,12 +129,12 @@ TEST_CASE("jobs: a test-only kind is one registration plus its handler, claimed 
 
 TEST_CASE("jobs: a job left running by servers that died is re-queued until the attempt cap, then failed with the reason") {
     TempDir dir;
-    const std::string path = (dir.path() / "jobs.db").string();
+    const std::string path = store_location(dir.path(), "jobs.db");
     auto store = cutload::db::Store::open(path);
     store->migrate();
     Sql sql(path);
     // Each 'running' row was claimed `attempts` times by servers that died (kill -9) mid-job.
-    sql.exec(job_table("crashes", "note TEXT") +
+    sql.exec(job_table(sql, "crashes", "note TEXT") +
              "INSERT INTO crashes(state, attempts) VALUES ('running', 1), ('running', 2), ('running', 3), ('queued', 0);");
     std::atomic<int> computed{0};
     JobKind crash{"crash", {"crashes"}, {},

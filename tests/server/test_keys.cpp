@@ -3,7 +3,6 @@
 #include "db/store.hpp"
 #include "harness.hpp"
 
-#include <sqlite3.h>
 
 #include <cstdio>
 #include <sys/wait.h>
@@ -84,19 +83,12 @@ TEST_CASE("keys: list shows prefix role name and last use but never the key, and
 
 TEST_CASE("keys: revoke refuses an unknown or too short or ambiguous prefix and list refuses a missing database") {
     TempDir dir;
-    const std::string db = (dir.path() / "k.db").string();
+    const std::string db = store_location(dir.path(), "k.db");
     cutload::server::create_api_key(db, cutload::server::Role::Admin, "a");
-    {
-        // Two keys whose stored prefixes share their first characters.
-        sqlite3* h = nullptr;
-        REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
-        REQUIRE(sqlite3_exec(h,
-                             "INSERT INTO api_keys(hash, prefix, role, name, created_at) VALUES "
-                             "('h1', 'clk_abc123', 'read', 'one', '2024-01-01T00:00:00.000Z'), "
-                             "('h2', 'clk_abc456', 'read', 'two', '2024-01-01T00:00:00.000Z')",
-                             nullptr, nullptr, nullptr) == SQLITE_OK);
-        sqlite3_close(h);
-    }
+    // Two keys whose stored prefixes share their first characters.
+    Sql(db).exec("INSERT INTO api_keys(hash, prefix, role, name, created_at) VALUES "
+                 "('h1', 'clk_abc123', 'read', 'one', '2024-01-01T00:00:00.000Z'), "
+                 "('h2', 'clk_abc456', 'read', 'two', '2024-01-01T00:00:00.000Z')");
     CliResult ambiguous = run_cli("keys revoke clk_abc --db " + db);
     REQUIRE(ambiguous.status != 0);
     REQUIRE(ambiguous.out.find("matches 2 keys") != std::string::npos);
@@ -113,38 +105,35 @@ TEST_CASE("keys: revoke refuses an unknown or too short or ambiguous prefix and 
     REQUIRE(one.status == 0);
     for (const auto& k : cutload::server::list_api_keys(db)) REQUIRE(k.revoked_at.has_value() == (k.name == "two"));
 
-    CliResult missing = run_cli("keys list --db " + (dir.path() / "nope.db").string());
+    // SQLite: no file; PostgreSQL: an empty database (one without cutload's tables).
+    const std::string nope = store_location(dir.path(), "nope.db");
+    CliResult missing = run_cli("keys list --db " + nope);
+    INFO(missing.out);
     REQUIRE(missing.status != 0);
     REQUIRE(missing.out.find("no database at") != std::string::npos);
-    REQUIRE_FALSE(fs::exists(dir.path() / "nope.db"));
+    if (on_postgres())
+        REQUIRE(Sql(nope).text("SELECT count(*) FROM pg_tables WHERE schemaname = 'public'") == "0");
+    else
+        REQUIRE_FALSE(fs::exists(dir.path() / "nope.db"));
 }
 
 TEST_CASE("keys: a schema 1 database upgrades in place and keeps its keys") {
     TempDir dir;
-    const std::string db = (dir.path() / "old.db").string();
+    const std::string db = store_location(dir.path(), "old.db");
     const std::string key = cutload::server::create_api_key(db, cutload::server::Role::Write, "old");
-    {
-        // Back to schema 1: api_keys without last_used_at (v2), no program tables (v3), no live tables (v4).
-        sqlite3* h = nullptr;
-        REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
-        REQUIRE(sqlite3_exec(h,
-                             "ALTER TABLE api_keys DROP COLUMN last_used_at; DROP TABLE run_program; "
-                             "DROP TABLE optimizations; DROP TABLE live_blocks; DROP TABLE live_chunks; DROP TABLE live_runs; "
-                             "PRAGMA user_version=1",
-                             nullptr, nullptr, nullptr) == SQLITE_OK);
-        sqlite3_close(h);
-    }
+    // The schema version: SQLite keeps it in PRAGMA user_version, PostgreSQL in a table (db/postgres/schema.cpp).
+    const std::string set_version_1 = on_postgres() ? "UPDATE cutload_schema SET version = 1" : "PRAGMA user_version=1";
+    const std::string get_version = on_postgres() ? "SELECT version FROM cutload_schema" : "PRAGMA user_version";
+    // Back to schema 1: api_keys without last_used_at (v2), no program tables (v3), no live tables
+    // (v4), runs without leases (v5; optimizations go with v3).
+    Sql(db).exec("ALTER TABLE api_keys DROP COLUMN last_used_at; DROP TABLE run_program; "
+                 "DROP TABLE optimizations; DROP TABLE live_blocks; DROP TABLE live_chunks; DROP TABLE live_runs; "
+                 "ALTER TABLE runs DROP COLUMN claim_token; ALTER TABLE runs DROP COLUMN lease_until; " +
+                 set_version_1);
     const auto keys = cutload::server::list_api_keys(db);
     REQUIRE(keys.size() == 1);
     REQUIRE(keys[0].prefix == key.substr(0, 10));
     REQUIRE_FALSE(keys[0].last_used_at);
-    sqlite3* h = nullptr;
-    REQUIRE(sqlite3_open(db.c_str(), &h) == SQLITE_OK);
-    sqlite3_stmt* st = nullptr;
-    REQUIRE(sqlite3_prepare_v2(h, "PRAGMA user_version", -1, &st, nullptr) == SQLITE_OK);
-    REQUIRE(sqlite3_step(st) == SQLITE_ROW);
-    const auto version = sqlite3_column_int64(st, 0);
-    sqlite3_finalize(st);
-    sqlite3_close(h);
+    const auto version = std::stoll(Sql(db).text(get_version));
     REQUIRE(version == cutload::db::schema_version());
 }

@@ -297,7 +297,7 @@ TEST_CASE("live runs: an alert is raised and its webhook delivered while the rep
 
 TEST_CASE("live runs: cutload serve killed with -9 during a live run closes it once on restart", "[live]") {
     TempDir dir;
-    const fs::path db = dir.path() / "k.db";
+    const fs::path db = store_location(dir.path(), "k.db");
     const fs::path out = dir.path() / "serve.log";
     const fs::path keys_out = dir.path() / "keys.out";
     pid_t kp = spawn({CUTLOAD_BINARY, "keys", "create", "--role", "admin", "--db", db.string()}, keys_out);

@@ -27,7 +27,7 @@ json get_run(httplib::Client& c, int id) { return body(c.Get(("/api/v1/runs/" + 
 
 TEST_CASE("process: kill -9 mid-job then restart completes queued and running jobs with results written once") {
     TempDir dir;
-    const fs::path db = dir.path() / "k.db";
+    const fs::path db = store_location(dir.path(), "k.db");
     const fs::path log = dir.path() / "serve.log";
     const fs::path keys_out = dir.path() / "keys.out";
     pid_t kp = spawn({CUTLOAD_BINARY, "keys", "create", "--role", "admin", "--db", db.string()}, keys_out);
@@ -75,7 +75,7 @@ TEST_CASE("process: kill -9 mid-job then restart completes queued and running jo
 
 TEST_CASE("process: SIGTERM stops promptly and re-queues the running job and a restart finishes it") {
     TempDir dir;
-    const fs::path db = dir.path() / "t.db";
+    const fs::path db = store_location(dir.path(), "t.db");
     const fs::path log = dir.path() / "serve.log";
     const std::string key = cutload::server::create_api_key(db.string(), cutload::server::Role::Write);
     Proc p = start_server(db, log);
@@ -108,7 +108,7 @@ TEST_CASE("process: a run that kill -9 interrupts at every attempt ends failed a
     // Issue 19: the re-queue after a crash had no cap, so a job that took the server down did it
     // again at every restart.
     TempDir dir;
-    const fs::path db = dir.path() / "loop.db";
+    const fs::path db = store_location(dir.path(), "loop.db");
     const fs::path log = dir.path() / "serve.log";
     const std::string key = cutload::server::create_api_key(db.string(), cutload::server::Role::Write);
     const std::vector<std::string> cap{"--max-attempts", "2"};
@@ -118,8 +118,13 @@ TEST_CASE("process: a run that kill -9 interrupts at every attempt ends failed a
         httplib::Client c("127.0.0.1", p.port);
         c.set_bearer_token_auth(key.c_str());
         if (attempt == 1) id = body(upload(c, slot_log_csv(4.0), slow_spec()))["id"];
-        for (int i = 0; i < 2000 && get_run(c, id)["state"] != "running"; ++i)
-            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        // Claimed by this server (on PostgreSQL the dead one's claim shows 'running' until its
+        // lease ends and the run is claimed again).
+        const auto claimed = [&] {
+            const json r = get_run(c, id);
+            return r["state"] == "running" && r["attempts"] == attempt;
+        };
+        for (int i = 0; i < 2000 && !claimed(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
         json run = get_run(c, id);
         REQUIRE(run["state"] == "running");
         REQUIRE(run["attempts"] == attempt);
@@ -129,7 +134,8 @@ TEST_CASE("process: a run that kill -9 interrupts at every attempt ends failed a
     }
     httplib::Client c("127.0.0.1", p.port);
     c.set_bearer_token_auth(key.c_str());
-    const json run = get_run(c, id);
+    // SQLite: failed at the restart. PostgreSQL: once the dead process's lease ends.
+    const json run = wait_finished(c, id, 20);
     INFO(run.dump());
     REQUIRE(run["state"] == "failed");
     REQUIRE(run["attempts"] == 2);
@@ -143,7 +149,7 @@ TEST_CASE("process: a run that kill -9 interrupts at every attempt ends failed a
 
 TEST_CASE("process: SIGTERM gives a running job --drain-s seconds, then re-queues it and exits") {
     TempDir dir;
-    const fs::path db = dir.path() / "d.db";
+    const fs::path db = store_location(dir.path(), "d.db");
     const fs::path log = dir.path() / "serve.log";
     const std::string key = cutload::server::create_api_key(db.string(), cutload::server::Role::Write);
     constexpr double kDrainS = 1.0;

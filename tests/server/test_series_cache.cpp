@@ -107,9 +107,14 @@ TEST_CASE("series cache: a deleted run's id given to a new upload answers the ne
     REQUIRE(w.Delete(("/api/v1/runs/" + std::to_string(first)).c_str())->status == 204);
 
     const auto second = body(upload(w, slot_log_csv(0.6), slot_spec()))["id"].get<int>();
-    REQUIRE(second == first);   // SQLite hands out the highest id again once its row is gone
+    // SQLite hands out the highest id again once its row is gone; a PostgreSQL identity never
+    // does, so there the stale answer cannot arise, and the new run's own data is checked.
+    if (on_postgres())
+        REQUIRE(second > first);
+    else
+        REQUIRE(second == first);
     REQUIRE(wait_finished(w, second)["state"] == "done");
-    const json again = body(w.Get(forces.c_str()));
+    const json again = body(w.Get(("/api/v1/runs/" + std::to_string(second) + "/forces?max_points=100").c_str()));
     REQUIRE(again["to_s"].get<double>() < end_first - 0.5);
     REQUIRE(again["t_end_s"].back().get<double>() <= again["to_s"].get<double>());
 }

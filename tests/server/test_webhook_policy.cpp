@@ -4,7 +4,6 @@
 
 #include "server/webhooks.hpp"
 
-#include <sqlite3.h>
 
 using namespace cutload::test;
 
@@ -35,15 +34,9 @@ TEST_CASE("webhooks: a stored link-local target is refused at delivery without a
     TestServer ts([](cutload::server::ServerOptions& o) { o.webhook_max_attempts = 2; });
     auto admin = ts.admin();
     {
-        sqlite3* h = nullptr;
-        REQUIRE(sqlite3_open(ts.opt.db_path.c_str(), &h) == SQLITE_OK);
-        // The server's workers take the write lock for a moment now and then (claiming jobs).
-        sqlite3_busy_timeout(h, 5000);
-        REQUIRE(sqlite3_exec(h,
-                             "INSERT INTO webhooks(url, enabled, created_at) VALUES "
-                             "('http://169.254.169.254/latest', 1, '2026-01-01T00:00:00Z')",
-                             nullptr, nullptr, nullptr) == SQLITE_OK);
-        sqlite3_close(h);
+        Sql sql(ts.opt.db_path);
+        sql.exec("INSERT INTO webhooks(url, enabled, created_at) VALUES "
+                 "('http://169.254.169.254/latest', TRUE, '2026-01-01T00:00:00Z')");
     }
     json flag{{"name", "any flag"}, {"metric", "flag"}, {"flag", "force_limit"}};
     REQUIRE(admin.Post("/api/v1/thresholds", flag.dump(), "application/json")->status == 201);

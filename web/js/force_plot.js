@@ -187,6 +187,7 @@ export class ForcePlot {
     this.show = { torque_Nm: false, power_kW: false, commanded: true };
     this.refineTimer = 0;
     this.inflight = null;
+    this.inflightRange = null;
     this.fetchedRange = null;
     this.interactionStart = 0;
     this.currentData = null;
@@ -524,6 +525,9 @@ export class ForcePlot {
       this.interactionStart = 0;
     }
     this.publishRange();
+    // A window still on its way is for a range the user has since left: drop it, or its arrival
+    // would set the plot back to that range (under load a burst of key zooms ended at the second).
+    if (this.inflight && this.inflightRange !== `${u.scales.x.min}:${u.scales.x.max}`) this.inflight.abort();
     clearTimeout(this.refineTimer);
     const scaleAt = performance.now();
     this.refineTimer = setTimeout(() => this.refine(u.scales.x.min, u.scales.x.max, scaleAt), REFINE_DELAY_MS);
@@ -566,6 +570,7 @@ export class ForcePlot {
     }
     const ctl = new AbortController();
     this.inflight = ctl;
+    this.inflightRange = key;
     const points = Math.min(MAX_WINDOW_POINTS, Math.max(200, Math.round(this.u.over.clientWidth)));
     let w;
     let wc;

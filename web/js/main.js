@@ -17,6 +17,9 @@ const routes = [
 ];
 
 let cleanup = null;
+// Bumped by every route(): a page whose render finishes after another route() has started is
+// stale (its awaits were slower than the user's next click).
+let generation = 0;
 
 function showBanner(text) {
   const b = document.getElementById('banner');
@@ -40,10 +43,22 @@ async function route() {
     if (a.dataset.nav === nav) a.setAttribute('aria-current', 'page');
     else a.removeAttribute('aria-current');
   }
+  // Each route renders into a container of its own: a page still rendering when the next
+  // route() starts (a runs list waiting for its answer when the user opens a run) fills its
+  // container, now detached, and is disposed of as soon as its render returns, instead of
+  // writing over the page that replaced it.
+  const mine = ++generation;
   const main = document.getElementById('main');
-  main.replaceChildren();
+  const page = document.createElement('div');
+  page.className = 'page';
+  main.replaceChildren(page);
   main.focus({ preventScroll: true });
-  cleanup = (await render(main, hash.match(re))) || null;
+  const dispose = (await render(page, hash.match(re))) || null;
+  if (mine !== generation) {
+    if (dispose) dispose();
+    return;
+  }
+  cleanup = dispose;
 }
 
 function showKeyState() {

@@ -55,10 +55,29 @@ export function webglAvailable() {
   }
 }
 
+// A barrel tool (document 003; docs/run_spec.md): tip ball r2 centred on the axis, flank arc r1
+// centred across the axis at R - r1 and at the height zB of the barrel's widest point, the two
+// meeting where the line between their centres crosses the ball (kJoint from straight down).
+function barrelGeometry(tool) {
+  const R = tool.diameter_mm / 2, r1 = tool.barrel_radius_mm, r2 = tool.tip_radius_mm;
+  const zB = r2 + Math.sqrt((R - r2) * (2 * r1 - R - r2));
+  const kJoint = Math.asin((r1 - R) / (r1 - r2));
+  return { R, r1, r2, zB, kJoint, rJoint: r2 * Math.sin(kJoint) };
+}
+
 // Height of the tool's lower surface above its tip at distance r from its axis (flat, ball, bull,
-// and the cones of drills and chamfer tools).
+// barrel, and the cones of drills and chamfer tools).
 export function toolProfile(tool) {
   const R = tool.diameter_mm / 2;
+  if (tool.shape === 'barrel') {
+    const b = barrelGeometry(tool);
+    return (r) => {
+      if (r > R) return Infinity;
+      if (r <= b.rJoint) return b.r2 - Math.sqrt(Math.max(0, b.r2 * b.r2 - r * r));
+      const u = r - (R - b.r1);
+      return b.zB - Math.sqrt(Math.max(0, b.r1 * b.r1 - u * u));
+    };
+  }
   if (tool.shape === 'drill' || tool.shape === 'chamfer') {
     const tip = tool.shape === 'chamfer' ? (tool.tip_diameter_mm || 0) / 2 : 0;
     const slope = 1 / Math.tan(((tool.point_angle_deg || 118) / 2) * Math.PI / 180);
@@ -79,9 +98,22 @@ function toolMeshes(tool) {
   const R = tool.diameter_mm / 2;
   const profile = toolProfile(tool);
   const pts = [new THREE.Vector2(0, 0)];
-  for (let k = 1; k <= 12; k++) {
-    const r = (R * k) / 12;
-    pts.push(new THREE.Vector2(r, Math.min(profile(r), Math.max(R, tool.flute_length_mm || R))));
+  if (tool.shape === 'barrel') {
+    // Along the arcs rather than over r: the flank arc rises steeply where it nears its widest point.
+    const b = barrelGeometry(tool);
+    for (let k = 1; k <= 4; k++) {
+      const a = (b.kJoint * k) / 4;
+      pts.push(new THREE.Vector2(b.r2 * Math.sin(a), b.r2 * (1 - Math.cos(a))));
+    }
+    for (let k = 1; k <= 16; k++) {
+      const a = b.kJoint + ((Math.PI / 2 - b.kJoint) * k) / 16;
+      pts.push(new THREE.Vector2(R - b.r1 + b.r1 * Math.sin(a), b.zB - b.r1 * Math.cos(a)));
+    }
+  } else {
+    for (let k = 1; k <= 12; k++) {
+      const r = (R * k) / 12;
+      pts.push(new THREE.Vector2(r, Math.min(profile(r), Math.max(R, tool.flute_length_mm || R))));
+    }
   }
   const stickout = tool.stickout_mm || tool.flute_length_mm || 4 * R;
   // A tapered end mill (diameter_mm at the tip) widens along its flutes from the top of its

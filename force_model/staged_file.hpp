@@ -1,0 +1,31 @@
+// A result file written under PATH.tmp and renamed to PATH by commit(), so a reader never sees it
+// half-written; destroyed without commit() (an error, a cancel) it removes the temporary file.
+#pragma once
+
+#include <cstdint>
+#include <fstream>
+#include <string>
+#include <string_view>
+
+namespace cutload::force_model {
+
+class StagedFile {
+public:
+    explicit StagedFile(std::string path);   // throws std::runtime_error naming PATH.tmp
+    ~StagedFile();
+    StagedFile(const StagedFile&) = delete;
+    StagedFile& operator=(const StagedFile&) = delete;
+
+    void append(std::string_view bytes);     // throws std::runtime_error when the write fails
+    void commit();
+    std::uint64_t bytes() const { return bytes_; }
+    const std::string& temporary_path() const { return tmp_; }
+
+private:
+    std::string path_, tmp_;
+    std::ofstream out_;
+    std::uint64_t bytes_ = 0;
+    bool committed_ = false;
+};
+
+}  // namespace cutload::force_model
