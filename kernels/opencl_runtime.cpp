@@ -1,8 +1,11 @@
 #include "kernels/opencl_runtime.hpp"
 
+#include "program_cache.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
+#include <optional>
 #include <vector>
 
 namespace cutload::kernels {
@@ -132,23 +135,70 @@ ClQueue OpenClRuntime::make_queue() const {
     return q;
 }
 
+namespace {
+
+std::string build_log(cl_program prog, cl_device_id device) {
+    std::size_t n = 0;
+    clGetProgramBuildInfo(prog, device, CL_PROGRAM_BUILD_LOG, 0, nullptr, &n);
+    std::string log(n, '\0');
+    clGetProgramBuildInfo(prog, device, CL_PROGRAM_BUILD_LOG, n, log.data(), nullptr);
+    return log;
+}
+
+// The device binary of a built program (one device), empty when the driver gives none.
+std::vector<unsigned char> program_binary(cl_program prog) {
+    std::size_t size = 0;
+    if (clGetProgramInfo(prog, CL_PROGRAM_BINARY_SIZES, sizeof size, &size, nullptr) != CL_SUCCESS || size == 0) return {};
+    std::vector<unsigned char> binary(size);
+    unsigned char* ptr = binary.data();
+    if (clGetProgramInfo(prog, CL_PROGRAM_BINARIES, sizeof ptr, &ptr, nullptr) != CL_SUCCESS) return {};
+    return binary;
+}
+
+}  // namespace
+
+std::string OpenClRuntime::cache_key(const char* source, const std::string& options) const {
+    cl_platform_id platform = nullptr;
+    clGetDeviceInfo(device_, CL_DEVICE_PLATFORM, sizeof platform, &platform, nullptr);
+    std::string platform_version;
+    if (platform) {
+        std::size_t n = 0;
+        clGetPlatformInfo(platform, CL_PLATFORM_VERSION, 0, nullptr, &n);
+        platform_version.resize(n);
+        clGetPlatformInfo(platform, CL_PLATFORM_VERSION, n, platform_version.data(), nullptr);
+    }
+    return "cutload OpenCL program\nplatform: " + platform_version + "\ndevice: " + device_name_ +
+           "\ndevice version: " + device_string(device_, CL_DEVICE_VERSION) +
+           "\ndriver: " + device_string(device_, CL_DRIVER_VERSION) + "\noptions: " + options + "\nsource:\n" + source;
+}
+
 cl_program OpenClRuntime::program(const std::string& cl_file, const std::string& options) {
     std::lock_guard lock(mutex_);
     const std::string key = cl_file + '\n' + options;
     if (auto it = programs_.find(key); it != programs_.end()) return it->second.get();
     const char* src = embedded_source(cl_file);
     if (!src) throw OpenClError("no embedded OpenCL source named " + cl_file);
+    const std::string opts = "-cl-fast-relaxed-math " + options;
+    const std::optional<std::string> cache = program_cache_dir();
+    const std::string entry_key = cache ? cache_key(src, opts) : std::string();
     cl_int e = CL_SUCCESS;
+    if (cache)
+        if (const auto binary = load_program_binary(*cache, entry_key)) {
+            const unsigned char* bytes = binary->data();
+            const std::size_t size = binary->size();
+            cl_int status = CL_SUCCESS;
+            ClProgram prog(clCreateProgramWithBinary(context_.get(), 1, &device_, &size, &bytes, &status, &e));
+            // A binary the driver will not take (a damaged entry that kept its checksum, a driver
+            // that changed without saying so) is rebuilt from source below and replaced.
+            if (e == CL_SUCCESS && status == CL_SUCCESS &&
+                clBuildProgram(prog.get(), 1, &device_, opts.c_str(), nullptr, nullptr) == CL_SUCCESS)
+                return programs_.emplace(key, std::move(prog)).first->second.get();
+        }
     ClProgram prog(clCreateProgramWithSource(context_.get(), 1, &src, nullptr, &e));
     check_cl(e, "clCreateProgramWithSource");
-    const std::string opts = "-cl-fast-relaxed-math " + options;
-    if (clBuildProgram(prog.get(), 1, &device_, opts.c_str(), nullptr, nullptr) != CL_SUCCESS) {
-        std::size_t n = 0;
-        clGetProgramBuildInfo(prog.get(), device_, CL_PROGRAM_BUILD_LOG, 0, nullptr, &n);
-        std::string log(n, '\0');
-        clGetProgramBuildInfo(prog.get(), device_, CL_PROGRAM_BUILD_LOG, n, log.data(), nullptr);
-        throw OpenClError("building " + cl_file + " for " + device_name_ + " failed:\n" + log);
-    }
+    if (clBuildProgram(prog.get(), 1, &device_, opts.c_str(), nullptr, nullptr) != CL_SUCCESS)
+        throw OpenClError("building " + cl_file + " for " + device_name_ + " failed:\n" + build_log(prog.get(), device_));
+    if (cache) store_program_binary(*cache, entry_key, program_binary(prog.get()));
     return programs_.emplace(key, std::move(prog)).first->second.get();
 }
 

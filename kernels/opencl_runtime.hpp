@@ -70,12 +70,15 @@ public:
     bool host_unified_memory() const { return host_unified_; }
 
     ClQueue make_queue() const;
-    // The built program for an embedded kernels/*.cl file; built once per (name, options).
+    // The built program for an embedded kernels/*.cl file; built once per (name, options) in a
+    // process, and loaded from the on-disk program cache (program_cache.hpp) when it holds the
+    // binary of the same source, options, platform, device and driver.
     cl_program program(const std::string& cl_file, const std::string& options = "");
     ClKernel make_kernel(const std::string& cl_file, const char* kernel_name);
 
 private:
     OpenClRuntime();
+    std::string cache_key(const char* source, const std::string& options) const;
     cl_device_id device_ = nullptr;
     ClContext context_;
     std::string device_name_;
