@@ -31,84 +31,88 @@ void write_atomically(const std::string& path, Fill fill) {
 
 }  // namespace
 
-struct ForcesCsvWriter::Impl {
-    StagedFile file;
-    std::vector<std::string> names;   // CSV fields of the block names
-    std::string buf;
+namespace {
 
-    explicit Impl(const std::string& path) : file(path) {}
-    void flush() {
-        file.append(buf);
-        buf.clear();
+class ForcesCsvWriter final : public ForcesWriter {
+public:
+    explicit ForcesCsvWriter(const std::string& path) : file_(path) {
+        buf_.reserve(1 << 20);
+        buf_ += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+                "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
     }
+
+    void set_block_names(const std::vector<std::string>& block_names) override {
+        names_.clear();
+        for (const auto& n : block_names) names_.push_back(csv_field(n));
+    }
+
+    void write(std::span<const ForceSample> rows) override {
+        // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
+        // through it is several times faster than stream or fmt float formatting.
+        char tmp[64];
+        auto num = [&](double v, int digits) {
+            const auto r = std::to_chars(tmp, tmp + sizeof tmp, v, std::chars_format::fixed, digits);
+            buf_.append(tmp, r.ptr);
+            buf_ += ',';
+        };
+        for (const ForceSample& s : rows) {
+            num(s.t_s, 6);
+            num(s.spindle_angle_deg, 3);
+            if (s.block >= 0 && std::size_t(s.block) < names_.size()) buf_ += names_[std::size_t(s.block)];
+            buf_ += ',';
+            if (s.tool >= 0) {
+                const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
+                buf_.append(tmp, r.ptr);
+            }
+            buf_ += ',';
+            num(s.fx_N, 3);
+            num(s.fy_N, 3);
+            num(s.fz_N, 3);
+            num(s.torque_Nm, 4);
+            num(s.power_kW, 4);
+            num(s.chip_mm, 5);
+            num(s.bending_MPa, 3);
+            num(s.radial_engagement_mm, 3);
+            num(s.axial_engagement_mm, 3);
+            num(s.removed_mm3, 5);
+            buf_ += s.holder_contact ? "1\n" : "0\n";
+            if (buf_.size() > (1 << 20) - 512) flush();
+        }
+    }
+
+    void commit() override {
+        flush();
+        file_.commit();
+    }
+    std::uint64_t bytes_written() const override { return file_.bytes() + buf_.size(); }
+
+private:
+    void flush() {
+        file_.append(buf_);
+        buf_.clear();
+    }
+
+    StagedFile file_;
+    std::vector<std::string> names_;   // CSV fields of the block names
+    std::string buf_;
 };
 
-ForcesCsvWriter::ForcesCsvWriter(const std::string& path) : impl_(std::make_unique<Impl>(path)) {
-    impl_->buf.reserve(1 << 20);
-    impl_->buf += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
-                  "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
-}
+}  // namespace
 
-ForcesCsvWriter::~ForcesCsvWriter() = default;
-
-void ForcesCsvWriter::set_block_names(const std::vector<std::string>& block_names) {
-    impl_->names.clear();
-    for (const auto& n : block_names) impl_->names.push_back(csv_field(n));
-}
-
-void ForcesCsvWriter::write(std::span<const ForceSample> rows) {
-    Impl& w = *impl_;
-    // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
-    // through it is several times faster than stream or fmt float formatting.
-    std::string& buf = w.buf;
-    char tmp[64];
-    auto num = [&](double v, int digits) {
-        const auto r = std::to_chars(tmp, tmp + sizeof tmp, v, std::chars_format::fixed, digits);
-        buf.append(tmp, r.ptr);
-        buf += ',';
-    };
-    for (const ForceSample& s : rows) {
-        num(s.t_s, 6);
-        num(s.spindle_angle_deg, 3);
-        if (s.block >= 0 && std::size_t(s.block) < w.names.size()) buf += w.names[std::size_t(s.block)];
-        buf += ',';
-        if (s.tool >= 0) {
-            const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
-            buf.append(tmp, r.ptr);
-        }
-        buf += ',';
-        num(s.fx_N, 3);
-        num(s.fy_N, 3);
-        num(s.fz_N, 3);
-        num(s.torque_Nm, 4);
-        num(s.power_kW, 4);
-        num(s.chip_mm, 5);
-        num(s.bending_MPa, 3);
-        num(s.radial_engagement_mm, 3);
-        num(s.axial_engagement_mm, 3);
-        num(s.removed_mm3, 5);
-        buf += s.holder_contact ? "1\n" : "0\n";
-        if (buf.size() > (1 << 20) - 512) w.flush();
-    }
-}
-
-std::uint64_t ForcesCsvWriter::bytes_written() const { return impl_->file.bytes() + impl_->buf.size(); }
-
-void ForcesCsvWriter::commit() {
-    impl_->flush();
-    impl_->file.commit();
+std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path) {
+    return std::make_unique<ForcesCsvWriter>(path);
 }
 
 void write_forces_csv(const Prediction& p, const std::string& path) {
-    ForcesCsvWriter w(path);
-    w.set_block_names(p.block_names);
-    w.write(p.samples);
-    w.commit();
+    const auto w = make_forces_csv_writer(path);
+    w->set_block_names(p.block_names);
+    w->write(p.samples);
+    w->commit();
 }
 
 std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path) {
-    if (path.size() >= 4 && path.compare(path.size() - 4, 4, ".bin") == 0) return std::make_unique<ForcesBinWriter>(path);
-    return std::make_unique<ForcesCsvWriter>(path);
+    if (path.size() >= 4 && path.compare(path.size() - 4, 4, ".bin") == 0) return make_forces_bin_writer(path);
+    return make_forces_csv_writer(path);
 }
 
 void write_forces_file(const Prediction& p, const std::string& path) {

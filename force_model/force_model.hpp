@@ -266,8 +266,9 @@ Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, co
 
 void write_forces_csv(const Prediction& p, const std::string& path);
 // Where a prediction's rows go as they come (PredictOptions::rows_out), so the run's rows are never
-// all held in memory: into PATH.tmp, renamed to PATH by commit(). Destroyed without commit() (an
-// error, a cancel) a writer removes its temporary file: a reader never sees a half-written file.
+// all held in memory: into a temporary file beside PATH (created exclusively), renamed to PATH by
+// commit(). Destroyed without commit() (an error, a cancel) a writer removes its temporary file:
+// a reader never sees a half-written file.
 class ForcesWriter {
 public:
     virtual ~ForcesWriter() = default;
@@ -278,44 +279,16 @@ public:
     virtual std::uint64_t bytes_written() const = 0;
 };
 
-// FORCES.csv (docs/formats.md): about 90 bytes a row.
-class ForcesCsvWriter final : public ForcesWriter {
-public:
-    explicit ForcesCsvWriter(const std::string& path);   // throws std::runtime_error when it cannot write
-    ~ForcesCsvWriter() override;
-    ForcesCsvWriter(const ForcesCsvWriter&) = delete;
-    ForcesCsvWriter& operator=(const ForcesCsvWriter&) = delete;
-    void set_block_names(const std::vector<std::string>& block_names) override;
-    void write(std::span<const ForceSample> rows) override;
-    void commit() override;
-    std::uint64_t bytes_written() const override;
-
-private:
-    struct Impl;
-    std::unique_ptr<Impl> impl_;
-};
-
+// FORCES.csv (docs/formats.md): about 90 bytes a row. Throws std::runtime_error when it cannot
+// write beside PATH.
+std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path);
 // FORCES.bin (docs/formats.md, "FORCES.bin"): FORCES.csv's columns at FORCES.csv's resolution,
 // column by column in chunks of kForcesBinChunkRows rows, each value the zigzag varint of its
 // difference from the row before: about a fifth of the CSV's size, and exact to the CSV's digits.
-// Throws std::runtime_error for a value it cannot carry (not finite, or beyond 9e15 quanta).
+// write() throws std::runtime_error for a value it cannot carry (not finite, or beyond 9e15
+// quanta); set_block_names() after the first rows is a std::logic_error.
 inline constexpr std::size_t kForcesBinChunkRows = std::size_t(1) << 16;
-class ForcesBinWriter final : public ForcesWriter {
-public:
-    explicit ForcesBinWriter(const std::string& path);
-    ~ForcesBinWriter() override;
-    ForcesBinWriter(const ForcesBinWriter&) = delete;
-    ForcesBinWriter& operator=(const ForcesBinWriter&) = delete;
-    void set_block_names(const std::vector<std::string>& block_names) override;
-    void write(std::span<const ForceSample> rows) override;
-    void commit() override;
-    std::uint64_t bytes_written() const override;
-
-private:
-    struct Impl;
-    std::unique_ptr<Impl> impl_;
-};
-
+std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path);
 // FORCES.bin when the path ends in ".bin", else FORCES.csv.
 std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path);
 // All of a prediction's rows at once, in the format open_forces_writer picks.

@@ -25,12 +25,17 @@ namespace {
 constexpr char kMagic[8] = {'\x89', 'C', 'L', 'F', '\r', '\n', '\x1a', '\n'};
 constexpr std::uint32_t kVersion = 1;
 constexpr std::uint32_t kMaxHeaderBytes = 8u << 20;
-constexpr std::uint32_t kMaxChunkRows = 1u << 20;
+constexpr std::uint32_t kMaxChunkRows = kForcesBinChunkRows;
 constexpr std::size_t kMaxColumns = 64;
 constexpr std::size_t kMaxVarintBytes = 10;
 // The largest count of quanta kept: exactly representable as a double, far beyond any value a
 // prediction prints.
 constexpr double kMaxQuanta = 9e15;
+constexpr std::int64_t kMaxQuantaInt = 9'000'000'000'000'000;
+// Columns of whole numbers: their decimals must be 0 and their values in these ranges (block and
+// tool are int32 in a row, -1 for none; holder_contact is 0 or 1).
+constexpr std::size_t kBlockColumn = 2, kToolColumn = 3, kHolderColumn = 14;
+constexpr std::int64_t kMaxInt32 = 2147483647;
 
 // One column: its name in FORCES.csv, its decimals there, and how it reads and sets a row.
 struct Column {
@@ -105,105 +110,111 @@ std::optional<std::int64_t> quanta(double v, int decimals) {
 
 }  // namespace
 
-struct ForcesBinWriter::Impl {
-    StagedFile file;
-    std::vector<std::string> block_names;
-    bool header_written = false;
-    std::array<std::string, kColumns.size()> column_bytes;
-    std::array<std::int64_t, kColumns.size()> previous{};
-    std::uint32_t chunk_rows = 0;
-    std::uint64_t total_rows = 0;
-    std::string out;
+namespace {
 
-    explicit Impl(const std::string& path) : file(path) {}
+class ForcesBinWriter final : public ForcesWriter {
+public:
+    explicit ForcesBinWriter(const std::string& path) : file_(path) {}
 
+    void set_block_names(const std::vector<std::string>& block_names) override {
+        if (header_written_) throw std::logic_error("FORCES.bin: block names set after the first rows");
+        block_names_.clear();
+        // JSON carries UTF-8 only: a name from a non-UTF-8 program is shown as FORCES.csv's messages show it.
+        for (const std::string& n : block_names) block_names_.push_back(textio::printable(n));
+    }
+
+    void write(std::span<const ForceSample> rows) override {
+        if (!header_written_) write_header();
+        const auto names = static_cast<std::int64_t>(block_names_.size());
+        for (const ForceSample& s : rows) {
+            // The whole row is checked before any of it is kept.
+            std::array<std::int64_t, kColumns.size()> q{};
+            for (std::size_t c = 0; c < kColumns.size(); ++c) {
+                const auto v = quanta(kColumns[c].get(s), kColumns[c].decimals);
+                if (!v)
+                    throw std::runtime_error(fmt::format("FORCES.bin: {} = {} at t = {} s cannot be stored (not finite, "
+                                                         "or beyond {:g} steps of {:g})",
+                                                         kColumns[c].name, kColumns[c].get(s), s.t_s, kMaxQuanta,
+                                                         1 / kPow10[std::size_t(kColumns[c].decimals)]));
+                q[c] = *v;
+            }
+            if (q[2] < -1 || q[2] >= names) q[2] = -1;   // as FORCES.csv: a block without a name is none
+            for (std::size_t c = 0; c < kColumns.size(); ++c) {
+                const std::int64_t d = q[c] - previous_[c];
+                put_varint(column_bytes_[c],
+                           (static_cast<std::uint64_t>(d) << 1) ^ static_cast<std::uint64_t>(d >> 63));
+                previous_[c] = q[c];
+            }
+            ++total_rows_;
+            if (++chunk_rows_ == kForcesBinChunkRows) flush_chunk();
+        }
+    }
+
+    void commit() override {
+        if (!header_written_) write_header();
+        flush_chunk();
+        out_.clear();
+        put_u32(out_, 0);
+        put_u64(out_, total_rows_);
+        file_.append(out_);
+        file_.commit();
+    }
+
+    std::uint64_t bytes_written() const override {
+        std::uint64_t pending = 0;
+        for (const std::string& b : column_bytes_) pending += b.size();
+        return file_.bytes() + pending;
+    }
+
+private:
     void write_header() {
         nlohmann::json columns = nlohmann::json::array();
         for (const Column& c : kColumns) columns.push_back({{"name", c.name}, {"decimals", c.decimals}});
         const std::string header = nlohmann::json{{"format", "cutload FORCES.bin"},
                                                   {"columns", columns},
                                                   {"chunk_rows", kForcesBinChunkRows},
-                                                  {"block_names", block_names}}
+                                                  {"block_names", block_names_}}
                                        .dump();
         if (header.size() > kMaxHeaderBytes)
             throw std::runtime_error(fmt::format("FORCES.bin: the block names take {} bytes, beyond the header's {} "
                                                  "(write FORCES.csv instead)",
                                                  header.size(), kMaxHeaderBytes));
-        out.assign(kMagic, sizeof kMagic);
-        put_u32(out, kVersion);
-        put_u32(out, static_cast<std::uint32_t>(header.size()));
-        out += header;
-        file.append(out);
-        header_written = true;
+        out_.assign(kMagic, sizeof kMagic);
+        put_u32(out_, kVersion);
+        put_u32(out_, static_cast<std::uint32_t>(header.size()));
+        out_ += header;
+        file_.append(out_);
+        header_written_ = true;
     }
 
     void flush_chunk() {
-        if (chunk_rows == 0) return;
-        out.clear();
-        put_u32(out, chunk_rows);
-        for (std::string& bytes : column_bytes) {
-            put_u32(out, static_cast<std::uint32_t>(bytes.size()));
-            out += bytes;
+        if (chunk_rows_ == 0) return;
+        out_.clear();
+        put_u32(out_, chunk_rows_);
+        for (std::string& bytes : column_bytes_) {
+            put_u32(out_, static_cast<std::uint32_t>(bytes.size()));
+            out_ += bytes;
             bytes.clear();
         }
-        file.append(out);
-        previous.fill(0);
-        chunk_rows = 0;
+        file_.append(out_);
+        previous_.fill(0);
+        chunk_rows_ = 0;
     }
+
+    StagedFile file_;
+    std::vector<std::string> block_names_;
+    bool header_written_ = false;
+    std::array<std::string, kColumns.size()> column_bytes_;
+    std::array<std::int64_t, kColumns.size()> previous_{};
+    std::uint32_t chunk_rows_ = 0;
+    std::uint64_t total_rows_ = 0;
+    std::string out_;
 };
 
-ForcesBinWriter::ForcesBinWriter(const std::string& path) : impl_(std::make_unique<Impl>(path)) {}
-ForcesBinWriter::~ForcesBinWriter() = default;
+}  // namespace
 
-void ForcesBinWriter::set_block_names(const std::vector<std::string>& block_names) {
-    if (impl_->header_written) throw std::logic_error("FORCES.bin: block names set after the first rows");
-    impl_->block_names.clear();
-    // JSON carries UTF-8 only: a name from a non-UTF-8 program is shown as FORCES.csv shows it.
-    for (const std::string& n : block_names) impl_->block_names.push_back(textio::printable(n));
-}
-
-void ForcesBinWriter::write(std::span<const ForceSample> rows) {
-    Impl& w = *impl_;
-    if (!w.header_written) w.write_header();
-    const auto names = static_cast<std::int64_t>(w.block_names.size());
-    for (const ForceSample& s : rows) {
-        // The whole row is checked before any of it is kept.
-        std::array<std::int64_t, kColumns.size()> q{};
-        for (std::size_t c = 0; c < kColumns.size(); ++c) {
-            const auto v = quanta(kColumns[c].get(s), kColumns[c].decimals);
-            if (!v)
-                throw std::runtime_error(fmt::format("FORCES.bin: {} = {} at t = {} s cannot be stored (not finite, or "
-                                                     "beyond {:g} steps of {:g})",
-                                                     kColumns[c].name, kColumns[c].get(s), s.t_s, kMaxQuanta,
-                                                     1 / kPow10[std::size_t(kColumns[c].decimals)]));
-            q[c] = *v;
-        }
-        if (q[2] < -1 || q[2] >= names) q[2] = -1;   // as FORCES.csv: a block without a name is none
-        for (std::size_t c = 0; c < kColumns.size(); ++c) {
-            const std::int64_t d = q[c] - w.previous[c];
-            put_varint(w.column_bytes[c], (static_cast<std::uint64_t>(d) << 1) ^ static_cast<std::uint64_t>(d >> 63));
-            w.previous[c] = q[c];
-        }
-        ++w.total_rows;
-        if (++w.chunk_rows == kForcesBinChunkRows) w.flush_chunk();
-    }
-}
-
-void ForcesBinWriter::commit() {
-    Impl& w = *impl_;
-    if (!w.header_written) w.write_header();
-    w.flush_chunk();
-    w.out.clear();
-    put_u32(w.out, 0);
-    put_u64(w.out, w.total_rows);
-    w.file.append(w.out);
-    w.file.commit();
-}
-
-std::uint64_t ForcesBinWriter::bytes_written() const {
-    std::uint64_t pending = 0;
-    for (const std::string& b : impl_->column_bytes) pending += b.size();
-    return impl_->file.bytes() + pending;
+std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path) {
+    return std::make_unique<ForcesBinWriter>(path);
 }
 
 // ---- Reading ----
@@ -276,12 +287,21 @@ private:
         std::string text(size, '\0');
         bytes(text.data(), size, "the header");
         nlohmann::json h;
+        // The header is three levels deep; a deeper one is refused while parsing, before 8 MiB of
+        // `[[[[` becomes millions of nested values.
+        bool too_deep = false;
+        const nlohmann::json::parser_callback_t depth_limit = [&too_deep](int depth, nlohmann::json::parse_event_t,
+                                                                          nlohmann::json&) {
+            if (depth > 8) too_deep = true;
+            return !too_deep;
+        };
         try {
-            h = nlohmann::json::parse(text);
+            h = nlohmann::json::parse(text, depth_limit);
         } catch (const nlohmann::json::exception&) {
             // The header's own text is not quoted: it may be anything but UTF-8.
-            fail(16, "the header is not JSON");
+            fail(16, too_deep ? "the header nests deeper than 8 levels" : "the header is not JSON");
         }
+        if (too_deep) fail(16, "the header nests deeper than 8 levels");
         const auto* columns = h.is_object() && h.contains("columns") ? &h["columns"] : nullptr;
         if (!columns || !columns->is_array() || columns->empty() || columns->size() > kMaxColumns)
             fail(16, fmt::format("the header's `columns` is not a list of 1 to {} columns", kMaxColumns));
@@ -296,7 +316,10 @@ private:
                 if (name == kColumns[k].name) known = k;
             for (const auto& [seen, _] : columns_)
                 if (seen && known && *seen == *known) fail(16, fmt::format("column `{}` appears twice", name));
-            columns_.emplace_back(known, static_cast<int>(c["decimals"].get<std::int64_t>()));
+            const int decimals = static_cast<int>(c["decimals"].get<std::int64_t>());
+            if (known && (*known == kBlockColumn || *known == kToolColumn || *known == kHolderColumn) && decimals != 0)
+                fail(16, fmt::format("column `{}` holds whole numbers: its decimals must be 0", name));
+            columns_.emplace_back(known, decimals);
         }
         for (std::size_t k : {0, 1, 2, 4, 5, 6}) {
             bool found = false;
@@ -337,9 +360,14 @@ private:
                 if (!(*p++ & 0x80)) break;
             }
             const auto d = static_cast<std::int64_t>(z >> 1) ^ -static_cast<std::int64_t>(z & 1);
-            if (__builtin_add_overflow(q, d, &q) || static_cast<double>(std::abs(q)) > kMaxQuanta)
+            if (__builtin_add_overflow(q, d, &q) || q > kMaxQuantaInt || q < -kMaxQuantaInt)
                 fail(at, fmt::format("column {}: row {} of the chunk is beyond {:g} steps", column_name(c), i, kMaxQuanta));
-            if (known) kColumns[*known].set(rows[i], static_cast<double>(q) / kPow10[std::size_t(decimals)]);
+            if (!known) continue;
+            const std::int64_t lo = *known == kHolderColumn ? 0 : -1;
+            const std::int64_t hi = *known == kHolderColumn ? 1 : kMaxInt32;
+            if ((*known == kBlockColumn || *known == kToolColumn || *known == kHolderColumn) && (q < lo || q > hi))
+                fail(at, fmt::format("column {}: row {} of the chunk holds {}, outside {} to {}", column_name(c), i, q, lo, hi));
+            kColumns[*known].set(rows[i], static_cast<double>(q) / kPow10[std::size_t(decimals)]);
         }
         if (p != end) fail(at, fmt::format("column {}: {} bytes left after its {} rows", column_name(c), end - p, n));
     }

@@ -1,35 +1,58 @@
 #include "staged_file.hpp"
 
-#include <filesystem>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fcntl.h>
+#include <random>
 #include <stdexcept>
+#include <unistd.h>
 
 namespace cutload::force_model {
 
-StagedFile::StagedFile(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
-    out_.open(tmp_, std::ios::trunc | std::ios::binary);
-    if (!out_) throw std::runtime_error("cannot write " + tmp_);
+namespace {
+
+std::string why() { return std::strerror(errno); }
+
+}  // namespace
+
+StagedFile::StagedFile(std::string path) : path_(std::move(path)) {
+    // O_EXCL: a name that exists (a file, or a link someone planted) is never opened; another
+    // suffix is tried instead. Mode 0666 less the umask, as the file's final name would get.
+    std::random_device seed;
+    std::mt19937_64 rng(seed() ^ (std::uint64_t(::getpid()) << 32));
+    for (int attempt = 0; attempt < 16 && fd_ < 0; ++attempt) {
+        char suffix[32];
+        std::snprintf(suffix, sizeof suffix, ".tmp-%08llx", static_cast<unsigned long long>(rng() & 0xffffffffull));
+        tmp_ = path_ + suffix;
+        fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd_ < 0 && errno != EEXIST) break;
+    }
+    if (fd_ < 0) throw std::runtime_error("cannot write " + path_ + " (temporary " + tmp_ + "): " + why());
 }
 
 StagedFile::~StagedFile() {
-    if (committed_) return;
-    out_.close();
-    std::error_code ec;
-    std::filesystem::remove(tmp_, ec);
+    if (fd_ >= 0) ::close(fd_);
+    if (!committed_) ::unlink(tmp_.c_str());
 }
 
 void StagedFile::append(std::string_view bytes) {
-    out_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out_) throw std::runtime_error("writing " + tmp_ + " failed");
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+        const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) throw std::runtime_error("writing " + tmp_ + " failed: " + why());
+        done += static_cast<std::size_t>(n);
+    }
     bytes_ += bytes.size();
 }
 
 void StagedFile::commit() {
-    out_.flush();
-    if (!out_) throw std::runtime_error("writing " + tmp_ + " failed");
-    out_.close();
-    std::error_code ec;
-    std::filesystem::rename(tmp_, path_, ec);
-    if (ec) throw std::runtime_error("cannot rename " + tmp_ + " to " + path_ + ": " + ec.message());
+    const int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0) throw std::runtime_error("writing " + tmp_ + " failed: " + why());
+    if (std::rename(tmp_.c_str(), path_.c_str()) != 0)
+        throw std::runtime_error("cannot rename " + tmp_ + " to " + path_ + ": " + why());
     committed_ = true;
 }
 

@@ -1,9 +1,10 @@
-// A result file written under PATH.tmp and renamed to PATH by commit(), so a reader never sees it
-// half-written; destroyed without commit() (an error, a cancel) it removes the temporary file.
+// A result file written under a temporary name beside PATH and renamed to PATH by commit(), so a
+// reader never sees it half-written; destroyed without commit() (an error, a cancel) it removes the
+// temporary file. The temporary name is new for each writer (created exclusively, never through
+// a link planted there), so two runs writing the same PATH do not write into one file.
 #pragma once
 
 #include <cstdint>
-#include <fstream>
 #include <string>
 #include <string_view>
 
@@ -11,7 +12,7 @@ namespace cutload::force_model {
 
 class StagedFile {
 public:
-    explicit StagedFile(std::string path);   // throws std::runtime_error naming PATH.tmp
+    explicit StagedFile(std::string path);   // throws std::runtime_error naming PATH
     ~StagedFile();
     StagedFile(const StagedFile&) = delete;
     StagedFile& operator=(const StagedFile&) = delete;
@@ -23,7 +24,7 @@ public:
 
 private:
     std::string path_, tmp_;
-    std::ofstream out_;
+    int fd_ = -1;
     std::uint64_t bytes_ = 0;
     bool committed_ = false;
 };

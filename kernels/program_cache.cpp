@@ -37,11 +37,21 @@ bool get_u64(std::istream& in, std::uint64_t& v) {
     return true;
 }
 
-// A folder this user owns and no one else may write to (a binary from it is run as native code).
-bool private_folder(const std::string& dir) {
+// A folder this user owns and no one else may write to (a binary from it is run as native code),
+// below folders that only this user or root can change: otherwise another user could rename the
+// checked folder away and put their own in its place. A sticky folder such as /tmp is fine as an
+// ancestor (no one renames what they do not own there).
+bool private_folder(const std::filesystem::path& real_dir) {
     struct stat st {};
-    if (::lstat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return false;
-    return st.st_uid == ::geteuid() && (st.st_mode & (S_IWGRP | S_IWOTH)) == 0;
+    if (::lstat(real_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return false;
+    if (st.st_uid != ::geteuid() || (st.st_mode & (S_IWGRP | S_IWOTH)) != 0) return false;
+    for (std::filesystem::path p = real_dir.parent_path();; p = p.parent_path()) {
+        if (::lstat(p.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return false;
+        const bool trusted_owner = st.st_uid == 0 || st.st_uid == ::geteuid();
+        const bool others_may_write = (st.st_mode & (S_IWGRP | S_IWOTH)) != 0 && (st.st_mode & S_ISVTX) == 0;
+        if (!trusted_owner || others_may_write) return false;
+        if (p == p.parent_path()) return true;
+    }
 }
 
 // Makes the missing folders of `dir` with mode 0700 (mkdir -p, leaving existing ones as they are).
@@ -49,7 +59,9 @@ bool make_private_folders(const std::filesystem::path& dir) {
     std::filesystem::path so_far;
     for (const auto& part : dir) {
         so_far /= part;
-        if (::mkdir(so_far.c_str(), 0700) != 0 && errno != EEXIST) return false;
+        struct stat st {};
+        if (::stat(so_far.c_str(), &st) == 0) continue;   // some mounts refuse mkdir of what exists
+        if (errno != ENOENT || (::mkdir(so_far.c_str(), 0700) != 0 && errno != EEXIST)) return false;
     }
     return true;
 }
@@ -68,8 +80,12 @@ std::optional<std::string> program_cache_dir() {
     } else {
         return std::nullopt;
     }
-    if (!make_private_folders(dir) || !private_folder(dir)) return std::nullopt;
-    return dir;
+    if (!make_private_folders(dir)) return std::nullopt;
+    // Entries are opened by the folder's real path, the one whose ancestors were checked.
+    std::error_code ec;
+    const std::filesystem::path real = std::filesystem::canonical(dir, ec);
+    if (ec || !private_folder(real)) return std::nullopt;
+    return real.string();
 }
 
 std::string program_cache_file(const std::string& dir, const std::string& key) {
@@ -79,7 +95,13 @@ std::string program_cache_file(const std::string& dir, const std::string& key) {
 }
 
 std::optional<std::vector<unsigned char>> load_program_binary(const std::string& dir, const std::string& key) {
-    std::ifstream in(program_cache_file(dir, key), std::ios::binary);
+    const std::string file = program_cache_file(dir, key);
+    std::error_code ec;
+    const std::uintmax_t file_bytes = std::filesystem::file_size(file, ec);
+    // Magic, key, binary and checksum: a size that cannot hold them is not read at all.
+    if (ec || file_bytes < sizeof kEntryMagic + 24 + key.size() || file_bytes > sizeof kEntryMagic + 24 + key.size() + kMaxBinaryBytes)
+        return std::nullopt;
+    std::ifstream in(file, std::ios::binary);
     if (!in) return std::nullopt;
     char magic[sizeof kEntryMagic];
     if (!in.read(magic, sizeof magic) || std::memcmp(magic, kEntryMagic, sizeof magic) != 0) return std::nullopt;
@@ -87,7 +109,9 @@ std::optional<std::vector<unsigned char>> load_program_binary(const std::string&
     if (!get_u64(in, key_bytes) || key_bytes != key.size() || key_bytes > kMaxKeyBytes) return std::nullopt;
     std::string stored_key(key_bytes, '\0');
     if (!in.read(stored_key.data(), static_cast<std::streamsize>(key_bytes)) || stored_key != key) return std::nullopt;
-    if (!get_u64(in, binary_bytes) || binary_bytes == 0 || binary_bytes > kMaxBinaryBytes) return std::nullopt;
+    if (!get_u64(in, binary_bytes) || binary_bytes == 0 ||
+        binary_bytes != file_bytes - sizeof kEntryMagic - 24 - key.size())
+        return std::nullopt;
     std::vector<unsigned char> binary(binary_bytes);
     if (!in.read(reinterpret_cast<char*>(binary.data()), static_cast<std::streamsize>(binary_bytes))) return std::nullopt;
     if (!get_u64(in, checksum) || checksum != fnv1a(binary.data(), binary.size(), fnv1a(key.data(), key.size())))

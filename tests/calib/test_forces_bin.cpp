@@ -235,6 +235,38 @@ TEST_CASE("a damaged FORCES.bin is refused at its byte offset", "[calib][forces_
                    Catch::Contains("no `spindle_angle_deg` column"));
         CHECK_THAT(error_of(with_header(R"({"columns":[{"name":"t_s","decimals":12}]})")),
                    Catch::Contains("decimals\": 0 to 9"));
+        CHECK_THAT(error_of(with_header(R"({"columns":[{"name":"block","decimals":1}]})")),
+                   Catch::Contains("column `block` holds whole numbers: its decimals must be 0"));
+        // 8 MiB of `[` would be millions of nested values: refused while parsing.
+        CHECK_THAT(error_of(with_header(std::string(1 << 20, '['))), Catch::Contains("byte 16: the header nests deeper"));
+    }
+    SECTION("values no row can hold: a block past int32, a varint of 2^63") {
+        // One chunk of two rows over the six columns a reader needs; `block` is the third.
+        const std::string header = R"({"columns":[{"name":"t_s","decimals":0},{"name":"spindle_angle_deg","decimals":0},)"
+                                   R"({"name":"block","decimals":0},{"name":"fx_N","decimals":0},)"
+                                   R"({"name":"fy_N","decimals":0},{"name":"fz_N","decimals":0}],)"
+                                   R"("chunk_rows":2,"block_names":[]})";
+        auto file = [&](const std::string& block_column) {
+            std::string f = "\x89" "CLF\r\n\x1a\n";
+            u32(f, 1);
+            u32(f, static_cast<std::uint32_t>(header.size()));
+            f += header;
+            u32(f, 2);
+            for (int c = 0; c < 6; ++c) {
+                const std::string bytes = c == 2 ? block_column : std::string("\x02\x02", 2);
+                u32(f, static_cast<std::uint32_t>(bytes.size()));
+                f += bytes;
+            }
+            u32(f, 0);
+            return f + std::string("\x02\0\0\0\0\0\0\0", 8);
+        };
+        CHECK_THAT(error_of(file(std::string("\x01\x00", 2))), Catch::Contains("no error"));   // -1, -1: valid
+        // zigzag(2^31) = 2^32: a block index no row can hold (was a float-to-int overflow).
+        CHECK_THAT(error_of(file("\x80\x80\x80\x80\x10\x00")),
+                   Catch::Contains("column block: row 0 of the chunk holds 2147483648, outside -1 to 2147483647"));
+        // Nine 0xff and a 0x01 decode to -2^63, whose absolute value does not exist.
+        CHECK_THAT(error_of(file(std::string(9, '\xff') + "\x01\x00")),
+                   Catch::Contains("column block: row 0 of the chunk is beyond 9e+15 steps"));
     }
 }
 
@@ -246,17 +278,15 @@ TEST_CASE("the FORCES.bin writer refuses what it cannot carry and leaves nothing
         p.samples[1].fy_N = std::numeric_limits<float>::quiet_NaN();
         CHECK_THROWS_WITH(write_forces_file(p, path), Catch::Contains("fy_N = nan") && Catch::Contains("cannot be stored"));
     }
-    CHECK_FALSE(fs::exists(path));
-    CHECK_FALSE(fs::exists(path + ".tmp"));
+    CHECK(fs::is_empty(scratch.dir));   // neither the file nor its temporary
     {
-        ForcesBinWriter w(path);
-        w.set_block_names({"N1"});
-        w.write(made_up_run(3).samples);
-        CHECK(w.bytes_written() > 0);
-        CHECK_THROWS_AS(w.set_block_names({"N2"}), std::logic_error);
+        const auto w = make_forces_bin_writer(path);
+        w->set_block_names({"N1"});
+        w->write(made_up_run(3).samples);
+        CHECK(w->bytes_written() > 0);
+        CHECK_THROWS_AS(w->set_block_names({"N2"}), std::logic_error);
     }   // never committed
-    CHECK_FALSE(fs::exists(path));
-    CHECK_FALSE(fs::exists(path + ".tmp"));
+    CHECK(fs::is_empty(scratch.dir));   // neither the file nor its temporary
 }
 
 TEST_CASE("FORCES.bin files written by scripts/forces_bin_seeds.py from the document read as written",
