@@ -82,6 +82,10 @@ struct Limits {
     // A move at or above this path feed counts as a rapid: cutting during it trips rapid_in_material.
     // The log carries no G00/G01 mode, so the threshold is the only honest signal.
     double rapid_feed_mm_min = 20000;
+    // Clearance shell around the holder (document 004's V_sh): stock nearer the holder than this,
+    // without touching it, trips holder_near_miss with the block's smallest clearance. 0 (the
+    // default): no near-miss check.
+    double holder_clearance_mm = 0;
 };
 
 // A tool's own limits in a tool table: each one given replaces the run's for the rows that tool
@@ -183,10 +187,12 @@ struct ForceSample {
 
 struct FlagHit {
     std::string flag;      // force_limit, torque_limit, power_limit, chip_load_limit, bending_limit,
-                           // rapid_in_material, holder_contact, spindle_stopped, unknown_tool
+                           // rapid_in_material, holder_contact, holder_near_miss, spindle_stopped,
+                           // unknown_tool
     double t_s = 0;        // first time it tripped
     double value = 0;      // the value that tripped it (units of the matching limit; unknown_tool:
-                           // the T number, -1 for none)
+                           // the T number, -1 for none; holder_near_miss: the block's smallest
+                           // clearance in mm, and t_s its time)
     std::int32_t tool = -1;   // T number of the tool in the spindle when it tripped; -1: none named
 };
 

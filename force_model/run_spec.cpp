@@ -413,6 +413,8 @@ Limits parse_limits(ObjectReader& r) {
     read("chip_mm", l.chip_mm);
     read("bending_MPa", l.bending_MPa);
     read("rapid_feed_mm_min", l.rapid_feed_mm_min);
+    read("holder_clearance_mm", l.holder_clearance_mm);
+    require(l.holder_clearance_mm <= 50, r.key_path("holder_clearance_mm"), "must be <= 50 mm (a clearance shell, not a work envelope)");
     r.reject_unknown();
     return l;
 }
@@ -430,6 +432,8 @@ LimitOverrides parse_limit_overrides(ObjectReader& r) {
     read("bending_MPa", l.bending_MPa);
     if (r.has("rapid_feed_mm_min"))
         fail(r.key_path("rapid_feed_mm_min"), "the rapid feed is the machine's: set it in the run's limits");
+    if (r.has("holder_clearance_mm"))
+        fail(r.key_path("holder_clearance_mm"), "the holder clearance is the run's: set it in the run's limits");
     r.reject_unknown();
     return l;
 }
@@ -663,6 +667,7 @@ json to_json(const RunSpec& s) {
           {"axial_step_mm", s.resolution.axial_step_mm},
           {"grid_mm", s.resolution.grid_mm}}},
     };
+    if (s.limits.holder_clearance_mm > 0) j["limits"]["holder_clearance_mm"] = s.limits.holder_clearance_mm;
     if (s.has_tool) j["tool"] = tool_json(s.tool);
     if (!s.tools.empty()) {
         json table = json::array();

@@ -37,6 +37,7 @@ const std::map<std::string, std::string>& titles() {
         {"setup", "Setup"}, {"offset_mm", "Offset x, y, z"},
         {"limits", "Limits"}, {"force_N", "Force"}, {"torque_Nm", "Torque"}, {"power_kW", "Power"},
         {"chip_mm", "Chip thickness"}, {"bending_MPa", "Bending"}, {"rapid_feed_mm_min", "Rapid feed"},
+        {"holder_clearance_mm", "Holder clearance"},
         {"resolution", "Resolution"}, {"angle_step_deg", "Angle step"}, {"axial_step_mm", "Axial step"},
         {"grid_mm", "Grid"},
     };

@@ -252,7 +252,7 @@ const std::vector<std::string>& threshold_metrics() {
 const std::vector<std::string>& known_flags() {
     static const std::vector<std::string> f{"any",           "force_limit",       "torque_limit",  "power_limit",
                                             "chip_load_limit", "bending_limit", "rapid_in_material", "holder_contact",
-                                            "unknown_tool"};
+                                            "holder_near_miss", "unknown_tool"};
     return f;
 }
 

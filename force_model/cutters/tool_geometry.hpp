@@ -19,6 +19,7 @@ struct ToolGeometry {
     double stickout_mm = 30;
     double holder_radius_mm = 16, holder_length_mm = 40;
     double shank_diameter_mm = 8;   // for the bending stress: taken equal to the cutting diameter
+    double holder_clearance_mm = 0; // the near-miss shell around the holder (Limits); 0: none
 
     // The elements that can reach material rising to height_mm above the tip: [0, result). The
     // elements are sorted by height, so a batch stops at the highest material under it.

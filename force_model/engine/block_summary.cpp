@@ -13,6 +13,16 @@ void trip(BlockSummary& b, const char* flag, double t_s, double value, std::int3
     b.flags.push_back({flag, t_s, value, tool});
 }
 
+// holder_near_miss carries the block's smallest clearance, not the first one.
+void nearest(BlockSummary& b, const char* flag, double t_s, double value, std::int32_t tool) {
+    for (FlagHit& f : b.flags)
+        if (f.flag == flag) {
+            if (value < f.value) f = {flag, t_s, value, tool};
+            return;
+        }
+    b.flags.push_back({flag, t_s, value, tool});
+}
+
 }  // namespace
 
 std::string block_name(const std::vector<std::string>& block_names, std::int32_t block) {
@@ -62,6 +72,8 @@ void BlockAccumulator::add_row(const ForceSample& s, const RowExtra& x, const st
     if (limits.rapid_feed_mm_min > 0 && x.feed_mm_min >= limits.rapid_feed_mm_min && (x.engaged > 0 || s.removed_mm3 > 0))
         trip(b, "rapid_in_material", s.t_s, x.feed_mm_min, t);
     if (s.holder_contact) trip(b, "holder_contact", s.t_s, 1.0, t);
+    else if (limits.holder_clearance_mm > 0 && x.holder_clearance_mm < limits.holder_clearance_mm)
+        nearest(b, "holder_near_miss", s.t_s, x.holder_clearance_mm, t);
     if (x.stopped_in_material) trip(b, "spindle_stopped", s.t_s, x.spindle_rpm, t);
 }
 

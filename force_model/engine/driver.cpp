@@ -211,7 +211,8 @@ void Engine::complete() {
     rows_.attribute_removed(first_row, batch_rows, removed_mm3);
     if (batch_rows > 0) {
         PhaseTimer timer(phases_.holder_s);
-        mark_holder_contact(stock_map_, *tool_, f.steps, f.bounds, rows_.samples.data() + first_row);
+        mark_holder_contact(stock_map_, *tool_, f.steps, f.bounds, rows_.samples.data() + first_row,
+                            rows_.extra.data() + first_row);
     }
     engagement_.release();
     report_progress();

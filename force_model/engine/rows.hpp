@@ -7,6 +7,7 @@
 #include "force_model/force_model.hpp"
 #include "kernels/engine_kernels.hpp"
 
+#include <limits>
 #include <vector>
 
 namespace cutload::force_model {
@@ -18,6 +19,9 @@ struct RowExtra {
     float engaged = 0;                 // engaged edge elements
     bool stopped_in_material = false;  // |rpm| < 1 with the cutter in material
     float spindle_rpm = 0;
+    // Distance from the holder to the nearest stock where it is within the clearance shell
+    // (Limits::holder_clearance_mm) without touching; infinity elsewhere.
+    float holder_clearance_mm = std::numeric_limits<float>::infinity();
 };
 
 class RowTable {

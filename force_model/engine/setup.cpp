@@ -7,7 +7,10 @@ namespace {
 std::vector<ToolGeometry> tool_tables(const ToolPlan& plan, double axial_step_mm) {
     std::vector<ToolGeometry> tools;
     tools.reserve(plan.tools.size());
-    for (const PlannedTool& t : plan.tools) tools.push_back(build_tool_geometry(t.cutter, axial_step_mm));
+    for (const PlannedTool& t : plan.tools) {
+        tools.push_back(build_tool_geometry(t.cutter, axial_step_mm));
+        tools.back().holder_clearance_mm = t.limits.holder_clearance_mm;
+    }
     return tools;
 }
 

@@ -17,6 +17,8 @@ export const FLAGS = {
     explain: 'the tool cuts while moving at rapid speed' },
   holder_contact: { label: 'Holder touches the stock', short: 'Holder contact', collision: true,
     explain: 'the tool holder reaches the material' },
+  holder_near_miss: { label: 'Holder passes close to the stock', short: 'Holder near miss', unit: 'mm',
+    explain: 'the tool holder comes within the run\'s clearance shell (limits.holder_clearance_mm) without touching' },
   force_limit: { label: 'Force over its limit', short: 'Force', quantity: 'force' },
   torque_limit: { label: 'Torque over its limit', short: 'Torque', quantity: 'torque' },
   power_limit: { label: 'Power over its limit', short: 'Power', quantity: 'power' },

@@ -61,7 +61,7 @@ function materialForm() {
 }
 
 const METRIC_KEYS = Object.keys(METRICS);
-const FLAG_KEYS = ['any', 'force_limit', 'torque_limit', 'power_limit', 'chip_load_limit', 'bending_limit', 'rapid_in_material', 'holder_contact', 'unknown_tool'];
+const FLAG_KEYS = ['any', 'force_limit', 'torque_limit', 'power_limit', 'chip_load_limit', 'bending_limit', 'rapid_in_material', 'holder_contact', 'holder_near_miss', 'unknown_tool'];
 
 function thresholdForm(lib) {
   const name = h('input', { name: 'name', type: 'text' });

@@ -19,13 +19,14 @@ export function worstLoad(block, limits) {
   return worst;
 }
 
-// Problems, worst first: [{block, kind: 'collision'|'over'|'near', rank, ...}].
+// Problems, worst first: [{block, kind: 'collision'|'over'|'clearance'|'near', rank, ...}].
 export function rankProblems(blocks, limits) {
   const out = [];
   for (const b of blocks) {
     const collision = b.flags.find((f) => FLAGS[f.flag]?.collision);
     const load = worstLoad(b, limits);
     const overFlags = b.flags.filter((f) => FLAGS[f.flag]?.quantity);
+    const nearMiss = b.flags.find((f) => f.flag === 'holder_near_miss');
     if (collision) {
       out.push({ block: b, kind: 'collision', flag: collision.flag, t_s: collision.t_s, value: collision.value, load, order: [0, b.t_start_s] });
     } else if (overFlags.length) {
@@ -38,6 +39,9 @@ export function rankProblems(blocks, limits) {
         if (!over || ratio > over.ratio) over = { quantity: FLAGS[f.flag].quantity, ratio, value: b[q.peak], limit };
       }
       out.push({ block: b, kind: 'over', load: over, order: [1, -over.ratio] });
+    } else if (nearMiss) {
+      // The holder within its clearance shell: after overloads, the nearest first.
+      out.push({ block: b, kind: 'clearance', flag: nearMiss.flag, t_s: nearMiss.t_s, value: nearMiss.value, load, order: [1.5, nearMiss.value] });
     } else if (load && load.ratio >= NEAR_FRACTION) {
       out.push({ block: b, kind: 'near', load, order: [2, -load.ratio] });
     }
@@ -53,6 +57,9 @@ function what(p, limits) {
     }
     return [flagLabel(p.flag), `at ${p.t_s.toFixed(3)} s`];
   }
+  if (p.kind === 'clearance') {
+    return [flagLabel(p.flag), `${num(p.value)} mm from the stock at ${p.t_s.toFixed(3)} s, inside the ${num(limits.holder_clearance_mm)} mm clearance shell`];
+  }
   const q = QUANTITIES[p.load.quantity];
   return [`${q.label} ${p.kind === 'over' ? 'over its limit' : 'close to its limit'}`,
     `${num(p.load.value)} ${q.unit} against ${num(p.load.limit)} ${q.unit}`];
@@ -60,6 +67,7 @@ function what(p, limits) {
 
 function margin(p) {
   if (p.kind === 'collision') return 'collision';
+  if (p.kind === 'clearance') return `${num(p.value)} mm clearance`;
   const pct = 100 * (p.load.ratio - 1);
   return pct > 0 ? `${num(pct, 2)} % over` : `${num(-pct, 2)} % below`;
 }
@@ -80,11 +88,13 @@ export function problemsPanel(blocks, limits, { ncText, onSelect, max = 8 }) {
   const counts = {
     collision: problems.filter((p) => p.kind === 'collision').length,
     over: problems.filter((p) => p.kind === 'over').length,
+    clearance: problems.filter((p) => p.kind === 'clearance').length,
     near: problems.filter((p) => p.kind === 'near').length,
   };
   const parts = [];
   if (counts.collision) parts.push(`${counts.collision} with a collision`);
   if (counts.over) parts.push(`${counts.over} over a limit`);
+  if (counts.clearance) parts.push(`${counts.clearance} with the holder inside its clearance shell`);
   if (counts.near) parts.push(`${counts.near} within 10 % of a limit`);
   const list = h('ol', { class: 'problem-list', id: 'problem-list' });
   let expanded = false;
