@@ -107,11 +107,13 @@ TEST_CASE("workers: three worker processes drain 18 runs while a computing worke
     w.pids.assign(3, -1);
     for (std::size_t k = 0; k < 3; ++k) w.start(k);
 
-    // The worker computing the oldest running run: its pid is in the claim token.
-    const auto computing = [&]() -> std::pair<std::size_t, std::string> {
+    // The worker computing the oldest running run: its pid is in the claim token. With
+    // `unlocked`, the oldest whose row no storing transaction holds.
+    const auto computing = [&](bool unlocked = false) -> std::pair<std::size_t, std::string> {
         for (int tries = 0; tries < 2000; ++tries) {
             const std::string row = sql.text(
-                "SELECT id || ' ' || claim_token FROM runs WHERE state = 'running' AND claim_token IS NOT NULL ORDER BY id LIMIT 1");
+                "SELECT id || ' ' || claim_token FROM runs WHERE state = 'running' AND claim_token IS NOT NULL ORDER BY id "
+                "LIMIT 1" + std::string(unlocked ? " FOR UPDATE SKIP LOCKED" : ""));
             if (!row.empty()) {
                 const std::string run = row.substr(0, row.find(' '));
                 const pid_t pid = pid_of_token(row.substr(row.find(' ') + 1));
@@ -136,17 +138,25 @@ TEST_CASE("workers: three worker processes drain 18 runs while a computing worke
         std::this_thread::sleep_for(std::chrono::milliseconds(700));
     }
     // SIGSTOP another past its lease: the others re-queue its run and one of them stores it;
-    // woken up, it finds its claim gone and stores nothing.
+    // woken up, it finds its claim gone and stores nothing. Only a worker stopped while it computes
+    // counts: one stopped inside its storing transaction holds the run's row locked, the re-queue
+    // skips locked rows by design, and that worker rightly keeps and stores its run.
     std::string stalled_run;
-    for (int round = 0; round < 8 && stalled_run.empty(); ++round) {
-        const auto [slot, run] = computing();
+    for (int round = 0; round < 20 && stalled_run.empty(); ++round) {
+        const auto [slot, run] = computing(true);
         ::kill(w.pids[slot], SIGSTOP);
-        // Finished in the moment between the look and the stop: try another.
-        if (sql.text("SELECT state FROM runs WHERE id = " + run) == "running") {
-            stalled_run = run;
+        // Finished in the moment between the look and the stop, or storing: try another.
+        const bool computing_now =
+            sql.text("SELECT state FROM runs WHERE id = " + run) == "running" &&
+            sql.text("SELECT id FROM runs WHERE id = " + run + " FOR UPDATE SKIP LOCKED") == run;
+        if (computing_now) {
             std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+            // Its lease (1 s) ended and another claim took the run.
+            if (std::stoi(sql.text("SELECT attempts FROM runs WHERE id = " + run)) >= 2) stalled_run = run;
         }
         ::kill(w.pids[slot], SIGCONT);
+        // Let a worker caught storing finish before the next look.
+        if (stalled_run.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
     REQUIRE_FALSE(stalled_run.empty());
 
@@ -186,12 +196,12 @@ TEST_CASE("workers: three worker processes drain 18 runs while a computing worke
     }
     REQUIRE(done_lines.size() + killed_runs.size() + 1 >= static_cast<std::size_t>(kRuns));
     REQUIRE(killed_runs.size() == 2);
-    // The killed workers' runs were claimed again after their leases ended.
+    // The killed workers' runs were claimed again after their leases ended. (Which process
+    // re-queued them, a worker or the API server's own pool, is not fixed: the store says it.)
     for (const auto& run : killed_runs) {
         INFO("killed run " << run);
         REQUIRE(std::stoi(sql.text("SELECT attempts FROM runs WHERE id = " + run)) >= 2);
     }
-    REQUIRE(logs.find("whose lease ended") != std::string::npos);
     // The stalled worker let go of its run: another claim stored it.
     REQUIRE(std::stoi(sql.text("SELECT attempts FROM runs WHERE id = " + stalled_run)) >= 2);
     const bool let_go = logs.find("no longer holds its claim") != std::string::npos ||
