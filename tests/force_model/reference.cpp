@@ -126,6 +126,24 @@ Forces instantaneous_forces(const Cut& cut, const Coefficients& k, double phi_to
     return sum;
 }
 
+void add_flank_slice(Forces& sum, const Coefficients& k, double r, double d, double sb, double cb, bool up,
+                     double feed_per_tooth_mm, double dz, int phi_steps) {
+    const double phi0 = up ? 0.0 : std::acos(-d / r), phi1 = up ? std::acos(d / r) : std::numbers::pi;
+    const double dphi = (phi1 - phi0) / phi_steps;
+    for (int ip = 0; ip < phi_steps; ++ip) {
+        const double phi = phi0 + (ip + 0.5) * dphi, s = std::sin(phi), co = std::cos(phi);
+        const double h = feed_per_tooth_mm * s * cb;
+        const double ft = (k.Ktc_N_mm2 * h + k.Kte_N_mm) / cb, fr = (k.Krc_N_mm2 * h + k.Kre_N_mm) / cb,
+                     fa = (k.Kac_N_mm2 * h + k.Kae_N_mm) / cb;
+        const double radial_out = -fr * cb + fa * sb;
+        const double w = dz * dphi;
+        sum.fx_N += w * (-ft * co + radial_out * s);
+        sum.fy_N += w * (ft * s + radial_out * co);
+        sum.fz_N += w * (fr * sb + fa * cb);
+        sum.torque_Nm += w * r * ft / 1000;
+    }
+}
+
 double resultant_N(const Forces& f) { return std::sqrt(f.fx_N * f.fx_N + f.fy_N * f.fy_N + f.fz_N * f.fz_N); }
 
 double relative_force_error(const Forces& a, const Forces& b) {

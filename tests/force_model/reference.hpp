@@ -60,6 +60,14 @@ Forces average_forces(const Cut& cut, const Coefficients& k);
 // decided from the immersion window alone.
 Forces instantaneous_forces(const Cut& cut, const Coefficients& k, double phi_tool_rad, int axial_slices = 400);
 
+// One slice dz of a revolved flank at radius r whose cutting edge leans from the axis (sin and cos
+// of the lean sb, cb), cutting a box whose face is d from the axis: Altintas' edge forces turned out
+// of the edge's normal plane, integrated over the immersion by the midpoint rule (up milling from
+// phi = 0, down milling up to pi) and added to `sum` per radian of tool turn. The tapered and
+// barrel reference integrations differ only in how r and the lean change along the axis.
+void add_flank_slice(Forces& sum, const Coefficients& k, double r, double d, double sb, double cb, bool up,
+                     double feed_per_tooth_mm, double dz, int phi_steps);
+
 double resultant_N(const Forces& f);
 // |a - b| over the three force components, relative to |b|.
 double relative_force_error(const Forces& a, const Forces& b);

@@ -66,20 +66,7 @@ Forces barrel_reference(const BarrelCut& c, const Coefficients& k, int z_steps =
         const double sb = below / r1, cb = std::sqrt(1 - sb * sb);
         const double r = r_widest - r1 + r1 * cb;
         if (r <= d) continue;
-        const double phi0 = c.up ? 0.0 : std::acos(-d / r), phi1 = c.up ? std::acos(d / r) : kPi;
-        const double dphi = (phi1 - phi0) / phi_steps;
-        for (int ip = 0; ip < phi_steps; ++ip) {
-            const double phi = phi0 + (ip + 0.5) * dphi, s = std::sin(phi), co = std::cos(phi);
-            const double h = c.feed_per_tooth_mm * s * cb;
-            const double ft = (k.Ktc_N_mm2 * h + k.Kte_N_mm) / cb, fr = (k.Krc_N_mm2 * h + k.Kre_N_mm) / cb,
-                         fa = (k.Kac_N_mm2 * h + k.Kae_N_mm) / cb;
-            const double radial_out = -fr * cb + fa * sb;
-            const double w = dz * dphi;
-            sum.fx_N += w * (-ft * co + radial_out * s);
-            sum.fy_N += w * (ft * s + radial_out * co);
-            sum.fz_N += w * (fr * sb + fa * cb);
-            sum.torque_Nm += w * r * ft / 1000;
-        }
+        add_flank_slice(sum, k, r, d, sb, cb, c.up, c.feed_per_tooth_mm, dz, phi_steps);
     }
     const double scale = c.flutes / (2 * kPi);
     return {scale * sum.fx_N, scale * sum.fy_N, scale * sum.fz_N, scale * sum.torque_Nm};
