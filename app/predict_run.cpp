@@ -97,6 +97,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     force_model::PredictOptions po;
     po.device = in.device;
     po.base_stock = in.base_stock;
+    po.keep_final_stock = in.keep_final_stock;
     po.cancel = control.cancel;
     // The job's rows together: the commanded prediction gets what the actual one left.
     po.max_rows = max_rows(in.limits);

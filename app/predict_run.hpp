@@ -40,6 +40,9 @@ struct RunInput {
         std::function<void(std::span<const force_model::ForceSample> rows)> rows;
     };
     std::optional<RowsOut> rows_out;
+    // False when nothing will use RunResult's final stocks (no --save-stock): a GPU then reads none
+    // of the stock back.
+    bool keep_final_stock = true;
 };
 
 struct RunResult {

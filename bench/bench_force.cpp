@@ -7,6 +7,7 @@
 // shared machine) and the load average when the runs started.
 #include "bench_util.hpp"
 #include "force_model/engine_settings.hpp"
+#include "kernels/opencl_runtime.hpp"
 #include "motion_io/commanded.hpp"
 #include "motion_io/nc_program.hpp"
 
@@ -77,7 +78,8 @@ struct Result {
     force_model::EnginePhases phases;   // medians
 };
 
-Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec, force_model::Device d, int runs) {
+Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec, force_model::Device d, int runs,
+               bool keep_final_stock = false) {
     Result r;
     std::vector<double> walls, cpus;
     std::vector<force_model::EnginePhases> phases;
@@ -85,6 +87,7 @@ Result measure(const motion_io::MotionModel& m, const force_model::RunSpec& spec
         for (int i = 0; i < runs; ++i) {
             force_model::PredictOptions o;
             o.device = d;
+            o.keep_final_stock = keep_final_stock;
             force_model::EnginePhases ph;
             const double cpu0 = cpu_seconds();
             const auto p = force_model::predict_with(m, spec, o, force_model::EngineSettings{}, &ph);
@@ -138,14 +141,25 @@ int main(int argc, char** argv) {
     const std::string only = argc > 2 ? argv[2] : "";   // "opencl" or "cpu": profile one path
     const Result cl = only == "cpu" ? Result{} : measure(m, spec, force_model::Device::OpenCL, runs);
     const Result cpu = only == "opencl" ? Result{} : measure(m, spec, force_model::Device::Cpu, std::max(1, runs / 2 + 1));
-    for (const Result* r : {&cl, &cpu})
+    // What a caller that keeps the final stock (the service, --save-stock) pays on top: on a GPU,
+    // reading back the tiles the run changed.
+    const Result cl_kept = only == "cpu" ? Result{} : measure(m, spec, force_model::Device::OpenCL, runs, true);
+    for (const Result* r : {&cl, &cpu, &cl_kept})
         if (r->ok) {
+            if (r == &cl_kept) std::printf("  with the final stock kept (read back from the device):\n");
             std::printf("  %-40s median wall %.4f s  real-time factor %7.1fx  CPU %.4f s/run  (%zu steps, %zu cutting, "
                         "peak %.0f N)\n",
                         r->device.c_str(), r->wall_s, r->rtf, r->cpu_s, r->steps, r->cutting, r->peak_N);
             print_phases(r->phases);
         }
     if (cl.ok && cpu.ok) std::printf("  ratio opencl / cpu: %.2fx\n", cl.rtf / cpu.rtf);
+    if (cl.ok) {
+        // Every prediction after the first borrows the first one's queue, kernels and buffers.
+        const kernels::PoolStats s = kernels::OpenClRuntime::instance().pool_stats();
+        std::printf("  OpenCL objects over %d predictions: %zu queues, %zu kernels, %zu buffers created; %zu of %zu "
+                    "leases reused\n",
+                    2 * runs, s.queues_created, s.kernels_created, s.buffers_created, s.reused, s.leases);
+    }
     std::printf("  peak memory (max RSS): %.0f MB\n", peak_rss_mb());
     std::printf("  load average at end: %s\n", load_average().c_str());
     return 0;

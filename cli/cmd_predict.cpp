@@ -38,6 +38,7 @@ void run_predict(const PredictArgs& a) {
     in.base_stock = base.get();
     in.device = choose_device(a.device);
     in.limits = a.limits;
+    in.keep_final_stock = !a.save_stock.empty();
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
     const std::unique_ptr<force_model::ForcesWriter> forces = force_model::open_forces_writer(a.out);

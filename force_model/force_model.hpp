@@ -242,6 +242,9 @@ struct PredictOptions {
     // the motion model and the stock, whatever the run's length (a run of an hour writes about 10^8
     // rows). Blocks, stats and the final stock are as without it, and so are the rows.
     std::function<void(std::span<const ForceSample> rows)> rows_out;
+    // False: the caller has no use for the final stock, so Prediction::final_stock comes back empty
+    // and a GPU reads none of it back (the stock lives on the device for the run).
+    bool keep_final_stock = true;
 };
 inline constexpr std::size_t kRowsOutPiece = std::size_t(1) << 16;
 

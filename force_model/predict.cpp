@@ -104,8 +104,8 @@ struct RowsOut {
 };
 
 Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup,
-                   RowsOut* rows_out) {
-    setup.backend->download(*setup.stock);
+                   RowsOut* rows_out, bool keep_final_stock) {
+    if (keep_final_stock) setup.backend->download(*setup.stock);
     Prediction p;
     RowTable& rows = engine.rows();
     p.block_names = motion.block_names;
@@ -120,7 +120,7 @@ Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, E
     }
     p.stats.unknown_tool_samples = plan.unknown_samples;
     p.stats.unknown_tools = plan.unknown_tools;
-    p.final_stock = std::move(setup.stock);
+    if (keep_final_stock) p.final_stock = std::move(setup.stock);
     p.stats.simulated_s = simulated_seconds(motion);
     p.stats.steps = engine.steps();
     p.stats.device = setup.backend->name();
@@ -155,7 +155,7 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
         engine.run();
     }
     std::optional<PhaseTimer> finish_timer(std::in_place, phases.finish_s);
-    Prediction p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr);
+    Prediction p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr, opt.keep_final_stock);
     finish_timer.reset();
     // The walk's own share: what the timed phases inside it leave over (step generation, batching,
     // air checks).

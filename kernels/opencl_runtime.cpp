@@ -122,7 +122,11 @@ OpenClRuntime::OpenClRuntime() {
     is_gpu_ = chosen->gpu;
     cl_bool unified = CL_FALSE;
     clGetDeviceInfo(device_, CL_DEVICE_HOST_UNIFIED_MEMORY, sizeof unified, &unified, nullptr);
-    host_unified_ = unified == CL_TRUE && !is_gpu_;
+    const char* discrete = std::getenv("CUTLOAD_OPENCL_DISCRETE");
+    host_unified_ = unified == CL_TRUE && !is_gpu_ && !(discrete && std::string(discrete) == "1");
+    cl_ulong global_bytes = 0;
+    clGetDeviceInfo(device_, CL_DEVICE_GLOBAL_MEM_SIZE, sizeof global_bytes, &global_bytes, nullptr);
+    idle_cap_bytes_ = std::size_t(global_bytes / 4);
     cl_int e = CL_SUCCESS;
     context_ = ClContext(clCreateContext(nullptr, 1, &device_, nullptr, nullptr, &e));
     check_cl(e, "clCreateContext");
@@ -208,6 +212,92 @@ ClKernel OpenClRuntime::make_kernel(const std::string& cl_file, const char* kern
     ClKernel k(clCreateKernel(prog, kernel_name, &e));
     check_cl(e, kernel_name);
     return k;
+}
+
+QueueLease OpenClRuntime::lease_queue() {
+    {
+        std::lock_guard lock(pool_mutex_);
+        ++stats_.leases;
+        if (!idle_queues_.empty()) {
+            ++stats_.reused;
+            ClQueue q = std::move(idle_queues_.back());
+            idle_queues_.pop_back();
+            return QueueLease(this, "", 0, std::move(q));
+        }
+        ++stats_.queues_created;
+    }
+    return QueueLease(this, "", 0, make_queue());
+}
+
+KernelLease OpenClRuntime::lease_kernel(const std::string& cl_file, const char* kernel_name) {
+    std::string key = cl_file + '/' + kernel_name;
+    {
+        std::lock_guard lock(pool_mutex_);
+        ++stats_.leases;
+        if (auto it = idle_kernels_.find(key); it != idle_kernels_.end()) {
+            ++stats_.reused;
+            ClKernel k = std::move(it->second);
+            idle_kernels_.erase(it);
+            return KernelLease(this, std::move(key), 0, std::move(k));
+        }
+        ++stats_.kernels_created;
+    }
+    return KernelLease(this, std::move(key), 0, make_kernel(cl_file, kernel_name));
+}
+
+BufferLease OpenClRuntime::lease_buffer(std::size_t bytes, cl_mem_flags flags) {
+    if (flags & (CL_MEM_USE_HOST_PTR | CL_MEM_COPY_HOST_PTR | CL_MEM_ALLOC_HOST_PTR))
+        throw OpenClError("lease_buffer: pooled buffers take no host pointer flags");
+    bytes = std::max<std::size_t>(bytes, 16);
+    {
+        std::lock_guard lock(pool_mutex_);
+        ++stats_.leases;
+        auto best = idle_buffers_.end();
+        for (auto it = idle_buffers_.begin(); it != idle_buffers_.end(); ++it)
+            if (it->flags == flags && it->bytes >= bytes && (best == idle_buffers_.end() || it->bytes < best->bytes))
+                best = it;
+        if (best != idle_buffers_.end()) {
+            ++stats_.reused;
+            BufferLease lease(this, std::to_string(flags), best->bytes, std::move(best->mem));
+            stats_.idle_buffer_bytes -= best->bytes;
+            idle_buffers_.erase(best);
+            return lease;
+        }
+        ++stats_.buffers_created;
+    }
+    cl_int e = CL_SUCCESS;
+    ClMem m(clCreateBuffer(context_.get(), flags, bytes, nullptr, &e));
+    check_cl(e, "clCreateBuffer");
+    return BufferLease(this, std::to_string(flags), bytes, std::move(m));
+}
+
+PoolStats OpenClRuntime::pool_stats() {
+    std::lock_guard lock(pool_mutex_);
+    return stats_;
+}
+
+void OpenClRuntime::give_back(std::string, std::size_t, ClQueue q) {
+    std::lock_guard lock(pool_mutex_);
+    idle_queues_.push_back(std::move(q));
+}
+
+void OpenClRuntime::give_back(std::string key, std::size_t, ClKernel k) {
+    std::lock_guard lock(pool_mutex_);
+    idle_kernels_.emplace(std::move(key), std::move(k));
+}
+
+void OpenClRuntime::give_back(std::string key, std::size_t bytes, ClMem m) {
+    const cl_mem_flags flags = std::stoull(key);
+    std::lock_guard lock(pool_mutex_);
+    // Over the cap, the smallest idle buffers go first: the large ones are the costly ones to make.
+    idle_buffers_.push_back({flags, bytes, std::move(m)});
+    stats_.idle_buffer_bytes += bytes;
+    std::sort(idle_buffers_.begin(), idle_buffers_.end(),
+              [](const IdleBuffer& a, const IdleBuffer& b) { return a.bytes > b.bytes; });
+    while (stats_.idle_buffer_bytes > idle_cap_bytes_ && !idle_buffers_.empty()) {
+        stats_.idle_buffer_bytes -= idle_buffers_.back().bytes;
+        idle_buffers_.pop_back();
+    }
 }
 
 }  // namespace cutload::kernels

@@ -31,13 +31,14 @@ public:
     // The tool (an index into the tools the backend was made with) of the calls that follow.
     // Work already queued keeps its tool.
     virtual void use_tool(std::size_t slot) = 0;
-    // Copies the backend's stock into the host stock (end of run).
+    // Makes the host stock current (end of run): on a GPU, the tiles removals changed are read back.
     virtual void download(Stock& stock) = 0;
 };
 
-// Both work on `stock` (the OpenCL backend copies it to the device, or wraps it on CPU devices).
-// `tools` (at least one) must outlive the backend.
+// Both work on `stock` (the OpenCL backend wraps it on CPU devices; on a GPU it fills a fresh stock
+// on the device and copies any other). `tools` (at least one) must outlive the backend.
 std::unique_ptr<Backend> make_cpu_backend(Stock& stock, const std::vector<ToolGeometry>& tools);
-std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools);   // throws OpenClError
+std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools,
+                                             bool fresh_stock);   // throws OpenClError
 
 }  // namespace cutload::force_model

@@ -1,13 +1,19 @@
 // The OpenCL path: engage.cl and remove.cl on the runtime's device, on one in-order queue, so an
 // engagement always sees the removals queued before it. Nothing blocks until wait(): writes and
 // result reads are non-blocking, the host staging arrays stay untouched until the driver's next
-// wait(). Buffers are created once and grown by doubling; on CPU devices (PoCL) the stock buffer
-// wraps the host array (no copy).
+// wait(). The queue, kernels and buffers are leased from the runtime's pool and given back at the
+// end, so a later prediction in the process creates none of them; staging buffers grow by doubling.
+// On CPU devices (PoCL) the stock buffers wrap the host arrays (no copy). On a GPU the stock lives
+// in pooled device buffers: a fresh stock is zero bytes (the codec's "never cut"), filled on the
+// device; at the end only the tiles a removal touched are read back (docs/force_model.md,
+// "Device state").
 #include "engine/backend.hpp"
 #include "kernels/opencl_runtime.hpp"
 
 #include <array>
 #include <cmath>
+#include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <numbers>
 
@@ -22,30 +28,58 @@ using kernels::ClMem;
 // batch are bunched together (PoCL would otherwise pick groups of up to 4096 steps).
 constexpr std::size_t kCpuGroupSize = 64;
 
+// Removal calls mark the stock tiles they may change; the end of the run reads back only those.
+constexpr int kDirtyTile = 16;   // rays along each side
+constexpr std::size_t kRayBytes = kernels::kDexelFloats * sizeof(float);
+constexpr std::size_t kRayWallBytes = kernels::kWallSlots * kernels::kWallFloats * sizeof(float);
+
 class OpenClBackend final : public Backend {
 public:
-    OpenClBackend(Stock& stock, const std::vector<ToolGeometry>& tools)
+    OpenClBackend(Stock& stock, const std::vector<ToolGeometry>& tools, bool fresh_stock)
         : rt_(kernels::OpenClRuntime::instance()), stock_(stock) {
-        queue_ = rt_.make_queue();
-        engage_ = rt_.make_kernel("engage.cl", "engage");
-        remove_ = rt_.make_kernel("remove.cl", "remove_sweep");
+        queue_ = rt_.lease_queue();
+        engage_ = rt_.lease_kernel("engage.cl", "engage");
+        remove_ = rt_.lease_kernel("remove.cl", "remove_sweep");
         wrap_host_ = rt_.host_unified_memory();
         group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
-        cells_ = buffer((wrap_host_ ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR) | CL_MEM_READ_WRITE,
-                        stock.storage.bytes(), stock.stored());
-        walls_ = buffer((wrap_host_ ? CL_MEM_USE_HOST_PTR : CL_MEM_COPY_HOST_PTR) | CL_MEM_READ_WRITE,
-                        stock.walls.bytes(), stock.stored_walls());
+        if (wrap_host_) {
+            wrapped_cells_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.storage.bytes(), stock.stored());
+            wrapped_walls_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.walls.bytes(), stock.stored_walls());
+        } else {
+            cells_lease_ = rt_.lease_buffer(stock.storage.bytes(), CL_MEM_READ_WRITE);
+            walls_lease_ = rt_.lease_buffer(stock.walls.bytes(), CL_MEM_READ_WRITE);
+            if (fresh_stock) {
+                // A fresh stock is all zero bytes (kernels::RayCodec): filled on the device, no copy.
+                const cl_uint zero = 0;
+                check_cl(clEnqueueFillBuffer(queue_.get(), cells_lease_.get(), &zero, sizeof zero, 0,
+                                             stock.storage.bytes(), 0, nullptr, nullptr),
+                         "fill stock");
+                check_cl(clEnqueueFillBuffer(queue_.get(), walls_lease_.get(), &zero, sizeof zero, 0,
+                                             stock.walls.bytes(), 0, nullptr, nullptr),
+                         "fill walls");
+            } else {
+                write(cells_lease_.get(), stock.stored(), stock.storage.bytes());
+                write(walls_lease_.get(), stock.stored_walls(), stock.walls.bytes());
+            }
+            tiles_x_ = (stock.grid.nx + kDirtyTile - 1) / kDirtyTile;
+            tiles_y_ = (stock.grid.ny + kDirtyTile - 1) / kDirtyTile;
+            dirty_.assign(std::size_t(tiles_x_) * std::size_t(tiles_y_), 0);
+        }
         for (int k = 0; k < 4; ++k) {
             base_lo_.s[k] = stock.codec.base[k];
             base_hi_.s[k] = stock.codec.base[4 + k];
         }
-        base_ = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof stock.codec.base,
-                       const_cast<std::uint32_t*>(stock.codec.base.data()));
+        base_ = rt_.lease_buffer(sizeof stock.codec.base, CL_MEM_READ_ONLY);
+        write(base_.get(), stock.codec.base.data(), sizeof stock.codec.base);
 
+        tools_.reserve(tools.size());
         for (const ToolGeometry& t : tools) tools_.push_back(upload_tool(t));
         tool_ = &tools_.at(0);
-        coef_ = buffer(CL_MEM_READ_ONLY, sizeof coef_host_, nullptr);
+        coef_ = rt_.lease_buffer(sizeof coef_host_, CL_MEM_READ_ONLY);
     }
+
+    // Leases go back to the pool only once the device is done with them.
+    ~OpenClBackend() override { clFinish(queue_.get()); }
 
     std::string name() const override { return "opencl: " + rt_.device_name(); }
 
@@ -59,8 +93,8 @@ public:
         check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(), 0,
                                       nullptr, nullptr),
                  "write coefficients");
-        grow(steps_buf_, steps_cap_, n, 8 * sizeof(float), CL_MEM_READ_ONLY);
-        grow(out_buf_, out_cap_, n, sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
+        grow(steps_buf_, n * 8 * sizeof(float), CL_MEM_READ_ONLY);
+        grow(out_buf_, n * sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
         host_steps_.resize(8 * n);
         for (std::size_t i = 0; i < n; ++i) {
             float* s = host_steps_.data() + 8 * i;
@@ -92,8 +126,8 @@ public:
         arg(k, a++, n_flutes);
         arg(k, a++, bottom);
         arg(k, a++, end);
-        arg(k, a++, cells_.get());
-        arg(k, a++, walls_.get());
+        arg(k, a++, cells());
+        arg(k, a++, walls());
         arg(k, a++, base_lo_);
         arg(k, a++, base_hi_);
         arg(k, a++, x0);
@@ -111,11 +145,11 @@ public:
 
     void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
                const kernels::SweepParams& p, kernels::SweepCellResult* out) override {
-        std::size_t cells = 0;
-        for (const kernels::SweepCall& c : calls) cells += c.cells();
-        if (cells == 0 || segs.empty()) return;
-        grow(segs_buf_, segs_cap_, segs.size(), 6 * sizeof(float), CL_MEM_READ_ONLY);
-        grow(sweep_buf_, sweep_cap_, cells, sizeof(kernels::SweepCellResult), CL_MEM_WRITE_ONLY);
+        std::size_t n_cells = 0;
+        for (const kernels::SweepCall& c : calls) n_cells += c.cells();
+        if (n_cells == 0 || segs.empty()) return;
+        grow(segs_buf_, segs.size() * 6 * sizeof(float), CL_MEM_READ_ONLY);
+        grow(sweep_buf_, n_cells * sizeof(kernels::SweepCellResult), CL_MEM_WRITE_ONLY);
         host_segs_.resize(6 * segs.size());
         for (std::size_t i = 0; i < segs.size(); ++i) {
             const auto& s = segs[i];
@@ -131,10 +165,11 @@ public:
         cl_kernel k = remove_.get();
         std::size_t out_first = 0;
         for (const kernels::SweepCall& c : calls) {
+            mark_dirty(c);
             const cl_int i0 = c.i0, j0 = c.j0, w = c.width, h = c.height, seg_first = cl_int(c.first_segment),
                          n_segs = cl_int(c.segments), first = cl_int(out_first);
             int a = 0;
-            arg(k, a++, cells_.get());
+            arg(k, a++, cells());
             arg(k, a++, base_.get());
             arg(k, a++, nx);
             arg(k, a++, x0);
@@ -153,12 +188,12 @@ public:
             arg(k, a++, cut);
             arg(k, a++, sweep_buf_.get());
             arg(k, a++, first);
-            arg(k, a++, walls_.get());
+            arg(k, a++, walls());
             arg(k, a++, band);
             launch(k, c.cells());
             out_first += c.cells();
         }
-        check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, cells * sizeof(kernels::SweepCellResult),
+        check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
                                      out, 0, nullptr, nullptr),
                  "read sweep results");
     }
@@ -169,14 +204,19 @@ public:
     void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
 
     void download(Stock& stock) override {
-        download(cells_, stock.stored(), stock.storage.bytes());
-        download(walls_, stock.stored_walls(), stock.walls.bytes());
+        if (wrap_host_) {
+            map_to_host(wrapped_cells_, stock.stored(), stock.storage.bytes());
+            map_to_host(wrapped_walls_, stock.stored_walls(), stock.walls.bytes());
+        } else {
+            read_dirty_tiles(stock);
+        }
     }
 
 private:
     // One cutter's tables on the device.
     struct DeviceTool {
-        ClMem elems, rot, lower;
+        kernels::BufferLease elems, rot, lower;
+        std::vector<float> host_elems, host_rot, host_lower;   // sources of the non-blocking writes
         std::size_t stride = 8;
         cl_int flutes = 1, bottom_count = 0, n_lower = 0;
     };
@@ -196,7 +236,8 @@ private:
                                    e.db_mm[k],   e.z_lo_mm[k], e.z_hi_mm[k], span > 0 ? 1 / span : 0.0};
             for (int f = 0; f < 8; ++f) elems[f * d.stride + k] = float(row[f]);
         }
-        d.elems = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, elems.size() * sizeof(float), elems.data());
+        d.host_elems = std::move(elems);
+        d.elems = table(d.host_elems);
         std::vector<float> rot(2 * 2 * std::size_t(e.flutes) * d.stride, 0.0f);
         for (int s = 0; s < 2; ++s)
             for (int j = 0; j < e.flutes; ++j)
@@ -207,41 +248,109 @@ private:
                     rot[base + k] = float(std::cos(psi));
                     rot[base + d.stride + k] = float(std::sin(psi));
                 }
-        d.rot = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rot.size() * sizeof(float), rot.data());
-        std::vector<float> lower(tool.lower_mm.begin(), tool.lower_mm.end());
-        d.n_lower = cl_int(lower.size());
-        d.lower = buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lower.size() * sizeof(float), lower.data());
+        d.host_rot = std::move(rot);
+        d.rot = table(d.host_rot);
+        d.host_lower.assign(tool.lower_mm.begin(), tool.lower_mm.end());
+        d.n_lower = cl_int(d.host_lower.size());
+        d.lower = table(d.host_lower);
         return d;
     }
 
-    void download(const ClMem& buf, void* host, std::size_t bytes) {
-        if (wrap_host_) {
-            // Mapping makes the host array current; PoCL maps a USE_HOST_PTR buffer in place.
-            cl_int e = CL_SUCCESS;
-            void* p = clEnqueueMapBuffer(queue_.get(), buf.get(), CL_TRUE, CL_MAP_READ, 0, bytes, 0, nullptr, nullptr, &e);
-            check_cl(e, "map stock");
-            if (p != host) std::memcpy(host, p, bytes);
-            check_cl(clEnqueueUnmapMemObject(queue_.get(), buf.get(), p, 0, nullptr, nullptr), "unmap stock");
-            check_cl(clFinish(queue_.get()), "finish");
-        } else {
-            check_cl(clEnqueueReadBuffer(queue_.get(), buf.get(), CL_TRUE, 0, bytes, host, 0, nullptr, nullptr),
-                     "read stock");
-        }
+    kernels::BufferLease table(const std::vector<float>& host) {
+        kernels::BufferLease b = rt_.lease_buffer(host.size() * sizeof(float), CL_MEM_READ_ONLY);
+        if (!host.empty()) write(b.get(), host.data(), host.size() * sizeof(float));
+        return b;
     }
 
-    ClMem buffer(cl_mem_flags flags, std::size_t bytes, void* host) {
+    // Non-blocking: `host` must stay unchanged until the next wait.
+    void write(cl_mem buf, const void* host, std::size_t bytes) {
+        check_cl(clEnqueueWriteBuffer(queue_.get(), buf, CL_FALSE, 0, bytes, host, 0, nullptr, nullptr), "write buffer");
+    }
+
+    cl_mem cells() const { return wrap_host_ ? wrapped_cells_.get() : cells_lease_.get(); }
+    cl_mem walls() const { return wrap_host_ ? wrapped_walls_.get() : walls_lease_.get(); }
+
+    void mark_dirty(const kernels::SweepCall& c) {
+        if (wrap_host_ || c.width <= 0 || c.height <= 0) return;
+        const int tx0 = std::max(c.i0, 0) / kDirtyTile, ty0 = std::max(c.j0, 0) / kDirtyTile;
+        const int tx1 = std::min((c.i0 + c.width - 1) / kDirtyTile, tiles_x_ - 1);
+        const int ty1 = std::min((c.j0 + c.height - 1) / kDirtyTile, tiles_y_ - 1);
+        for (int ty = ty0; ty <= ty1; ++ty)
+            for (int tx = tx0; tx <= tx1; ++tx) dirty_[std::size_t(ty) * std::size_t(tiles_x_) + std::size_t(tx)] = 1;
+    }
+
+    // One rectangular read per run of dirty tiles along a tile row, runs of the same extent in the
+    // rows below merged into it (a contour's walls are a few tall rectangles, not a read per tile
+    // row: each command costs PoCL about 0.1 ms), for the rays and for their walls.
+    void read_dirty_tiles(Stock& stock) {
+        const std::size_t nx = std::size_t(stock.grid.nx), ny = std::size_t(stock.grid.ny);
+        auto dirty = [&](int tx, int ty) {
+            return dirty_[std::size_t(ty) * std::size_t(tiles_x_) + std::size_t(tx)] != 0;
+        };
+        auto run_at = [&](int tx0, int tx1, int ty) {   // [tx0, tx1) is exactly a run of row ty
+            if ((tx0 > 0 && dirty(tx0 - 1, ty)) || (tx1 < tiles_x_ && dirty(tx1, ty))) return false;
+            for (int tx = tx0; tx < tx1; ++tx)
+                if (!dirty(tx, ty)) return false;
+            return true;
+        };
+        for (int ty = 0; ty < tiles_y_; ++ty) {
+            for (int tx = 0; tx < tiles_x_;) {
+                if (!dirty(tx, ty)) {
+                    ++tx;
+                    continue;
+                }
+                int end = tx;
+                while (end < tiles_x_ && dirty(end, ty)) ++end;
+                int rows = 1;
+                while (ty + rows < tiles_y_ && run_at(tx, end, ty + rows)) ++rows;
+                for (int k = 1; k < rows; ++k)   // taken: cleared so the rows below do not read it again
+                    for (int t = tx; t < end; ++t) dirty_[std::size_t(ty + k) * std::size_t(tiles_x_) + std::size_t(t)] = 0;
+                const std::size_t i0 = std::size_t(tx) * kDirtyTile, j0 = std::size_t(ty) * kDirtyTile;
+                const std::size_t i1 = std::min(nx, std::size_t(end) * kDirtyTile);
+                const std::size_t j1 = std::min(ny, std::size_t(ty + rows) * kDirtyTile);
+                read_rect(cells_lease_.get(), stock.stored(), kRayBytes, nx, i0, j0, i1, j1);
+                read_rect(walls_lease_.get(), stock.stored_walls(), kRayWallBytes, nx, i0, j0, i1, j1);
+                tx = end;
+            }
+        }
+        check_cl(clFinish(queue_.get()), "finish stock read");
+        std::fill(dirty_.begin(), dirty_.end(), 0);
+    }
+
+    void read_rect(cl_mem buf, void* host, std::size_t ray_bytes, std::size_t nx, std::size_t i0, std::size_t j0,
+                   std::size_t i1, std::size_t j1) {
+        const std::size_t origin[3] = {i0 * ray_bytes, j0, 0};
+        const std::size_t region[3] = {(i1 - i0) * ray_bytes, j1 - j0, 1};
+        const std::size_t pitch = nx * ray_bytes;
+        check_cl(clEnqueueReadBufferRect(queue_.get(), buf, CL_FALSE, origin, origin, region, pitch, 0, pitch, 0, host,
+                                         0, nullptr, nullptr),
+                 "read stock tiles");
+    }
+
+    void map_to_host(const ClMem& buf, void* host, std::size_t bytes) {
+        // Mapping makes the host array current; PoCL maps a USE_HOST_PTR buffer in place.
+        cl_int e = CL_SUCCESS;
+        void* p = clEnqueueMapBuffer(queue_.get(), buf.get(), CL_TRUE, CL_MAP_READ, 0, bytes, 0, nullptr, nullptr, &e);
+        check_cl(e, "map stock");
+        if (p != host) std::memcpy(host, p, bytes);
+        check_cl(clEnqueueUnmapMemObject(queue_.get(), buf.get(), p, 0, nullptr, nullptr), "unmap stock");
+        check_cl(clFinish(queue_.get()), "finish");
+    }
+
+    ClMem host_buffer(cl_mem_flags flags, std::size_t bytes, void* host) {
         cl_int e = CL_SUCCESS;
         ClMem m(clCreateBuffer(rt_.context(), flags, std::max<std::size_t>(bytes, 16), host, &e));
         check_cl(e, "clCreateBuffer");
         return m;
     }
 
-    // Growing replaces the buffer; commands already queued keep the old one alive (OpenCL reference
-    // counting), so this is safe between waits.
-    void grow(ClMem& buf, std::size_t& cap, std::size_t n, std::size_t elem_bytes, cl_mem_flags flags) {
-        if (buf && n <= cap) return;
-        cap = std::max<std::size_t>(n, 2 * cap);
-        buf = buffer(flags, cap * elem_bytes, nullptr);
+    // A staging buffer too small is given back and a larger one leased (at least double). Called
+    // only while no queued command uses the buffer (each kind has at most one call in flight, and
+    // its call comes after the wait that completes the one before).
+    void grow(kernels::BufferLease& buf, std::size_t bytes, cl_mem_flags flags) {
+        if (buf && bytes <= buf.bytes()) return;
+        const std::size_t want = std::max(bytes, 2 * buf.bytes());
+        buf = rt_.lease_buffer(want, flags);
     }
 
     template <typename T>
@@ -263,22 +372,25 @@ private:
     Stock& stock_;
     std::vector<DeviceTool> tools_;
     const DeviceTool* tool_ = nullptr;
-    kernels::ClQueue queue_;
-    kernels::ClKernel engage_, remove_;
+    kernels::QueueLease queue_;
+    kernels::KernelLease engage_, remove_;
     bool wrap_host_ = false;
     std::size_t group_ = 0;
-    ClMem cells_, walls_, base_, coef_;
+    ClMem wrapped_cells_, wrapped_walls_;                // CPU devices: the host stock itself
+    kernels::BufferLease cells_lease_, walls_lease_;     // otherwise: the stock on the device
+    int tiles_x_ = 0, tiles_y_ = 0;
+    std::vector<std::uint8_t> dirty_;                    // tiles a removal may have changed
+    kernels::BufferLease base_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
-    ClMem steps_buf_, out_buf_, segs_buf_, sweep_buf_;
-    std::size_t steps_cap_ = 0, out_cap_ = 0, segs_cap_ = 0, sweep_cap_ = 0;
+    kernels::BufferLease steps_buf_, out_buf_, segs_buf_, sweep_buf_;
     std::array<float, 10> coef_host_{};
     std::vector<float> host_steps_, host_segs_;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools) {
-    return std::make_unique<OpenClBackend>(stock, tools);
+std::unique_ptr<Backend> make_opencl_backend(Stock& stock, const std::vector<ToolGeometry>& tools, bool fresh_stock) {
+    return std::make_unique<OpenClBackend>(stock, tools, fresh_stock);
 }
 
 }  // namespace cutload::force_model

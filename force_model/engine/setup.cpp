@@ -22,6 +22,6 @@ EngineSetup::EngineSetup(const RunSpec& spec, const ToolPlan& plan, const Predic
       law(cutting_law(spec.material, settings.min_chip_mm)),
       fresh_stock(opt.base_stock == nullptr),
       stock(fresh_stock ? make_stock(spec.stock, spec.resolution.grid_mm) : copy_stock(*opt.base_stock)),
-      backend(opt.device == Device::OpenCL ? make_opencl_backend(*stock, tools) : make_cpu_backend(*stock, tools)) {}
+      backend(opt.device == Device::OpenCL ? make_opencl_backend(*stock, tools, fresh_stock) : make_cpu_backend(*stock, tools)) {}
 
 }  // namespace cutload::force_model

@@ -6,7 +6,9 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -30,6 +32,22 @@ inline Result run(const std::string& args) {
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
 }
+
+// Sets an environment variable (for the test and the commands it runs) and puts it back after.
+struct Env {
+    std::string name;
+    std::optional<std::string> old;
+    Env(std::string n, const std::string& value) : name(std::move(n)) {
+        if (const char* v = std::getenv(name.c_str())) old = v;
+        ::setenv(name.c_str(), value.c_str(), 1);
+    }
+    ~Env() {
+        if (old)
+            ::setenv(name.c_str(), old->c_str(), 1);
+        else
+            ::unsetenv(name.c_str());
+    }
+};
 
 inline std::string source(const std::string& rel) { return std::string(CUTLOAD_SOURCE_DIR) + "/" + rel; }
 

@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 
 using namespace cutload;
+using clitest::Env;
 namespace fs = std::filesystem;
 
 namespace {
@@ -28,22 +29,6 @@ std::vector<fs::path> entries(const fs::path& dir) {
     std::sort(out.begin(), out.end());
     return out;
 }
-
-// Sets an environment variable for the test and puts it back after.
-struct Env {
-    std::string name;
-    std::optional<std::string> old;
-    Env(std::string n, const std::string& value) : name(std::move(n)) {
-        if (const char* v = std::getenv(name.c_str())) old = v;
-        ::setenv(name.c_str(), value.c_str(), 1);
-    }
-    ~Env() {
-        if (old)
-            ::setenv(name.c_str(), old->c_str(), 1);
-        else
-            ::unsetenv(name.c_str());
-    }
-};
 
 }  // namespace
 
