@@ -33,6 +33,9 @@ void print_text(const motion_io::IngestReport& r) {
     fmt::print("  feed repaired {:.0f} .. {:.0f} mm/min\n", r.feed_repaired_min_mm_min, r.feed_repaired_max_mm_min);
     fmt::print("  position step {}\n", r.position_step_mm ? fmt::format("{:g} mm (as written)", *r.position_step_mm) : "unknown (too few moves)");
     fmt::print("  spindle max   {:.0f} rpm\n", r.spindle_max_rpm);
+    if (!r.rotary_axes.empty())
+        fmt::print("  rotary        {} (deg, unwrapped; predict --machine turns them into the tool's motion)\n",
+                   r.rotary_axes);
     if (r.commanded_positions) fmt::print("  commanded     the log also holds commanded positions (predict --commanded-from-log)\n");
     fmt::print("  warnings      {}\n", r.warnings.empty() ? "none" : "");
     for (const auto& w : r.warnings) fmt::print("    {}: {}\n", w.code, w.message);

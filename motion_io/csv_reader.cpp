@@ -19,6 +19,11 @@ namespace {
 
 using MC = MapChannel;
 
+constexpr MC kRotary[3] = {MC::A, MC::B, MC::C};
+// A logged angle beyond this is no axis position (a counter that overflowed, a wrong column): a
+// table turning 1000 rpm for ten hours reaches 2e8 deg when its display counts on.
+constexpr double kMaxAbsRotaryDeg = 1e9;
+
 std::string ascii_lower(std::string_view s) {
     std::string out(s);
     for (char& c : out)
@@ -147,6 +152,7 @@ private:
         }
         diag_.facts().commanded_positions = present(command);
         other_present_ = present(other_);
+        for (int k = 0; k < 3; ++k) diag_.facts().rotary[std::size_t(k)] = col(kRotary[k]).index >= 0;
 
         const bool has_time = col(MC::T).index >= 0 || col(MC::TPos).index >= 0;
         if (map_.sample_period_ms) {
@@ -266,8 +272,9 @@ private:
         row_records_.clear();
         Record r;
         r.line = line_no;
-        std::array<std::optional<double>, 3> p;
+        std::array<std::optional<double>, 3> p, rot;
         for (int k = 0; k < 3; ++k) p[k] = number(pos_[k], csv);
+        for (int k = 0; k < 3; ++k) rot[k] = number(kRotary[k], csv);
         if (p[0] || p[1] || p[2]) {
             if (!(p[0] && p[1] && p[2]))
                 diag_.fail(line_no, fmt::format("column '{}': empty while other axes are present",
@@ -282,10 +289,25 @@ private:
                     diag_.warn("out_of_range", line_no, fmt::format("position {:.10g} mm beyond +-{} mm", r.v[k],
                                                                     limits_.max_abs_position_mm));
             }
+            // One latch shows every axis: a rotary column of the log is part of each position reading.
+            for (int k = 0; k < 3; ++k) {
+                if (col(kRotary[k]).index < 0) continue;
+                if (!rot[k])
+                    diag_.fail(line_no, fmt::format("column '{}': empty while the linear axes are present",
+                                                    col(kRotary[k]).header));
+                if (!(std::fabs(*rot[k]) <= kMaxAbsRotaryDeg))   // NaN too
+                    diag_.fail(line_no, fmt::format("column '{}': {:.10g} deg beyond +-{:g} deg", col(kRotary[k]).header,
+                                                    *rot[k], kMaxAbsRotaryDeg));
+                r.rot_deg[k] = *rot[k];
+            }
             row_records_.push_back(r);
+        } else {
+            for (int k = 0; k < 3; ++k)
+                if (rot[k])
+                    diag_.fail(line_no, fmt::format("column '{}': a rotary position without the linear axes x, y, z",
+                                                    col(kRotary[k]).header));
         }
-        // Validated, not used here: rotary axes (not modelled yet) and the other position set.
-        for (MC c : {MC::A, MC::B, MC::C}) (void)number(c, csv);
+        // Validated, not used here: the other position set.
         if (other_present_)
             for (MC c : other_) (void)number(c, csv);
         if (const auto f = number(MC::Feed, csv)) {

@@ -35,6 +35,8 @@ public:
         m_.spindle_angle_deg.push_back(s.spindle_angle_deg);
         m_.block.push_back(s.block);
         m_.tool.push_back(s.tool);
+        for (std::size_t k = 0; k < 3; ++k)
+            if (s.rotary & (1u << k)) m_.rot_deg[k].push_back(s.rot_deg[k]), m_.rot_vel_deg_s[k].push_back(s.rot_vel_deg_s[k]);
     }
 
 private:

@@ -19,6 +19,7 @@ public:
         MotionState s;
         s.t_s = g.t_s;
         for (int k = 0; k < 3; ++k) s.pos_mm[k] = g.p_mm[k], s.vel_mm_s[k] = g.v_mm_s[k];
+        for (int k = 0; k < 3; ++k) s.rot_deg[k] = g.rot_deg[k], s.rot_vel_deg_s[k] = g.rot_vel_deg_s[k];
         s.spindle_rpm = g.spindle_rpm;
         s.spindle_angle_deg = g.spindle_angle_deg;
         s.block = g.block;

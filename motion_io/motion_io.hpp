@@ -94,6 +94,7 @@ struct IngestReport {
     std::optional<double> position_step_mm;
     double spindle_max_rpm = 0;
     bool commanded_positions = false;
+    std::string rotary_axes;                       // the rotary axes the log holds: "", "c", "ac", ...
     MotionExtent extent;                           // of the repaired motion (inspect too)
     std::vector<IngestWarning> warnings;
 };
@@ -137,8 +138,17 @@ struct MotionModel {
     // (a log without a tool channel, a model derived from one).
     std::vector<std::int32_t> tool;
     std::vector<std::size_t> session_start;          // always starts with 0 when non-empty
+    // Rotary axes A, B, C (index 0, 1, 2) as logged, in degrees, unwrapped (a table displayed 0 to
+    // 360 keeps counting past a turn), with their rates: each pair of vectors is empty when the log
+    // has no such axis, else as long as t_s. Resampled per axis like the linear ones (joint space:
+    // each servo interpolates its own axis). The engine does not read them: with a machine
+    // definition, app::workpiece_motion turns them and x, y, z into the tool's motion against the
+    // part (docs/five_axis.md, section 2.3).
+    std::array<std::vector<double>, 3> rot_deg;
+    std::array<std::vector<double>, 3> rot_vel_deg_s;
 
     std::size_t size() const { return t_s.size(); }
+    bool has_rotary(int axis) const { return !rot_deg[std::size_t(axis)].empty(); }
 };
 
 // One interpolated state; position and velocity come from a cubic Hermite interpolant (C1).
@@ -150,6 +160,8 @@ struct MotionState {
     double spindle_angle_deg = 0;
     std::int32_t block = -1;
     std::int32_t tool = -1;   // tool in the spindle; -1: no tool channel
+    double rot_deg[3] = {0, 0, 0};         // A, B, C; 0 where the model has no such axis
+    double rot_vel_deg_s[3] = {0, 0, 0};
 };
 
 // The model's extent, as the ingest that built it reported it (IngestReport::extent).
@@ -170,7 +182,7 @@ std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, con
 // The report as one JSON object: file, format, duration_s, sessions, blocks,
 // channels.<name>.{samples, interval_s.{min,median,max}, update_period_s, stale_dropped},
 // feed_mm_min.{raw,repaired}.{min,max}, position_step_mm (null: unknown), spindle_max_rpm,
-// commanded_positions, warnings[{code, count, message}].
+// commanded_positions, rotary_axes, warnings[{code, count, message}].
 nlohmann::json report_to_json(const IngestReport& report);
 
 }  // namespace cutload::motion_io

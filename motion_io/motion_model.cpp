@@ -27,6 +27,12 @@ MotionState sample_between(const MotionModel& m, std::size_t i, double t_s) {
     s.spindle_rpm = r0 + (r1 - r0) * u;
     const double dt = t_s - t0;
     s.spindle_angle_deg = m.spindle_angle_deg[i] + 6.0 * (r0 * dt + 0.5 * (r1 - r0) * u * dt);
+    for (std::size_t k = 0; k < 3; ++k) {
+        if (m.rot_deg[k].empty()) continue;
+        const HermiteSegment seg{m.rot_deg[k][i], m.rot_vel_deg_s[k][i], m.rot_deg[k][i + 1], m.rot_vel_deg_s[k][i + 1], h};
+        s.rot_deg[k] = seg.position(u);
+        s.rot_vel_deg_s[k] = seg.velocity(u);
+    }
     s.block = u < 0.5 ? m.block[i] : m.block[i + 1];
     if (i + 1 < m.tool.size()) s.tool = u < 0.5 ? m.tool[i] : m.tool[i + 1];
     return s;

@@ -28,6 +28,9 @@ struct Record {
     Chan ch = Chan::Pos;
     double v[3] = {0, 0, 0};
     std::int32_t block = -1;
+    // Pos: the rotary axes A, B, C latched with the linear ones, in degrees (0 where the log has
+    // no such axis: ReaderFacts::rotary).
+    double rot_deg[3] = {0, 0, 0};
     // The reading of this channel before it was dropped as a glitch (validate, drop_jumps): the
     // silence before this one is a lost reading, not a value held (stage hold).
     bool after_glitch = false;
@@ -71,7 +74,15 @@ struct ReaderFacts {
     PositionResolution resolution;
     double spindle_max_abs_rpm = 0;     // set by the validate stage: the fastest reading it passed on
     bool commanded_positions = false;   // commanded positions besides the actual ones
+    // Which rotary axes (A, B, C) the position readings carry; known before the first record.
+    std::array<bool, 3> rotary{false, false, false};
+    bool any_rotary() const { return rotary[0] || rotary[1] || rotary[2]; }
 };
+
+// Rotary axes count as motion of this many mm per degree where the ingest weighs them against the
+// linear axes (the clock stage's velocity jumps): a point 100 mm from the axis line (design
+// docs/five_axis.md, section 2.2: rho_ref = 100 mm/rad).
+inline constexpr double kRotaryMmPerDeg = 100.0 * 3.14159265358979323846 / 180.0;
 
 // Warnings are counted per code; the first occurrence keeps its place and wording.
 class Diagnostics {

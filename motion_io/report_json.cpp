@@ -38,6 +38,7 @@ nlohmann::json report_to_json(const IngestReport& r) {
             {"position_step_mm", r.position_step_mm ? nlohmann::json(*r.position_step_mm) : nlohmann::json(nullptr)},
             {"spindle_max_rpm", r.spindle_max_rpm},
             {"commanded_positions", r.commanded_positions},
+            {"rotary_axes", r.rotary_axes},
             {"warnings", warnings_json(r.warnings)}};
 }
 

@@ -99,6 +99,8 @@ void report_reader_facts(Diagnostics& diag, IngestReport& report) {
     const ReaderFacts& f = diag.facts();
     report.spindle_max_rpm = f.spindle_max_abs_rpm;
     report.commanded_positions = f.commanded_positions;
+    for (std::size_t k = 0; k < 3; ++k)
+        if (f.rotary[k]) report.rotary_axes += char('a' + k);
     const auto step = f.resolution.step();
     if (!step) return;
     // Rounded to the printed place, so 1 mm reads 1 and not 0.99999999.

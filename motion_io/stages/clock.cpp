@@ -1,5 +1,7 @@
 #include "stages/clock.hpp"
 
+#include "pipeline.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,9 +10,10 @@
 namespace cutload::motion_io::detail {
 namespace {
 
-bool moved(const PosRead& a, const PosRead& b) {
-    return a.p_mm[0] != b.p_mm[0] || a.p_mm[1] != b.p_mm[1] || a.p_mm[2] != b.p_mm[2];
-}
+// Velocities in joint space: x, y, z in mm/s, then A, B, C as mm/s at kRotaryMmPerDeg, so a pure
+// rotary move has a velocity to judge. Without rotary axes the last three are 0 and every sum
+// below is what it was over x, y, z alone, bit for bit.
+constexpr int kJointDims = 6;
 
 // Where a reading lies on the grid: its tick index (period > 0), or its own time stamp (no grid).
 // Indices, not tick times: the interval between two readings is then a whole number of periods
@@ -25,14 +28,15 @@ double tick_interval(double cur, double prev, double period_s) {
     return period_s > 0 ? period_s * (cur - prev) : cur - prev;
 }
 
-void velocity(const PosRead& a, const PosRead& b, double dg, double v[3]) {
+void velocity(const PosRead& a, const PosRead& b, double dg, double v[kJointDims]) {
     for (int ax = 0; ax < 3; ++ax) v[ax] = (b.p_mm[ax] - a.p_mm[ax]) / dg;
+    for (int ax = 0; ax < 3; ++ax) v[3 + ax] = (b.rot_deg[ax] - a.rot_deg[ax]) * kRotaryMmPerDeg / dg;
 }
 
 // |v - pv|^2 / (|v|^2 + |pv|^2): 0 for a steady velocity, up to 2 for a reversal.
-double velocity_jump(const double v[3], const double pv[3]) {
+double velocity_jump(const double v[kJointDims], const double pv[kJointDims]) {
     double dv2 = 0, s2 = 0;
-    for (int ax = 0; ax < 3; ++ax) {
+    for (int ax = 0; ax < kJointDims; ++ax) {
         dv2 += (v[ax] - pv[ax]) * (v[ax] - pv[ax]);
         s2 += v[ax] * v[ax] + pv[ax] * pv[ax];
     }
@@ -254,7 +258,7 @@ double tick_at_or_before(double t_s, double period_s, double phase_s) {
 double tick_roughness(const PosRead* r, std::size_t n, double period_s, double phase_s, std::size_t* pairs_out) {
     RoughnessSum sum;
     bool have_v = false;
-    double pv[3] = {0, 0, 0};
+    double pv[kJointDims] = {0, 0, 0, 0, 0, 0};
     double prev = n ? tick_position(r[0].t_s, period_s, phase_s) : 0;
     for (std::size_t k = 1; k < n; ++k) {
         const double cur = tick_position(r[k].t_s, period_s, phase_s);
@@ -269,10 +273,10 @@ double tick_roughness(const PosRead* r, std::size_t n, double period_s, double p
             have_v = false;
             continue;
         }
-        double v[3];
+        double v[kJointDims];
         velocity(r[k - 1], r[k], dg, v);
         if (have_v) sum.add(velocity_jump(v, pv), 1);
-        std::copy(v, v + 3, pv);
+        std::copy(v, v + kJointDims, pv);
         have_v = true;
     }
     if (pairs_out) *pairs_out = sum.pairs;
@@ -324,7 +328,7 @@ public:
             if (drop_at_[k] < phases) order_[fill_[static_cast<std::size_t>(drop_at_[k])]++] = k;
 
         moving_.assign(n, 0), ahead_.assign(n, 0), counted_.assign(n, 0);
-        v_.assign(3 * n, 0.0), term_.assign(n, 0.0);
+        v_.assign(kJointDims * n, 0.0), term_.assign(n, 0.0);
         for (std::size_t k = 1; k < n; ++k) moving_[k] = moved(r[k - 1], r[k]), update_pair(k);
         for (std::size_t k = 1; k < n; ++k) update_term(k);
         RoughnessSum exact = ordered_sum();
@@ -375,14 +379,14 @@ private:
     void update_pair(std::size_t k) {
         const double dg = tick_interval(idx_[k], idx_[k - 1], period_s_);
         ahead_[k] = dg > 0;
-        if (moving_[k] && ahead_[k]) velocity(r_[k - 1], r_[k], dg, &v_[3 * k]);
+        if (moving_[k] && ahead_[k]) velocity(r_[k - 1], r_[k], dg, &v_[kJointDims * k]);
     }
     // Pair k's term of tick_roughness's sum: none when it did not move or the pair before did not
     // give a velocity, 1 for two positions on one tick.
     void update_term(std::size_t k) {
         if (!moving_[k]) term_[k] = 0, counted_[k] = 0;
         else if (!ahead_[k]) term_[k] = 1.0, counted_[k] = 1;
-        else if (k >= 2 && moving_[k - 1] && ahead_[k - 1]) term_[k] = velocity_jump(&v_[3 * k], &v_[3 * (k - 1)]), counted_[k] = 1;
+        else if (k >= 2 && moving_[k - 1] && ahead_[k - 1]) term_[k] = velocity_jump(&v_[kJointDims * k], &v_[kJointDims * (k - 1)]), counted_[k] = 1;
         else term_[k] = 0, counted_[k] = 0;
     }
     RoughnessSum ordered_sum() const {

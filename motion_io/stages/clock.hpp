@@ -16,7 +16,15 @@ namespace cutload::motion_io::detail {
 struct PosRead {
     double t_s = 0;
     double p_mm[3] = {0, 0, 0};
+    double rot_deg[3] = {0, 0, 0};   // A, B, C (0 where the log has none)
 };
+
+// Whether any axis, linear or rotary, differs between two readings.
+inline bool moved(const PosRead& a, const PosRead& b) {
+    for (int k = 0; k < 3; ++k)
+        if (a.p_mm[k] != b.p_mm[k] || a.rot_deg[k] != b.rot_deg[k]) return true;
+    return false;
+}
 
 // The tick at or before t on the grid phase + k * period (period 0: t itself, no grid).
 double tick_at_or_before(double t_s, double period_s, double phase_s);

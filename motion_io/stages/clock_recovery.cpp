@@ -19,14 +19,17 @@ constexpr int kCalibrationAttempts = 3;
 // CNC keeps its update period, so later sessions take the period an earlier one found.
 constexpr std::size_t kMaxPeriodScans = 8;
 
-bool same_position(const PosRead& a, const PosRead& b) {
-    return a.p_mm[0] == b.p_mm[0] && a.p_mm[1] == b.p_mm[1] && a.p_mm[2] == b.p_mm[2];
-}
-
 std::size_t moving_pairs(const std::vector<PosRead>& r) {
     std::size_t c = 0;
-    for (std::size_t k = 1; k < r.size(); ++k) c += !same_position(r[k - 1], r[k]);
+    for (std::size_t k = 1; k < r.size(); ++k) c += moved(r[k - 1], r[k]);
     return c;
+}
+
+PosRead as_read(const Tick& t) {
+    PosRead r;
+    std::copy(t.p_mm, t.p_mm + 3, r.p_mm);
+    std::copy(t.rot_deg, t.rot_deg + 3, r.rot_deg);
+    return r;
 }
 
 }  // namespace
@@ -51,6 +54,7 @@ void ClockRecovery::record(const Record& r) {
     PosRead read;
     read.t_s = r.t_s - origin_s_;
     std::copy(r.v, r.v + 3, read.p_mm);
+    std::copy(r.rot_deg, r.rot_deg + 3, read.rot_deg);
     pending_.push_back(read);
     pending_stamp_s_.push_back(r.t_s);
     // Without a grid a reading's time is its own stamp, so batching would only delay it (a live
@@ -76,7 +80,7 @@ bool ClockRecovery::calibrate(bool final) {
         ++calibration_attempts_;
         // Calibrate on the moving stretch, starting one reading before its first move.
         std::size_t first = 1;
-        while (first < pending_.size() && same_position(pending_[first - 1], pending_[first])) ++first;
+        while (first < pending_.size() && !moved(pending_[first - 1], pending_[first])) ++first;
         const std::size_t begin = first - 1, end = std::min(pending_.size(), begin + kCalibrationReads);
         const std::vector<PosRead> stretch(pending_.begin() + static_cast<long>(begin),
                                            pending_.begin() + static_cast<long>(end));
@@ -133,7 +137,7 @@ void ClockRecovery::time_chunk(std::size_t s, std::size_t e) {
         const double ramp = ref_step * static_cast<double>(k - s + 1) / static_cast<double>(e - s);
         // Without a grid a reading keeps its own stamp, exactly (not origin + (stamp - origin)).
         add_tick(tick_of(k) + shift + ramp, period_s_ > 0 ? std::nullopt : std::optional(pending_stamp_s_[k]),
-                 pending_[k].p_mm);
+                 pending_[k]);
         last_committed_ = pending_[k];
     }
 }
@@ -177,24 +181,27 @@ double ClockRecovery::tick_of(std::size_t k) const {
         double m2 = 0;
         for (int ax = 0; ax < 3; ++ax) {
             const double d = r.p_mm[ax] - (a.p_mm[ax] + (b.p_mm[ax] - a.p_mm[ax]) * u);
-            m2 += d * d;
+            const double d_rot = r.rot_deg[ax] - (a.rot_deg[ax] + (b.rot_deg[ax] - a.rot_deg[ax]) * u);
+            m2 += d * d + (d_rot * kRotaryMmPerDeg) * (d_rot * kRotaryMmPerDeg);
         }
         return m2;
     };
     return miss(alt) < miss(g) ? alt : g;
 }
 
-void ClockRecovery::add_tick(double t_s, std::optional<double> stamp_s, const double p[3]) {
+void ClockRecovery::add_tick(double t_s, std::optional<double> stamp_s, const PosRead& r) {
+    const double* p = r.p_mm;
     // Without a grid the stamps themselves are compared: two stamps a rounding apart stay apart.
     if (last_tick_ && (stamp_s ? *stamp_s <= last_tick_stamp_s_ : t_s <= last_tick_->t_s)) {
         Tick& last = *last_tick_;
-        if (last.p_mm[0] == p[0] && last.p_mm[1] == p[1] && last.p_mm[2] == p[2]) return;  // same tick read twice
+        if (!moved(as_read(last), r)) return;  // same tick read twice
         if (period_s_ > 0) {
             // Two positions on one tick: the later reading saw the next update.
             t_s = last.t_s + period_s_;
         } else {
             diag_.warn("duplicate_time", 0, "two different positions with the same time stamp; the later kept");
             std::copy(p, p + 3, last.p_mm);
+            std::copy(r.rot_deg, r.rot_deg + 3, last.rot_deg);
             Tick replace = last;
             replace.t_s = last_tick_stamp_s_;
             replace.replaces_previous = true;
@@ -205,6 +212,7 @@ void ClockRecovery::add_tick(double t_s, std::optional<double> stamp_s, const do
     Tick k;
     k.t_s = t_s;
     std::copy(p, p + 3, k.p_mm);
+    std::copy(r.rot_deg, r.rot_deg + 3, k.rot_deg);
     k.period_s = period_s_;
     last_tick_ = k;
     k.t_s = stamp_s ? *stamp_s : origin_s_ + t_s;

@@ -48,7 +48,7 @@ private:
     double wrap_half_period(double d) const;
     void follow_phase();
     // t_s since the origin; stamp_s: the reading's own stamp, emitted as it is (no grid).
-    void add_tick(double t_s, std::optional<double> stamp_s, const double p[3]);
+    void add_tick(double t_s, std::optional<double> stamp_s, const PosRead& r);
 
     Diagnostics& diag_;
     bool event_driven_;

@@ -17,18 +17,24 @@ Resample::Resample(Diagnostics& diag, double step_s) : Stage("resample"), diag_(
     batch_.reserve(kMaxBatch);
 }
 
+void Resample::knot(const Knot& k) {
+    if (!prev_) {
+        // The readers know the log's axes before its first reading.
+        rotary_mask_ = 0;
+        for (std::size_t a = 0; a < 3; ++a)
+            if (diag_.facts().rotary[a]) rotary_mask_ |= std::uint8_t(1u << a);
+    }
+    if (prev_) emit_until(*prev_, k, false);
+    before_prev_ = prev_;
+    prev_ = k;
+}
+
 void Resample::begin_session() {
     prev_.reset();
     before_prev_.reset();
     have_grid_ = false;
     grid_i_ = 0;
     emit_begin_session();
-}
-
-void Resample::knot(const Knot& k) {
-    if (prev_) emit_until(*prev_, k, false);
-    before_prev_ = prev_;
-    prev_ = k;
 }
 
 void Resample::end_session(SessionSummary& s) {
@@ -53,10 +59,14 @@ void Resample::emit_until(const Knot& a, const Knot& b, bool include_end) {
         const double u = std::clamp((t - a.t_s) / h, 0.0, 1.0);
         GridSample s;
         s.t_s = t;
+        s.rotary = rotary_mask_;
         for (int ax = 0; ax < 3; ++ax) {
             const HermiteSegment seg{a.p_mm[ax], a.v_mm_s[ax], b.p_mm[ax], b.v_mm_s[ax], h};
             s.p_mm[ax] = seg.position(u);
             s.v_mm_s[ax] = seg.velocity(u);
+            const HermiteSegment rot{a.rot_deg[ax], a.rot_vel_deg_s[ax], b.rot_deg[ax], b.rot_vel_deg_s[ax], h};
+            s.rot_deg[ax] = rot.position(u);
+            s.rot_vel_deg_s[ax] = rot.velocity(u);
         }
         note_feed(s);
         batch_.push_back(s);

@@ -35,6 +35,7 @@ private:
     double step_s_;
     // ---- per session ----
     std::optional<Knot> prev_, before_prev_;   // the last segment
+    std::uint8_t rotary_mask_ = 0;             // GridSample::rotary
     bool have_grid_ = false;
     double grid_t0_ = 0;
     std::size_t grid_i_ = 0;

@@ -47,6 +47,7 @@ constexpr Flow session_flow(Chan ch) {
 struct Tick {
     double t_s = 0;
     double p_mm[3] = {0, 0, 0};
+    double rot_deg[3] = {0, 0, 0};   // A, B, C (0 where the log has none)
     double period_s = 0;             // the CNC period the tick was timed with (0: own time stamp)
     bool replaces_previous = false;  // same time stamp as the previous tick and no CNC grid to
                                      // separate them: its position replaces the previous one's
@@ -57,12 +58,17 @@ struct Knot {
     double t_s = 0;
     double p_mm[3] = {0, 0, 0};
     double v_mm_s[3] = {0, 0, 0};
+    double rot_deg[3] = {0, 0, 0};
+    double rot_vel_deg_s[3] = {0, 0, 0};
 };
 
 struct GridSample {
     double t_s = 0;
     double p_mm[3] = {0, 0, 0};
     double v_mm_s[3] = {0, 0, 0};
+    double rot_deg[3] = {0, 0, 0};
+    double rot_vel_deg_s[3] = {0, 0, 0};
+    std::uint8_t rotary = 0;   // bit k: the log has rotary axis k (A, B, C)
     double spindle_rpm = 0;
     double spindle_angle_deg = 0;
     std::int32_t block = -1;

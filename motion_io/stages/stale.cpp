@@ -3,7 +3,12 @@
 namespace cutload::motion_io::detail {
 namespace {
 
-bool same_position(const Record& a, const Record& b) { return a.v[0] == b.v[0] && a.v[1] == b.v[1] && a.v[2] == b.v[2]; }
+// Every axis, rotary ones too: a table turning while X, Y, Z stand still is no repeat.
+bool same_position(const Record& a, const Record& b) {
+    for (int k = 0; k < 3; ++k)
+        if (a.v[k] != b.v[k] || a.rot_deg[k] != b.rot_deg[k]) return false;
+    return true;
+}
 
 }  // namespace
 

@@ -7,6 +7,7 @@
 #include "stages/spindle.hpp"
 #include "stages/stale.hpp"
 #include "stages/survey.hpp"
+#include "stages/unwrap.hpp"
 #include "stages/velocity.hpp"
 
 namespace cutload::motion_io::detail {
@@ -15,6 +16,7 @@ std::unique_ptr<StageChain> make_ingest_chain(Diagnostics& diag, GridSink& sink,
     auto chain = std::make_unique<StageChain>(sink);
     chain->append(std::make_unique<Validate>(diag, s.physical));
     chain->append(std::make_unique<Sequence>(diag, s.limits));
+    chain->append(std::make_unique<UnwrapRotary>(diag.facts()));
     chain->append(std::make_unique<DropJumps>(diag, s.jumps));
     // An event-driven log sends changes only: silences mean "held", and nothing is read twice.
     if (s.event_driven) chain->append(std::make_unique<HoldValues>());

@@ -67,10 +67,10 @@ void push_move(detail::StageChain& chain, int rows) {
 
 TEST_CASE("chain: the standard stages in order, polled and event-driven", "[chain]") {
     Fixture f;
-    CHECK(standard(f, false)->names() == std::vector<std::string>{"validate", "sequence", "drop_jumps", "survey",
+    CHECK(standard(f, false)->names() == std::vector<std::string>{"validate", "sequence", "unwrap", "drop_jumps", "survey",
                                                                    "stale_repeats", "clock", "velocity", "resample",
                                                                    "spindle_angle", "blocks"});
-    CHECK(standard(f, true)->names() == std::vector<std::string>{"validate", "sequence", "drop_jumps", "hold", "survey",
+    CHECK(standard(f, true)->names() == std::vector<std::string>{"validate", "sequence", "unwrap", "drop_jumps", "hold", "survey",
                                                                   "clock", "velocity", "resample", "spindle_angle",
                                                                   "blocks"});
 }
@@ -105,7 +105,7 @@ TEST_CASE("chain: an inserted stage gets only the kinds it accepts, the others b
     auto grid = std::make_unique<GridTap>();
     GridTap* g = grid.get();
     chain->insert_after("blocks", std::move(grid));
-    CHECK(chain->names()[5] == "tap");
+    CHECK(chain->names()[6] == "tap");
     push_move(*chain, 50);
     CHECK(t->positions == 50);
     CHECK(t->other_channels == 0);   // spindle and block readings went around it
