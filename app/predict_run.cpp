@@ -1,4 +1,5 @@
 #include "app/predict_run.hpp"
+#include "app/workpiece_motion.hpp"
 
 #include "tracker.hpp"
 
@@ -41,6 +42,20 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
     // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
     r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
+    if (in.machine) {
+        if (in.program || in.commanded_from_log)
+            throw InputError("machine", "a machine definition cannot be combined with an NC program or the log's "
+                                        "commanded path yet: predict the log alone");
+        try {
+            r.motion = workpiece_motion(r.motion, *in.machine, in.tool_length_mm);
+        } catch (const WorkpieceMotionError& e) {
+            throw InputError("machine", e.what());
+        }
+    } else if (!r.ingest.rotary_axes.empty()) {
+        r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
+                                         "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
+                                         r.ingest.rotary_axes));
+    }
 
     // Before predicting: a log without the program's block names takes them by mapping.
     if (in.program) {

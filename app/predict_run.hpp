@@ -15,10 +15,15 @@
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
 #include <vector>
+
+namespace cutload::machine {
+struct Machine;   // machine/machine.hpp (kept out of this header: front ends need not see Eigen)
+}
 
 namespace cutload::app {
 
@@ -43,7 +48,17 @@ struct RunInput {
     // False when nothing will use RunResult's final stocks (no --save-stock): a GPU then reads none
     // of the stock back.
     bool keep_final_stock = true;
+    // The machine the log was recorded on (five-axis, docs/five_axis.md): its axes then go
+    // through forward kinematics (workpiece_motion.hpp) before the engine; tool_length_mm is the
+    // gauge point to the tip. Absent: the log's x, y, z are the tool tip, as on a three-axis machine.
+    std::shared_ptr<const machine::Machine> machine;
+    double tool_length_mm = 0;
 };
+
+// A machine definition file (docs/machines.md), with the errors of an errors file when one is
+// given; a bad file is an InputError("machine" or "machine_errors") whose message names the key.
+std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path,
+                                                               const std::string& errors_path = "");
 
 struct RunResult {
     motion_io::MotionModel motion;               // the repaired log; blocks named after the program's when mapped

@@ -14,7 +14,8 @@ namespace cutload::cli {
 namespace {
 
 struct PredictArgs {
-    std::string log, spec, out, blocks, device = "auto", start_stock, save_stock;
+    std::string log, spec, out, blocks, device = "auto", start_stock, save_stock, machine, machine_errors;
+    double tool_length_mm = 0;
     bool quiet = false;
     double step_ms = motion_io::ReadOptions{}.step_ms;
     app::LogFormat format;
@@ -39,6 +40,8 @@ void run_predict(const PredictArgs& a) {
     in.device = choose_device(a.device);
     in.limits = a.limits;
     in.keep_final_stock = !a.save_stock.empty();
+    if (!a.machine.empty()) in.machine = app::load_machine_definition(a.machine, a.machine_errors);
+    in.tool_length_mm = a.tool_length_mm;
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
     const std::unique_ptr<force_model::ForcesWriter> forces = force_model::open_forces_writer(a.out);
@@ -112,6 +115,15 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--save-stock", a->save_stock, "Save the final in-process stock (binary) for a later run");
     cmd->add_option("--step-ms", a->step_ms, "Resampling step of the motion model in ms (0.01 to 1000)")
         ->check(CLI::Range(0.01, 1000.0))
+        ->capture_default_str();
+    cmd->add_option("--machine", a->machine,
+                    "Machine definition (JSON, docs/machines.md): the log's x, y, z and a, b, c are its axes, turned "
+                    "into the tool's motion against the part (five-axis; the tool must stay vertical to the stock)")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--machine-errors", a->machine_errors, "Geometric errors of the --machine (JSON, docs/machines.md)")
+        ->check(CLI::ExistingFile);
+    cmd->add_option("--tool-length-mm", a->tool_length_mm, "With --machine: gauge point to tool tip in mm")
+        ->check(CLI::Range(0.0, 1000.0))
         ->capture_default_str();
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_work_limit_options(*cmd, a->limits.max_force_rows, a->limits.max_stock_cells, a->limits.max_job_memory_mb);

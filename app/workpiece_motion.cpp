@@ -1,0 +1,143 @@
+#include "app/workpiece_motion.hpp"
+
+#include "app/inputs.hpp"
+#include "app/predict_run.hpp"
+#include "machine/kinematics.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace cutload::app {
+
+namespace {
+
+// Where each axis of the chain reads its position in the motion model.
+struct AxisSource {
+    const std::vector<double>* position = nullptr;
+    const std::vector<double>* rate = nullptr;
+};
+
+int rotary_index(const std::string& channel) {
+    if (channel.size() == 1) {
+        const char c = char(std::tolower(static_cast<unsigned char>(channel[0])));
+        if (c >= 'a' && c <= 'c') return c - 'a';
+    }
+    return -1;
+}
+
+std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const machine::Machine& machine) {
+    std::vector<AxisSource> out;
+    for (const machine::Axis& a : machine.chain) {
+        AxisSource s;
+        if (!a.rotary()) {
+            switch (a.name) {
+                case 'X': s = {&m.x_mm, &m.vx_mm_s}; break;
+                case 'Y': s = {&m.y_mm, &m.vy_mm_s}; break;
+                case 'Z': s = {&m.z_mm, &m.vz_mm_s}; break;
+                default:
+                    throw WorkpieceMotionError(fmt::format("machine {}: linear axis {} has no channel in a log (x, y, z only)",
+                                                           machine.name, a.name));
+            }
+        } else {
+            const std::string channel = a.channel.empty() ? std::string(1, char(std::tolower(a.name))) : a.channel;
+            const int k = rotary_index(channel);
+            if (k < 0)
+                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} reads channel '{}', which a log cannot "
+                                                       "hold (a, b or c)",
+                                                       machine.name, a.name, channel));
+            if (!m.has_rotary(k))
+                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} needs column '{}' in the log, which has "
+                                                       "none",
+                                                       machine.name, a.name, channel));
+            s = {&m.rot_deg[std::size_t(k)], &m.rot_vel_deg_s[std::size_t(k)]};
+        }
+        out.push_back(s);
+    }
+    return out;
+}
+
+// Angle of the tool frame's x about the workpiece's +Z (the tool axis is vertical), in degrees.
+double frame_turn_deg(const machine::ToolPose& pose) {
+    const Eigen::Matrix3d& R = pose.tool_to_workpiece.R;
+    return std::atan2(R(1, 0), R(0, 0)) * 180.0 / std::numbers::pi;
+}
+
+}  // namespace
+
+motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
+                                        double tool_length_mm) {
+    const std::vector<AxisSource> sources = axis_sources(axes, machine);
+    const std::size_t n = axes.size();
+    motion_io::MotionModel out;
+    out.step_s = axes.step_s;
+    out.t_s = axes.t_s;
+    out.spindle_rpm = axes.spindle_rpm;
+    out.block = axes.block;
+    out.block_names = axes.block_names;
+    out.tool = axes.tool;
+    out.session_start = axes.session_start;
+    out.x_mm.resize(n), out.y_mm.resize(n), out.z_mm.resize(n);
+    out.vx_mm_s.resize(n), out.vy_mm_s.resize(n), out.vz_mm_s.resize(n);
+    out.spindle_angle_deg.resize(n);
+
+    // The derivative along the axes' rates by a central difference over +-h of time: the chain
+    // is smooth, so the error (h^2 times the third derivative) is far below a micrometre per second.
+    constexpr double h_s = 1e-4;
+    machine::AxisPositions q, q_lo, q_hi;
+    double home_turn_deg = 0, last_turn_deg = 0, unwrapped_turn_deg = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        for (std::size_t k = 0; k < sources.size(); ++k) {
+            const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
+            q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
+        }
+        const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
+        const Eigen::Vector3d axis = pose.axis();
+        const double tilt_rad = std::atan2(std::hypot(axis.x(), axis.y()), axis.z());
+        if (!(tilt_rad <= kVerticalToleranceRad))
+            throw WorkpieceMotionError(fmt::format(
+                "at t = {:.4f} s the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
+                "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
+                axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi));
+        const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
+        const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
+        const Eigen::Vector3d tip = pose.tip_mm(), v = (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);
+        out.x_mm[i] = tip.x(), out.y_mm[i] = tip.y(), out.z_mm[i] = tip.z();
+        out.vx_mm_s[i] = v.x(), out.vy_mm_s[i] = v.y(), out.vz_mm_s[i] = v.z();
+
+        // The cutter's angle against the part: the spindle's, less the tool frame's own turn since
+        // the first sample (unwrapped), so a machine at rest reads as a three-axis one.
+        const double turn = frame_turn_deg(pose);
+        if (i == 0) {
+            home_turn_deg = last_turn_deg = unwrapped_turn_deg = turn;
+        } else {
+            unwrapped_turn_deg += std::remainder(turn - last_turn_deg, 360.0);
+            last_turn_deg = turn;
+        }
+        out.spindle_angle_deg[i] = axes.spindle_angle_deg[i] - (unwrapped_turn_deg - home_turn_deg);
+        // A stopped spindle stays stopped (the engine flags it in material), whatever the table does.
+        const double turn_rate_deg_s = std::remainder(frame_turn_deg(hi) - frame_turn_deg(lo), 360.0) / (2 * h_s);
+        if (std::abs(axes.spindle_rpm[i]) >= 1) out.spindle_rpm[i] = axes.spindle_rpm[i] - turn_rate_deg_s / 6.0;
+    }
+    return out;
+}
+
+std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
+    auto m = std::make_shared<machine::Machine>();
+    try {
+        *m = machine::load_machine(path);
+    } catch (const std::exception& e) {
+        throw InputError("machine", e.what());
+    }
+    if (!errors_path.empty()) {
+        try {
+            machine::load_errors(*m, errors_path);
+        } catch (const std::exception& e) {
+            throw InputError("machine_errors", e.what());
+        }
+    }
+    return m;
+}
+
+}  // namespace cutload::app

@@ -1,0 +1,46 @@
+// A log of machine axes turned into the tool's motion relative to the workpiece, through a machine
+// definition (machine/, docs/machines.md): the first step of five-axis dry runs
+// (docs/five_axis.md, section 2.3).
+//
+// At every sample of the repaired motion the axes (X, Y, Z from the log's linear channels, A, B,
+// C from its rotary ones) go through forward kinematics, with the machine's geometric errors: the
+// tool tip in workpiece coordinates becomes the sample's position, and its velocity the
+// derivative of that tip along the axes' own rates (joint space: each servo interpolates its own
+// axis), so a turning table feeds the tool with every linear axis still. The spindle angle is
+// referred to the workpiece too: the cutter's angle relative to the part is the spindle's angle
+// less the turn of the tool frame about its axis (so a C table turning at 30 deg/s under a spindle
+// at 10 000 rpm shows 10 005 rpm against the part, or 9 995, by its sense). The engine then walks
+// this motion as it walks a three-axis one.
+//
+// What the engine cannot take yet is refused, never approximated: a tool axis tilted away from
+// the stock's +Z (that needs the multi-direction stock, docs/five_axis.md section 3).
+#pragma once
+
+#include "machine/machine.hpp"
+#include "motion_io/motion_io.hpp"
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace cutload::app {
+
+// A log that does not fit the machine, or a pose the engine cannot take; the message says what,
+// and where (the axis and channel, or the time of the sample).
+class WorkpieceMotionError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+// The tool axis may lean this far from the stock's +Z and still count as vertical (rounding of
+// the kinematics, not a tilt).
+inline constexpr double kVerticalToleranceRad = 1e-9;
+
+// `axes`: the repaired log in machine axes (motion_io::ingest). `tool_length_mm`: gauge point to
+// tip along the spindle axis. Each rotary axis of the machine needs its channel in the log
+// (Axis::channel, "a", "b" or "c"); a rotary channel the machine lacks is left out (the caller
+// warns). Blocks, tools, sessions and spindle speeds carry over.
+motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
+                                        double tool_length_mm);
+
+}  // namespace cutload::app

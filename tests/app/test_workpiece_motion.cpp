@@ -1,0 +1,173 @@
+// A log of machine axes through a machine definition into the tool's motion against the part
+// (app/workpiece_motion.hpp, docs/five_axis.md section 2.3), checked against closed forms: a table
+// turning under a standing tool feeds it at omega times its distance from the C line (test T2),
+// the spindle speed against the part is the spindle's less the table's turn, a path commanded
+// through a turned table is the same path and gives the same forces as the three-axis run, and a
+// tilted tool or a missing channel is refused.
+#include "app/predict_run.hpp"
+#include "app/workpiece_motion.hpp"
+#include "force_model/engine_fixtures.hpp"
+#include "machine/kinematics.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+
+using namespace cutload;
+
+namespace {
+
+std::shared_ptr<const machine::Machine> ac_table_table() {
+    return app::load_machine_definition(std::string(CUTLOAD_SOURCE_DIR) + "/data/machines/ac_table_table.json");
+}
+
+// The bundled AC machine's C line passes through (-350, -275) at home.
+constexpr double kCx = -350, kCy = -275;
+
+// Machine axes held at x, y, z with A at a_deg and C turning at c_rate_deg_s from c0_deg; 1 ms
+// samples, spindle at 10 000 rpm (M03).
+motion_io::MotionModel table_turn(double x, double y, double z, double a_deg, double c0_deg, double c_rate_deg_s,
+                                  double duration_s = 0.5) {
+    motion_io::MotionModel m;
+    m.step_s = 0.001;
+    const auto n = std::size_t(std::lround(duration_s / m.step_s)) + 1;
+    m.block_names = {"N10"};
+    for (std::size_t i = 0; i < n; ++i) {
+        const double t = double(i) * m.step_s;
+        m.t_s.push_back(t);
+        m.x_mm.push_back(x), m.y_mm.push_back(y), m.z_mm.push_back(z);
+        m.vx_mm_s.push_back(0), m.vy_mm_s.push_back(0), m.vz_mm_s.push_back(0);
+        m.spindle_rpm.push_back(10000);
+        m.spindle_angle_deg.push_back(60000 * t);
+        m.block.push_back(0);
+        m.rot_deg[0].push_back(a_deg), m.rot_vel_deg_s[0].push_back(0);
+        m.rot_deg[2].push_back(c0_deg + c_rate_deg_s * t), m.rot_vel_deg_s[2].push_back(c_rate_deg_s);
+    }
+    m.session_start = {0};
+    return m;
+}
+
+}  // namespace
+
+TEST_CASE("workpiece motion: a C table turning 30 deg/s feeds a tool 100 mm off its line at 3141.6 mm/min",
+          "[five_axis][workpiece_motion]") {
+    const auto machine = ac_table_table();
+    const double z = -400;
+    const motion_io::MotionModel axes = table_turn(kCx + 100, kCy, z, 0, 0, 30);
+    const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, 0);
+    REQUIRE(w.size() == axes.size());
+    const double expected_mm_min = 100 * 30 * std::numbers::pi / 180 * 60;   // 3141.59 mm/min
+    for (std::size_t i = 0; i < w.size(); i += 50) {
+        INFO("t = " << w.t_s[i]);
+        const double speed_mm_min = std::hypot(w.vx_mm_s[i], w.vy_mm_s[i], w.vz_mm_s[i]) * 60;
+        CHECK(speed_mm_min == Approx(expected_mm_min).epsilon(1e-6));
+        // On the circle of radius 100 about the C line, at the table's height.
+        CHECK(std::hypot(w.x_mm[i] - kCx, w.y_mm[i] - kCy) == Approx(100).epsilon(1e-12));
+        CHECK(w.z_mm[i] == Approx(z).margin(1e-9));
+        // Tangent to the circle: no radial component.
+        CHECK(((w.x_mm[i] - kCx) * w.vx_mm_s[i] + (w.y_mm[i] - kCy) * w.vy_mm_s[i]) == Approx(0).margin(1e-6));
+        // +C turns the tool right-handed about +Z relative to the part (ISO 841), against the
+        // clockwise (M03) cutter: 30 deg/s takes 5 rpm off its speed against the part.
+        CHECK(w.spindle_rpm[i] == Approx(9995).epsilon(1e-12));
+    }
+    // The angle against the part changes at the speed against the part.
+    const double rate_rpm = (w.spindle_angle_deg.back() - w.spindle_angle_deg.front()) / (w.t_s.back() - w.t_s.front()) / 6;
+    CHECK(rate_rpm == Approx(w.spindle_rpm[w.size() / 2]).epsilon(1e-9));
+    // ISO 841: a positive C move turns the tool right-handed about +Z relative to the part, so the
+    // tip runs counter-clockwise round the C line (the table itself turns clockwise).
+    const double cross_z = (w.x_mm[0] - kCx) * w.vy_mm_s[0] - (w.y_mm[0] - kCy) * w.vx_mm_s[0];
+    CHECK(cross_z > 0);
+}
+
+TEST_CASE("workpiece motion: a machine at rest in its home orientation is the three-axis motion",
+          "[five_axis][workpiece_motion]") {
+    const auto machine = ac_table_table();
+    const motion_io::MotionModel axes = table_turn(-120.5, -40.25, -300, 0, 0, 0);
+    const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, 0);
+    for (std::size_t i = 0; i < w.size(); ++i) {
+        CHECK(w.x_mm[i] == Approx(axes.x_mm[i]).margin(1e-9));
+        CHECK(w.y_mm[i] == Approx(axes.y_mm[i]).margin(1e-9));
+        CHECK(w.z_mm[i] == Approx(axes.z_mm[i]).margin(1e-9));
+        CHECK(w.spindle_angle_deg[i] == axes.spindle_angle_deg[i]);
+        CHECK(w.spindle_rpm[i] == axes.spindle_rpm[i]);
+    }
+}
+
+TEST_CASE("workpiece motion: a tilted tool and a missing rotary channel are refused, naming what and where",
+          "[five_axis][workpiece_motion][errors]") {
+    const auto machine = ac_table_table();
+    try {
+        app::workpiece_motion(table_turn(-200, -200, -300, -10, 0, 0), *machine, 0);
+        FAIL("a tool tilted by A = -10 deg was taken");
+    } catch (const app::WorkpieceMotionError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("t = 0.0000 s") && Catch::Contains("leans 10 deg") &&
+                                 Catch::Contains("multi-direction stock"));
+    }
+    motion_io::MotionModel no_c = table_turn(-200, -200, -300, 0, 0, 0);
+    no_c.rot_deg[2].clear(), no_c.rot_vel_deg_s[2].clear();
+    try {
+        app::workpiece_motion(no_c, *machine, 0);
+        FAIL("a log without C was taken for an AC machine");
+    } catch (const app::WorkpieceMotionError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("rotary axis C") && Catch::Contains("column 'c'"));
+    }
+    CHECK_THROWS_WITH(app::load_machine_definition(std::string(CUTLOAD_SOURCE_DIR) + "/data/demo_run.json"),
+                      Catch::Contains("demo_run.json"));
+}
+
+TEST_CASE("workpiece motion: a cut commanded through the table turned 90 deg gives the three-axis forces",
+          "[five_axis][workpiece_motion][physics]") {
+    // The cut, in workpiece coordinates: a side cut along X at ae 1 mm, ap 3 mm (the seed's), on a
+    // stock placed about the C line.
+    using enginetest::legs_motion;
+    force_model::RunSpec spec = enginetest::base_spec(40, 20, 10);
+    spec.offset_mm[0] = -kCx + 20, spec.offset_mm[1] = -kCy + 10, spec.offset_mm[2] = 310;   // stock (0..40, 0..20, 0..10)
+    const double y_w = kCy - 10 - 3, z_w = -303;   // tool centre 3 mm outside y = 0: ae 1 mm; tip 3 mm below the top
+    const motion_io::MotionModel three_axis =
+        legs_motion({kCx - 30, y_w, z_w}, {{{kCx + 30, y_w, z_w}, 3000, "N10"}});
+
+    // The same path through the machine with C at 90 deg: each sample's axes by inverse kinematics
+    // (a vertical tool on a C table leaves C where it was), rates by the map's derivative.
+    const auto machine = ac_table_table();
+    machine::AxisPositions previous = machine::positions(*machine, {{'C', 90.0}, {'A', 0.0}});
+    const std::size_t ix = machine->index_of('X'), iy = machine->index_of('Y'), iz = machine->index_of('Z'),
+                      ic = machine->index_of('C');
+    motion_io::MotionModel axes = three_axis;
+    axes.rot_deg[0].assign(axes.size(), 0.0), axes.rot_vel_deg_s[0].assign(axes.size(), 0.0);
+    axes.rot_deg[2].assign(axes.size(), 90.0), axes.rot_vel_deg_s[2].assign(axes.size(), 0.0);
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    for (std::size_t i = 0; i < axes.size(); ++i) {
+        const Eigen::Vector3d tip(three_axis.x_mm[i], three_axis.y_mm[i], three_axis.z_mm[i]);
+        const Eigen::Vector3d v(three_axis.vx_mm_s[i], three_axis.vy_mm_s[i], three_axis.vz_mm_s[i]);
+        const machine::AxisPositions q = machine::inverse(*machine, tip, up, 0, previous);
+        const machine::AxisPositions q1 = machine::inverse(*machine, tip + 1e-3 * v, up, 0, q);
+        REQUIRE(q.value[ic] == Approx(90));
+        axes.x_mm[i] = q.value[ix], axes.y_mm[i] = q.value[iy], axes.z_mm[i] = q.value[iz];
+        axes.vx_mm_s[i] = (q1.value[ix] - q.value[ix]) / 1e-3;
+        axes.vy_mm_s[i] = (q1.value[iy] - q.value[iy]) / 1e-3;
+        axes.vz_mm_s[i] = (q1.value[iz] - q.value[iz]) / 1e-3;
+        previous = q;
+    }
+    // The logged axes really are turned: X moves along the workpiece's Y.
+    CHECK(std::abs(axes.y_mm.back() - axes.y_mm.front()) == Approx(60).epsilon(1e-9));
+    CHECK(std::abs(axes.x_mm.back() - axes.x_mm.front()) < 1e-9);
+
+    const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, 0);
+    for (std::size_t i = 0; i < w.size(); ++i) {
+        REQUIRE(w.x_mm[i] == Approx(three_axis.x_mm[i]).margin(1e-9));
+        REQUIRE(w.y_mm[i] == Approx(three_axis.y_mm[i]).margin(1e-9));
+        REQUIRE(w.vx_mm_s[i] == Approx(three_axis.vx_mm_s[i]).margin(1e-6));
+    }
+    for (const force_model::Device d : {force_model::Device::Cpu, force_model::Device::OpenCL}) {
+        if (d == force_model::Device::OpenCL && !enginetest::opencl_available()) continue;
+        const force_model::Prediction plain = enginetest::run_on(three_axis, spec, d);
+        const force_model::Prediction turned = enginetest::run_on(w, spec, d);
+        REQUIRE(plain.blocks.size() == 1);
+        REQUIRE(turned.blocks.size() == 1);
+        REQUIRE(plain.blocks[0].peak_force_N > 100);   // it cuts
+        CHECK(turned.blocks[0].peak_force_N == Approx(plain.blocks[0].peak_force_N).epsilon(1e-3));
+        CHECK(turned.blocks[0].mean_force_N == Approx(plain.blocks[0].mean_force_N).epsilon(1e-3));
+        CHECK(turned.blocks[0].removed_mm3 == Approx(plain.blocks[0].removed_mm3).epsilon(1e-3));
+    }
+}
