@@ -85,7 +85,12 @@ public:
     auto get() const { return h_.get(); }
     std::size_t bytes() const { return bytes_; }   // buffers: the capacity, at least what was asked
     explicit operator bool() const { return bool(h_); }
-    void give_back();
+    void give_back() noexcept;
+    // Releases the object instead of giving it back (a queue left in an error state).
+    void discard() noexcept {
+        h_ = Handle();
+        rt_ = nullptr;
+    }
 
 private:
     OpenClRuntime* rt_ = nullptr;
@@ -164,8 +169,11 @@ private:
 };
 
 template <typename Handle>
-void Lease<Handle>::give_back() {
-    if (rt_ && h_) rt_->give_back(std::move(key_), bytes_, std::move(h_));
+void Lease<Handle>::give_back() noexcept {
+    try {
+        if (rt_ && h_) rt_->give_back(std::move(key_), bytes_, std::move(h_));
+    } catch (...) {   // out of memory in the pool's bookkeeping: the object is released instead
+    }
     rt_ = nullptr;
     h_ = Handle();
 }

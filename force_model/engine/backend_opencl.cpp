@@ -38,6 +38,7 @@ public:
     OpenClBackend(Stock& stock, const std::vector<ToolGeometry>& tools, bool fresh_stock)
         : rt_(kernels::OpenClRuntime::instance()), stock_(stock) {
         queue_ = rt_.lease_queue();
+        drain_.queue = &queue_;
         engage_ = rt_.lease_kernel("engage.cl", "engage");
         remove_ = rt_.lease_kernel("remove.cl", "remove_sweep");
         wrap_host_ = rt_.host_unified_memory();
@@ -78,8 +79,10 @@ public:
         coef_ = rt_.lease_buffer(sizeof coef_host_, CL_MEM_READ_ONLY);
     }
 
-    // Leases go back to the pool only once the device is done with them.
-    ~OpenClBackend() override { clFinish(queue_.get()); }
+    // Leases go back to the pool only once the device is done with them: drain_ (the last member,
+    // so the first destroyed, also when the constructor throws with writes queued) finishes the
+    // queue, and a queue that fails to finish is dropped rather than handed to the next prediction.
+    ~OpenClBackend() override = default;
 
     std::string name() const override { return "opencl: " + rt_.device_name(); }
 
@@ -383,8 +386,15 @@ private:
     kernels::BufferLease base_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
     kernels::BufferLease steps_buf_, out_buf_, segs_buf_, sweep_buf_;
+    struct Drain {
+        kernels::QueueLease* queue = nullptr;
+        ~Drain() {
+            if (queue && *queue && clFinish(queue->get()) != CL_SUCCESS) queue->discard();
+        }
+    };
     std::array<float, 10> coef_host_{};
     std::vector<float> host_steps_, host_segs_;
+    Drain drain_;   // last: destroyed first
 };
 
 }  // namespace
