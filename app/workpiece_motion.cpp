@@ -58,6 +58,11 @@ std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const mach
     return out;
 }
 
+double tilt_from_z_rad(const machine::ToolPose& pose) {
+    const Eigen::Vector3d axis = pose.axis();
+    return std::atan2(std::hypot(axis.x(), axis.y()), axis.z());
+}
+
 // Angle of the tool frame's x about the workpiece's +Z (the tool axis is vertical), in degrees.
 double frame_turn_deg(const machine::ToolPose& pose) {
     const Eigen::Matrix3d& R = pose.tool_to_workpiece.R;
@@ -70,6 +75,9 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
                                         double tool_length_mm) {
     const std::vector<AxisSource> sources = axis_sources(axes, machine);
     const std::size_t n = axes.size();
+    for (const AxisSource& s : sources)
+        if (s.position->size() != n || s.rate->size() != n)
+            throw WorkpieceMotionError("a motion model whose axis channels are not as long as its time axis");
     motion_io::MotionModel out;
     out.step_s = axes.step_s;
     out.t_s = axes.t_s;
@@ -92,14 +100,20 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
             const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
             q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
         }
+        // The commanded orientation must be vertical; the machine's errors may lean it by their
+        // microradians, which the vertical-tool engine then leaves out (their tip offset is kept).
         const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
-        const Eigen::Vector3d axis = pose.axis();
-        const double tilt_rad = std::atan2(std::hypot(axis.x(), axis.y()), axis.z());
+        const double tilt_rad = tilt_from_z_rad(machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal));
         if (!(tilt_rad <= kVerticalToleranceRad))
             throw WorkpieceMotionError(fmt::format(
                 "at t = {:.4f} s the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
                 "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
                 axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi));
+        if (const double error_tilt_rad = tilt_from_z_rad(pose); !(error_tilt_rad <= kErrorTiltLimitRad))
+            throw WorkpieceMotionError(fmt::format(
+                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from the stock's +Z, more "
+                "than the {:.4g} deg a vertical tool may lean (check the errors' units: micrometres per metre)",
+                axes.t_s[i], error_tilt_rad * 180.0 / std::numbers::pi, kErrorTiltLimitRad * 180.0 / std::numbers::pi));
         const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
         const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
         const Eigen::Vector3d tip = pose.tip_mm(), v = (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);

@@ -12,8 +12,10 @@
 // at 10 000 rpm shows 10 005 rpm against the part, or 9 995, by its sense). The engine then walks
 // this motion as it walks a three-axis one.
 //
-// What the engine cannot take yet is refused, never approximated: a tool axis tilted away from
-// the stock's +Z (that needs the multi-direction stock, docs/five_axis.md section 3).
+// What the engine cannot take yet is refused, never approximated: a commanded tool axis tilted
+// away from the stock's +Z (that needs the multi-direction stock, docs/five_axis.md section 3).
+// The few microradians the machine's errors lean it are left out of the engagement; the tip's
+// displacement by the errors is kept.
 #pragma once
 
 #include "machine/machine.hpp"
@@ -32,9 +34,12 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-// The tool axis may lean this far from the stock's +Z and still count as vertical (rounding of
-// the kinematics, not a tilt).
+// The nominal tool axis may lean this far from the stock's +Z and still count as vertical
+// (rounding of the kinematics, not a tilt).
 inline constexpr double kVerticalToleranceRad = 1e-9;
+// With the machine's geometric errors, it may lean this far (squareness and rotation errors are
+// microradians; 1 mrad is a definition in the wrong units).
+inline constexpr double kErrorTiltLimitRad = 1e-3;
 
 // `axes`: the repaired log in machine axes (motion_io::ingest). `tool_length_mm`: gauge point to
 // tip along the spindle axis. Each rotary axis of the machine needs its channel in the log

@@ -16,8 +16,9 @@ std::unique_ptr<StageChain> make_ingest_chain(Diagnostics& diag, GridSink& sink,
     auto chain = std::make_unique<StageChain>(sink);
     chain->append(std::make_unique<Validate>(diag, s.physical));
     chain->append(std::make_unique<Sequence>(diag, s.limits));
-    chain->append(std::make_unique<UnwrapRotary>(diag.facts()));
     chain->append(std::make_unique<DropJumps>(diag, s.jumps));
+    // After the glitches are gone: a dropped reading must not move the unwrap's reference.
+    chain->append(std::make_unique<UnwrapRotary>(diag.facts()));
     // An event-driven log sends changes only: silences mean "held", and nothing is read twice.
     if (s.event_driven) chain->append(std::make_unique<HoldValues>());
     chain->append(std::make_unique<Survey>(diag, s.event_driven));

@@ -94,6 +94,33 @@ TEST_CASE("workpiece motion: a machine at rest in its home orientation is the th
     }
 }
 
+TEST_CASE("workpiece motion: the machine's geometric errors move the tip by what forward kinematics gives",
+          "[five_axis][workpiece_motion]") {
+    // The bundled error set leans the tool by microradians (squareness, rotation errors): the
+    // commanded orientation stays vertical, so the run is taken, with the tip where the errors
+    // put it.
+    const std::string dir = std::string(CUTLOAD_SOURCE_DIR) + "/data/machines/";
+    const auto nominal = app::load_machine_definition(dir + "ac_table_table.json");
+    const auto with_errors = app::load_machine_definition(dir + "ac_table_table.json", dir + "ac_table_table_errors.json");
+    REQUIRE(with_errors->has_errors());
+    const motion_io::MotionModel axes = table_turn(kCx + 100, kCy, -400, 0, 0, 30);
+    const motion_io::MotionModel a = app::workpiece_motion(axes, *nominal, 0);
+    const motion_io::MotionModel b = app::workpiece_motion(axes, *with_errors, 0);
+    double largest_mm = 0;
+    for (std::size_t i = 0; i < axes.size(); i += 25) {
+        const machine::AxisPositions q =
+            machine::positions(*with_errors, {{'X', axes.x_mm[i]}, {'Y', axes.y_mm[i]}, {'Z', axes.z_mm[i]},
+                                              {'A', axes.rot_deg[0][i]}, {'C', axes.rot_deg[2][i]}});
+        const Eigen::Vector3d d = machine::forward(*with_errors, q, 0).tip_mm() -
+                                  machine::forward(*with_errors, q, 0, machine::ErrorMode::Nominal).tip_mm();
+        CHECK(b.x_mm[i] - a.x_mm[i] == Approx(d.x()).margin(1e-9));
+        CHECK(b.y_mm[i] - a.y_mm[i] == Approx(d.y()).margin(1e-9));
+        CHECK(b.z_mm[i] - a.z_mm[i] == Approx(d.z()).margin(1e-9));
+        largest_mm = std::max(largest_mm, d.norm());
+    }
+    CHECK(largest_mm > 1e-3);   // the errors do move the tip, by micrometres
+}
+
 TEST_CASE("workpiece motion: a tilted tool and a missing rotary channel are refused, naming what and where",
           "[five_axis][workpiece_motion][errors]") {
     const auto machine = ac_table_table();

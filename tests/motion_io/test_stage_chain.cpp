@@ -67,10 +67,10 @@ void push_move(detail::StageChain& chain, int rows) {
 
 TEST_CASE("chain: the standard stages in order, polled and event-driven", "[chain]") {
     Fixture f;
-    CHECK(standard(f, false)->names() == std::vector<std::string>{"validate", "sequence", "unwrap", "drop_jumps", "survey",
+    CHECK(standard(f, false)->names() == std::vector<std::string>{"validate", "sequence", "drop_jumps", "unwrap", "survey",
                                                                    "stale_repeats", "clock", "velocity", "resample",
                                                                    "spindle_angle", "blocks"});
-    CHECK(standard(f, true)->names() == std::vector<std::string>{"validate", "sequence", "unwrap", "drop_jumps", "hold", "survey",
+    CHECK(standard(f, true)->names() == std::vector<std::string>{"validate", "sequence", "drop_jumps", "unwrap", "hold", "survey",
                                                                   "clock", "velocity", "resample", "spindle_angle",
                                                                   "blocks"});
 }
