@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include <cctype>
 #include <cmath>
 #include <numbers>
 
@@ -78,17 +79,11 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
     for (const AxisSource& s : sources)
         if (s.position->size() != n || s.rate->size() != n)
             throw WorkpieceMotionError("a motion model whose axis channels are not as long as its time axis");
-    motion_io::MotionModel out;
-    out.step_s = axes.step_s;
-    out.t_s = axes.t_s;
-    out.spindle_rpm = axes.spindle_rpm;
-    out.block = axes.block;
-    out.block_names = axes.block_names;
-    out.tool = axes.tool;
-    out.session_start = axes.session_start;
-    out.x_mm.resize(n), out.y_mm.resize(n), out.z_mm.resize(n);
-    out.vx_mm_s.resize(n), out.vy_mm_s.resize(n), out.vz_mm_s.resize(n);
-    out.spindle_angle_deg.resize(n);
+    // Time, blocks, tools, sessions and spindle carry over; positions, velocities and the spindle
+    // angle are overwritten below. The rotary channels are spent on the pose.
+    motion_io::MotionModel out = axes;
+    out.rot_deg = {};
+    out.rot_vel_deg_s = {};
 
     // The derivative along the axes' rates by a central difference over +-h of time: the chain
     // is smooth, so the error (h^2 times the third derivative) is far below a micrometre per second.
