@@ -49,11 +49,23 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted too
     CHECK_THAT(level.output, !Catch::Contains("no machine definition"));
     CHECK(fs::file_size(dir / "forces.csv") > 0);
 
+    const std::string forces_before = [&] {
+        std::ifstream in(dir / "forces.csv", std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    }();
     const clitest::Result tilted = predict("tilted.csv", " --machine " + machine);
     INFO(tilted.output);
     CHECK(tilted.exit_code != 0);
     CHECK_THAT(tilted.output, Catch::Contains("leans 15 deg") && Catch::Contains("multi-direction stock"));
     CHECK(std::count(tilted.output.begin(), tilted.output.end(), '\n') == 1);
+    // Refused before any row: the earlier FORCES.csv is untouched and no temporary file is left.
+    {
+        std::ifstream in(dir / "forces.csv", std::ios::binary);
+        CHECK(std::string(std::istreambuf_iterator<char>(in), {}) == forces_before);
+    }
+    std::size_t files = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++files;
+    CHECK(files == 3);   // level.csv, tilted.csv, forces.csv
 
     const clitest::Result bad = predict("level.csv", " --machine " + spec);
     INFO(bad.output);
