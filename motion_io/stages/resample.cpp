@@ -64,6 +64,7 @@ void Resample::emit_until(const Knot& a, const Knot& b, bool include_end) {
             const HermiteSegment seg{a.p_mm[ax], a.v_mm_s[ax], b.p_mm[ax], b.v_mm_s[ax], h};
             s.p_mm[ax] = seg.position(u);
             s.v_mm_s[ax] = seg.velocity(u);
+            if (!(rotary_mask_ & (1u << ax))) continue;   // three-axis logs pay nothing here
             const HermiteSegment rot{a.rot_deg[ax], a.rot_vel_deg_s[ax], b.rot_deg[ax], b.rot_vel_deg_s[ax], h};
             s.rot_deg[ax] = rot.position(u);
             s.rot_vel_deg_s[ax] = rot.velocity(u);
