@@ -1,9 +1,9 @@
 #include "postgres/connection.hpp"
+#include "postgres/libpq.hpp"
 
 #include <poll.h>
 
 #include <fmt/format.h>
-#include <libpq-fe.h>
 
 #include <bit>
 #include <cstring>
@@ -103,32 +103,32 @@ Params& Params::add_null(unsigned type) {
 
 // ---- results ---------------------------------------------------------------------------------
 
-Result::~Result() { PQclear(r_); }
+Result::~Result() { libpq().PQclear(r_); }
 
-int Result::rows() const { return PQntuples(r_); }
+int Result::rows() const { return libpq().PQntuples(r_); }
 
 std::int64_t Result::affected() const {
-    const char* n = PQcmdTuples(r_);
+    const char* n = libpq().PQcmdTuples(r_);
     return (n && *n) ? std::strtoll(n, nullptr, 10) : 0;
 }
 
-bool Result::is_null(int row, int col) const { return PQgetisnull(r_, row, col) != 0; }
+bool Result::is_null(int row, int col) const { return libpq().PQgetisnull(r_, row, col) != 0; }
 
 const char* Result::raw(int row, int col, std::size_t& bytes) const {
-    bytes = static_cast<std::size_t>(PQgetlength(r_, row, col));
-    return PQgetvalue(r_, row, col);
+    bytes = static_cast<std::size_t>(libpq().PQgetlength(r_, row, col));
+    return libpq().PQgetvalue(r_, row, col);
 }
 
 std::int64_t Result::i64(int row, int col) const {
     if (is_null(row, col)) return 0;
     std::size_t n = 0;
     const char* p = raw(row, col, n);
-    switch (PQftype(r_, col)) {
+    switch (libpq().PQftype(r_, col)) {
         case kInt8: return static_cast<std::int64_t>(read_big_endian<std::uint64_t>(p));
         case kInt4: return static_cast<std::int32_t>(read_big_endian<std::uint32_t>(p));
         case kInt2: return static_cast<std::int16_t>(read_big_endian<std::uint16_t>(p));
         case kBool: return *p != 0;
-        default: throw Error(fmt::format("postgres: column {} is not an integer (type {})", col, PQftype(r_, col)), Error::Kind::Other);
+        default: throw Error(fmt::format("postgres: column {} is not an integer (type {})", col, libpq().PQftype(r_, col)), Error::Kind::Other);
     }
 }
 
@@ -136,13 +136,13 @@ double Result::real(int row, int col) const {
     if (is_null(row, col)) return 0;
     std::size_t n = 0;
     const char* p = raw(row, col, n);
-    switch (PQftype(r_, col)) {
+    switch (libpq().PQftype(r_, col)) {
         case kFloat8: return std::bit_cast<double>(read_big_endian<std::uint64_t>(p));
         case kFloat4: return std::bit_cast<float>(read_big_endian<std::uint32_t>(p));
         case kInt8:
         case kInt4:
         case kInt2: return static_cast<double>(i64(row, col));
-        default: throw Error(fmt::format("postgres: column {} is not a number (type {})", col, PQftype(r_, col)), Error::Kind::Other);
+        default: throw Error(fmt::format("postgres: column {} is not a number (type {})", col, libpq().PQftype(r_, col)), Error::Kind::Other);
     }
 }
 
@@ -150,7 +150,7 @@ bool Result::boolean(int row, int col) const { return i64(row, col) != 0; }
 
 std::string Result::text(int row, int col) const {
     if (is_null(row, col)) return {};
-    const Oid t = PQftype(r_, col);
+    const Oid t = libpq().PQftype(r_, col);
     if (t != kText && t != kVarchar && t != kBytea)
         throw Error(fmt::format("postgres: column {} is not text (type {})", col, t), Error::Kind::Other);
     std::size_t n = 0;
@@ -180,77 +180,77 @@ std::span<const unsigned char> Result::blob(int row, int col) const {
 // ---- connection ------------------------------------------------------------------------------
 
 Connection::Connection(const std::string& url) : url_(url) {
-    conn_ = PQconnectdb(url.c_str());
-    if (!conn_ || PQstatus(conn_) != CONNECTION_OK) {
-        const std::string msg = conn_ ? one_line(PQerrorMessage(conn_)) : "out of memory";
-        PQfinish(conn_);
+    conn_ = libpq().PQconnectdb(url.c_str());
+    if (!conn_ || libpq().PQstatus(conn_) != CONNECTION_OK) {
+        const std::string msg = conn_ ? one_line(libpq().PQerrorMessage(conn_)) : "out of memory";
+        libpq().PQfinish(conn_);
         conn_ = nullptr;
         throw Error(fmt::format("cannot open database {}: {}", printable_location(url), msg), Error::Kind::Other);
     }
     // Notices ("relation already exists, skipping") are not errors: keep them off stderr.
-    PQsetNoticeProcessor(conn_, [](void*, const char*) {}, nullptr);
+    libpq().PQsetNoticeProcessor(conn_, [](void*, const char*) {}, nullptr);
     // Stored times are text; numbers are binary: no setting of the session changes what is read.
     exec("SET client_min_messages = warning");
 }
 
-Connection::~Connection() { PQfinish(conn_); }
+Connection::~Connection() { libpq().PQfinish(conn_); }
 
 void Connection::fail(PGresult* r, std::string_view what) {
-    const char* state = r ? PQresultErrorField(r, PG_DIAG_SQLSTATE) : nullptr;
-    const std::string msg = one_line(r ? PQresultErrorMessage(r) : PQerrorMessage(conn_));
+    const char* state = r ? libpq().PQresultErrorField(r, PG_DIAG_SQLSTATE) : nullptr;
+    const std::string msg = one_line(r ? libpq().PQresultErrorMessage(r) : libpq().PQerrorMessage(conn_));
     const Error::Kind kind = kind_of(state);
-    PQclear(r);
+    libpq().PQclear(r);
     throw Error(fmt::format("postgres: {}: {}", what, msg), kind);
 }
 
 bool Connection::in_transaction() const {
-    const auto s = PQtransactionStatus(conn_);
+    const auto s = libpq().PQtransactionStatus(conn_);
     return s == PQTRANS_INTRANS || s == PQTRANS_INERROR;
 }
 
-bool Connection::transaction_failed() const { return PQtransactionStatus(conn_) == PQTRANS_INERROR; }
+bool Connection::transaction_failed() const { return libpq().PQtransactionStatus(conn_) == PQTRANS_INERROR; }
 
 // A server restart (or a dropped connection) leaves the connection bad; outside a transaction
 // nothing is lost by connecting again, and its prepared statements are gone with the old one.
 void Connection::reconnect_if_lost() {
-    if (PQstatus(conn_) == CONNECTION_OK) return;
-    PQreset(conn_);
+    if (libpq().PQstatus(conn_) == CONNECTION_OK) return;
+    libpq().PQreset(conn_);
     prepared_.clear();
-    if (PQstatus(conn_) != CONNECTION_OK)
-        throw Error(fmt::format("lost database {}: {}", printable_location(url_), one_line(PQerrorMessage(conn_))),
+    if (libpq().PQstatus(conn_) != CONNECTION_OK)
+        throw Error(fmt::format("lost database {}: {}", printable_location(url_), one_line(libpq().PQerrorMessage(conn_))),
                     Error::Kind::Other);
-    PQsetNoticeProcessor(conn_, [](void*, const char*) {}, nullptr);
+    libpq().PQsetNoticeProcessor(conn_, [](void*, const char*) {}, nullptr);
 }
 
 bool Connection::wait_notification(double timeout_s) {
     const auto lost = [&] {
-        return Error(fmt::format("lost database {}: {}", printable_location(url_), one_line(PQerrorMessage(conn_))),
+        return Error(fmt::format("lost database {}: {}", printable_location(url_), one_line(libpq().PQerrorMessage(conn_))),
                      Error::Kind::Other);
     };
     const auto drain = [&] {
         bool any = false;
-        while (PGnotify* n = PQnotifies(conn_)) {
+        while (PGnotify* n = libpq().PQnotifies(conn_)) {
             any = true;
-            PQfreemem(n);
+            libpq().PQfreemem(n);
         }
         return any;
     };
-    if (PQstatus(conn_) != CONNECTION_OK || !PQconsumeInput(conn_)) throw lost();
+    if (libpq().PQstatus(conn_) != CONNECTION_OK || !libpq().PQconsumeInput(conn_)) throw lost();
     if (drain()) return true;
-    pollfd p{PQsocket(conn_), POLLIN, 0};
+    pollfd p{libpq().PQsocket(conn_), POLLIN, 0};
     const int ready = ::poll(&p, 1, static_cast<int>(timeout_s * 1000));
     if (ready <= 0) return false;
-    if (!PQconsumeInput(conn_)) throw lost();
+    if (!libpq().PQconsumeInput(conn_)) throw lost();
     return drain();
 }
 
 void Connection::exec(std::string_view sql) {
     reconnect_if_lost();
     const std::string s(sql);
-    PGresult* r = PQexec(conn_, s.c_str());
-    const auto st = PQresultStatus(r);
+    PGresult* r = libpq().PQexec(conn_, s.c_str());
+    const auto st = libpq().PQresultStatus(r);
     if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(r, fmt::format("\"{}\"", one_line(sql.substr(0, 80))));
-    PQclear(r);
+    libpq().PQclear(r);
 }
 
 Result Connection::run(std::string_view sql, const Params& p) {
@@ -259,15 +259,15 @@ Result Connection::run(std::string_view sql, const Params& p) {
     auto it = prepared_.find(key);
     if (it == prepared_.end()) {
         std::string name = fmt::format("cutload_{}", prepared_.size() + 1);
-        PGresult* r = PQprepare(conn_, name.c_str(), key.c_str(), static_cast<int>(p.size()),
+        PGresult* r = libpq().PQprepare(conn_, name.c_str(), key.c_str(), static_cast<int>(p.size()),
                                 reinterpret_cast<const Oid*>(p.types().data()));
-        if (PQresultStatus(r) != PGRES_COMMAND_OK) fail(r, fmt::format("prepare \"{}\"", one_line(sql)));
-        PQclear(r);
+        if (libpq().PQresultStatus(r) != PGRES_COMMAND_OK) fail(r, fmt::format("prepare \"{}\"", one_line(sql)));
+        libpq().PQclear(r);
         it = prepared_.emplace(std::move(key), std::move(name)).first;
     }
-    PGresult* r = PQexecPrepared(conn_, it->second.c_str(), static_cast<int>(p.size()), p.values(), p.lengths(),
+    PGresult* r = libpq().PQexecPrepared(conn_, it->second.c_str(), static_cast<int>(p.size()), p.values(), p.lengths(),
                                  p.formats(), 1);
-    const auto st = PQresultStatus(r);
+    const auto st = libpq().PQresultStatus(r);
     if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(r, fmt::format("\"{}\"", one_line(sql.substr(0, 120))));
     return Result(r);
 }
