@@ -41,6 +41,25 @@ DeviceChoice choose_device(std::string_view name) {
     }
 }
 
+std::shared_future<DeviceChoice> prepare_device(std::string name) {
+    if (name == "cpu") {
+        std::promise<DeviceChoice> ready;
+        ready.set_value({force_model::Device::Cpu, ""});
+        return ready.get_future().share();
+    }
+    return std::async(std::launch::async, [name = std::move(name)] {
+               DeviceChoice choice = choose_device(name);
+               if (choice.device == force_model::Device::OpenCL) {
+                   try {
+                       force_model::prepare_opencl();
+                   } catch (const std::exception&) {   // the engine opens it again and says why
+                   }
+               }
+               return choice;
+           })
+        .share();
+}
+
 nlohmann::json probe_spec() {
     return nlohmann::json::parse(R"({
       "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,

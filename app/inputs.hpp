@@ -8,6 +8,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <future>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -44,6 +45,12 @@ struct DeviceChoice {
     std::string note;   // empty unless auto fell back to the CPU
 };
 DeviceChoice choose_device(std::string_view name);
+// choose_device in the background, the chosen OpenCL device also made ready (platform opened, the
+// engine's programs built), so that a front end can open it while the log is read: PoCL's platform
+// takes about 0.15 s to open (it loads LLVM), as long as reading a 10 s log. For "opencl" a device
+// that fails to open is left for the engine to report, as without this. The last copy of the
+// future waits for the work when it is destroyed: no thread outlives it.
+std::shared_future<DeviceChoice> prepare_device(std::string name);
 
 // A complete, valid run spec: replace one part (tool, material, limits) to have the engine check
 // that part alone, with its own error naming the key.

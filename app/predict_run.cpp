@@ -111,6 +111,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
     force_model::PredictOptions po;
     po.device = in.device;
+    if (in.device_ready.valid()) {
+        const DeviceChoice choice = in.device_ready.get();
+        po.device = choice.device;
+        r.device_note = choice.note;
+    }
     po.base_stock = in.base_stock;
     po.keep_final_stock = in.keep_final_stock;
     po.cancel = control.cancel;

@@ -35,6 +35,9 @@ struct RunInput {
     bool commanded_from_log = false;                  // or the log's own commanded positions as the commanded path
     const force_model::Stock* base_stock = nullptr;   // start from it (load_stock, load_stock_bytes)
     force_model::Device device = force_model::Device::Cpu;
+    // When valid: the device prepare_device() is choosing, taken once the log is read (it replaces
+    // `device`; its note goes to RunResult::device_note).
+    std::shared_future<DeviceChoice> device_ready;
     WorkLimits limits;                                // checked before predicting (TooMuchWork)
     // Where the actual prediction's rows go as they become final, when set: RunResult's
     // prediction.samples then stays empty and memory does not grow with the log's length.
@@ -66,6 +69,7 @@ struct RunResult {
     force_model::Prediction prediction;          // forces, block summaries and flags, final stock, stats
     motion_io::SamplingCheck sampling;           // coarse data (position_quantized, sampling_coarse), said out loud
     std::vector<std::string> warnings;           // for the user: e.g. a program with more than one tool
+    std::string device_note;                     // RunInput::device_ready fell back to the CPU: why
     std::optional<ProgramRun> program;           // with a program: it, and its mapping onto the log
     std::optional<ProgramPrediction> commanded;  // with a program or commanded_from_log: commanded forces,
                                                  // comparison, time warp (identity for the log's own)

@@ -29,6 +29,8 @@ void run_predict(const PredictArgs& a) {
                                        {a.program.compare_csv, "--compare"}, {a.program.commanded_out, "--commanded-out"}})
         if (!path.empty()) check_output_path(path, option);
     app::RunInput in;
+    // Opened while the spec and the log are read.
+    in.device_ready = app::prepare_device(a.device);
     in.spec = force_model::load_run_spec(a.spec);
     in.log_path = a.log;
     in.read = reader_options(a.format, a.step_ms);
@@ -37,7 +39,6 @@ void run_predict(const PredictArgs& a) {
     force_model::StockPtr base;
     if (!a.start_stock.empty()) base = force_model::load_stock(a.start_stock);
     in.base_stock = base.get();
-    in.device = choose_device(a.device);
     in.limits = a.limits;
     in.keep_final_stock = !a.save_stock.empty();
     if (!a.machine.empty()) in.machine = app::load_machine_definition(a.machine, a.machine_errors);
@@ -60,6 +61,7 @@ void run_predict(const PredictArgs& a) {
         };
     const app::RunResult r = app::predict_run(in, control);
     if (show_progress) std::fprintf(stderr, "\r                    \r");
+    if (!r.device_note.empty()) std::fprintf(stderr, "cutload: note: %s\n", r.device_note.c_str());
     for (const std::vector<motion_io::IngestWarning>* list :
          std::initializer_list<const std::vector<motion_io::IngestWarning>*>{&r.ingest.warnings, &r.sampling.warnings})
         for (const auto& w : *list)

@@ -169,6 +169,9 @@ enum class Device { OpenCL, Cpu };
 // The OpenCL device predict() would use ("auto" choices in the CLI and service); throws
 // std::runtime_error saying why when no OpenCL device is usable.
 std::string opencl_device_name();
+// Opens the process's OpenCL device and builds the engine's kernels into its pool, so that the
+// first prediction starts at once; throws what opencl_device_name() throws.
+void prepare_opencl();
 
 // One row per angle step while cutting (air time coarser). Forces act on the tool, in machine axes.
 struct ForceSample {

@@ -110,3 +110,15 @@ TEST_CASE("choose_device: opencl, cpu, auto with its fallback, and nothing else"
     CHECK(a.note == (have_opencl ? std::string() : why + "; using the CPU path"));
     CHECK_THROWS_WITH(app::choose_device("gpu"), "device: 'gpu' is not opencl, cpu or auto");
 }
+
+TEST_CASE("prepare_device: the same choice as choose_device, made in the background, the kernels ready", "[app][inputs]") {
+    CHECK(app::prepare_device("cpu").get().device == force_model::Device::Cpu);
+    const app::DeviceChoice now = app::choose_device("auto");
+    const app::DeviceChoice later = app::prepare_device("auto").get();
+    CHECK(later.device == now.device);
+    CHECK(later.note == now.note);
+    CHECK(app::prepare_device("opencl").get().device == force_model::Device::OpenCL);
+    // A bad name is the same error, taken from the future.
+    auto bad = app::prepare_device("gpu");
+    CHECK_THROWS_WITH(bad.get(), "device: 'gpu' is not opencl, cpu or auto");
+}
