@@ -12,6 +12,9 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
 #include <numbers>
 
 using namespace cutload;
@@ -196,5 +199,75 @@ TEST_CASE("workpiece motion: a cut commanded through the table turned 90 deg giv
         CHECK(turned.blocks[0].peak_force_N == Approx(plain.blocks[0].peak_force_N).epsilon(1e-3));
         CHECK(turned.blocks[0].mean_force_N == Approx(plain.blocks[0].mean_force_N).epsilon(1e-3));
         CHECK(turned.blocks[0].removed_mm3 == Approx(plain.blocks[0].removed_mm3).epsilon(1e-3));
+    }
+}
+
+TEST_CASE("workpiece motion: a squareness error and a C-line offset move the cut by the closed form, and its forces "
+          "with it",
+          "[five_axis][workpiece_motion][physics]") {
+    // The T3 side cut (along X at ae 1 mm, ap 3 mm) at A = C = 0, where the workpiece frame is the
+    // machine's, on a machine with two errors worked out by hand in tests/machine: the X-Y
+    // squareness EC0X = g turns the X travel about Z through the home origin, and EY0C = d puts
+    // the C line d off the A line in Y, the tool -d against the table. The tip is then moved by
+    //   (X (cos g - 1), X sin g - d, 0),
+    // and at X = -380 .. -320 mm that takes 0.31 .. 0.34 mm off the 1 mm radial depth.
+    const double g = 500e-6, d_mm = 0.150;
+    const std::filesystem::path errors =
+        std::filesystem::temp_directory_path() / ("cutload_squareness_" + std::to_string(::getpid()) + ".json");
+    {
+        std::ofstream out(errors);
+        out << R"({"X": {"EC0X_urad": 500}, "C": {"EY0C_um": 150}})";
+    }
+    const std::string dir = std::string(CUTLOAD_SOURCE_DIR) + "/data/machines/";
+    const auto nominal = app::load_machine_definition(dir + "ac_table_table.json");
+    const auto machine = app::load_machine_definition(dir + "ac_table_table.json", errors.string());
+    std::filesystem::remove(errors);
+
+    using enginetest::legs_motion;
+    force_model::RunSpec spec = enginetest::base_spec(40, 20, 10);
+    spec.offset_mm[0] = -kCx + 20, spec.offset_mm[1] = -kCy + 10, spec.offset_mm[2] = 310;
+    const double y_w = kCy - 10 - 3, z_w = -303;
+    const motion_io::MotionModel three_axis = legs_motion({kCx - 30, y_w, z_w}, {{{kCx + 30, y_w, z_w}, 3000, "N10"}});
+    motion_io::MotionModel axes = three_axis;
+    axes.rot_deg[0].assign(axes.size(), 0.0), axes.rot_vel_deg_s[0].assign(axes.size(), 0.0);
+    axes.rot_deg[2].assign(axes.size(), 0.0), axes.rot_vel_deg_s[2].assign(axes.size(), 0.0);
+
+    // The reference: the three-axis path moved by the closed form, its velocity by its derivative.
+    motion_io::MotionModel moved = three_axis;
+    for (std::size_t i = 0; i < moved.size(); ++i) {
+        const double X = three_axis.x_mm[i], vX = three_axis.vx_mm_s[i];
+        moved.x_mm[i] += X * (std::cos(g) - 1), moved.y_mm[i] += X * std::sin(g) - d_mm;
+        moved.vx_mm_s[i] = vX * std::cos(g), moved.vy_mm_s[i] += vX * std::sin(g);
+    }
+    const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, 0);
+    const motion_io::MotionModel w0 = app::workpiece_motion(axes, *nominal, 0);
+    REQUIRE(w.size() == moved.size());
+    for (std::size_t i = 0; i < w.size(); ++i) {
+        INFO("sample " << i << " at X = " << three_axis.x_mm[i]);
+        REQUIRE(w.x_mm[i] == Approx(moved.x_mm[i]).margin(1e-6));
+        REQUIRE(w.y_mm[i] == Approx(moved.y_mm[i]).margin(1e-6));
+        REQUIRE(w.z_mm[i] == Approx(moved.z_mm[i]).margin(1e-6));
+        REQUIRE(w.vy_mm_s[i] == Approx(moved.vy_mm_s[i]).margin(1e-6));
+        REQUIRE(w0.y_mm[i] == Approx(three_axis.y_mm[i]).margin(1e-9));
+    }
+    for (const force_model::Device dev : {force_model::Device::Cpu, force_model::Device::OpenCL}) {
+        if (dev == force_model::Device::OpenCL && !enginetest::opencl_available()) continue;
+        const force_model::Prediction plain = enginetest::run_on(w0, spec, dev);
+        const force_model::Prediction reference = enginetest::run_on(moved, spec, dev);
+        const force_model::Prediction errored = enginetest::run_on(w, spec, dev);
+        REQUIRE(errored.blocks.size() == 1);
+        REQUIRE(reference.blocks.size() == 1);
+        REQUIRE(plain.blocks.size() == 1);
+        // The errors' forces are those of the moved path...
+        CHECK(errored.blocks[0].peak_force_N == Approx(reference.blocks[0].peak_force_N).epsilon(1e-3));
+        CHECK(errored.blocks[0].mean_force_N == Approx(reference.blocks[0].mean_force_N).epsilon(1e-3));
+        CHECK(errored.blocks[0].removed_mm3 == Approx(reference.blocks[0].removed_mm3).epsilon(1e-3));
+        // ... and differ from the nominal machine's: a third of the radial depth is gone, and with it
+        // about a third of the chip volume.
+        const double removed_ratio = errored.blocks[0].removed_mm3 / plain.blocks[0].removed_mm3;
+        INFO("removed " << errored.blocks[0].removed_mm3 << " mm3 against " << plain.blocks[0].removed_mm3);
+        CHECK(removed_ratio > 0.60);
+        CHECK(removed_ratio < 0.75);
+        CHECK(errored.blocks[0].mean_force_N < 0.9 * plain.blocks[0].mean_force_N);
     }
 }
