@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <exception>
 #include <optional>
+#include <thread>
 
 namespace cutload::motion_io::detail {
 namespace {
@@ -101,11 +103,42 @@ struct Candidate {
     double roughness;
 };
 
+// Below this many reading-phase evaluations a scan is not worth a second thread (about 1 ms).
+constexpr double kParallelScanWork = 2e6;
+
 // Scans periods geometrically in [lo, hi]; returns the `keep` best local minima, best first.
 std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, double hi, double rel_step,
                                     std::size_t keep, int phases) {
     std::vector<Candidate> all;
-    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, tracked_roughness(r, n, T, phases)});
+    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, 0.0});
+    // The trial periods are independent: on a short stretch (256 phases each) the scan is most of
+    // `cutload inspect`'s time, so a second core takes every other period. Each thread has its own
+    // scanner (phase_scan() is thread-local), and each value is the same as in one thread.
+    auto evaluate = [&](std::size_t first, std::size_t stride) {
+        for (std::size_t i = first; i < all.size(); i += stride)
+            all[i].roughness = tracked_roughness(r, n, all[i].period_s, phases);
+    };
+    const double work = double(all.size()) * double(n) * double(phases);
+    if (work >= kParallelScanWork && std::thread::hardware_concurrency() > 1) {
+        std::exception_ptr failed;
+        std::thread second([&] {
+            try {
+                evaluate(1, 2);
+            } catch (...) {
+                failed = std::current_exception();
+            }
+        });
+        try {
+            evaluate(0, 2);
+        } catch (...) {
+            second.join();
+            throw;
+        }
+        second.join();
+        if (failed) std::rethrow_exception(failed);
+    } else {
+        evaluate(0, 1);
+    }
     std::vector<Candidate> minima;
     for (std::size_t i = 0; i < all.size(); ++i) {
         const bool left = i == 0 || all[i].roughness <= all[i - 1].roughness;
