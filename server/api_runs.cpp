@@ -2,6 +2,7 @@
 // (blocks, forces, motion) with window decimation and CSV.
 #include "app/ingest.hpp"
 #include "app/library_tools.hpp"
+#include "app/predict_run.hpp"
 #include "app/program_source.hpp"
 #include "app/work_bounds.hpp"
 #include "core.hpp"
@@ -29,6 +30,7 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <cstdlib>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -209,6 +211,50 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
     return s;
 }
 
+// The machine's kinematic chain (docs/machines.md), with its geometric errors and the tool length,
+// stored beside the log: the log's x, y, z and a, b, c are then that machine's axes, turned into the
+// tool's motion against the part (docs/five_axis.md). Read once here, so a bad file is a 400 now
+// rather than a failed job later. Null without a part 'kinematics'.
+json store_kinematics(const httplib::Request& req, const fs::path& dir) {
+    const auto length = part(req, "tool_length_mm");
+    if (!req.has_file("kinematics")) {
+        if (req.has_file("kinematics_errors") || length)
+            bad_request(fmt::format("part {}: given without part kinematics (the machine definition it belongs to)",
+                                    length ? "tool_length_mm" : "kinematics_errors"));
+        return nullptr;
+    }
+    json k{{"stored_as", "kinematics.json"}};
+    const auto def = req.get_file_value("kinematics");
+    if (def.content.empty()) throw ApiError(400, "bad_kinematics", "part 'kinematics' is empty");
+    k["filename"] = def.filename.empty() ? "kinematics.json"
+                                         : fs::path(client_text(def.filename, "file name of part 'kinematics'")).filename().string();
+    write_durable(dir / "kinematics.json", client_text(def.content, "part kinematics"));
+    std::string errors_path;
+    if (req.has_file("kinematics_errors")) {
+        const auto errors = req.get_file_value("kinematics_errors");
+        if (errors.content.empty()) throw ApiError(400, "bad_kinematics", "part 'kinematics_errors' is empty");
+        write_durable(dir / "kinematics_errors.json", client_text(errors.content, "part kinematics_errors"));
+        errors_path = (dir / "kinematics_errors.json").string();
+        k["errors"] = "kinematics_errors.json";
+    }
+    double tool_length_mm = 0;
+    if (length) {
+        char* end = nullptr;
+        tool_length_mm = std::strtod(length->c_str(), &end);
+        if (length->empty() || end != length->c_str() + length->size() || !(tool_length_mm >= 0 && tool_length_mm <= 1000))
+            bad_request(fmt::format("part tool_length_mm: '{}' is not a length from 0 to 1000 mm", *length));
+    }
+    k["tool_length_mm"] = tool_length_mm;
+    try {
+        app::load_machine_definition((dir / "kinematics.json").string(), errors_path);
+    } catch (const app::InputError& e) {
+        // Name the parts, not the server's files.
+        std::string msg = replace_all(e.what(), (dir / "kinematics.json").string(), "part kinematics");
+        throw ApiError(400, "bad_kinematics", replace_all(msg, errors_path, "part kinematics_errors"));
+    }
+    return k;
+}
+
 // The uploaded program as read, for the work it implies.
 struct UploadedProgram {
     motion_io::NcProgram program;
@@ -323,6 +369,8 @@ void create_run(Core& core, Ctx& x) {
         }
     }
 
+    const json kinematics = store_kinematics(req, tmp);
+
     motion_io::IngestReport report;
     try {
         report = app::inspect_log((tmp / stored_as).string(), ro);
@@ -380,6 +428,7 @@ void create_run(Core& core, Ctx& x) {
                   {"data_quality", data_quality},
                   {"warnings", warnings}}}};
     if (!nc_program.is_null()) inputs["nc_program"] = nc_program;
+    if (!kinematics.is_null()) inputs["kinematics"] = kinematics;
 
     const auto name = part(req, "name");
     const auto program = part(req, "program");

@@ -33,6 +33,12 @@ app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use
     in.spec = force_model::parse_run_spec(inputs.at("spec"));
     if (inputs.contains("nc_program")) in.program = program_source(inputs.at("nc_program"), upload_dir);
     in.device = app::choose_device(use_opencl ? "opencl" : "cpu").device;
+    if (inputs.contains("kinematics")) {
+        const json& k = inputs.at("kinematics");
+        in.machine = app::load_machine_definition((upload_dir / k.at("stored_as").get<std::string>()).string(),
+                                                  k.contains("errors") ? (upload_dir / k["errors"].get<std::string>()).string() : "");
+        in.tool_length_mm = k.value("tool_length_mm", 0.0);
+    }
     return in;
 }
 

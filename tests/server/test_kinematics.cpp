@@ -1,0 +1,81 @@
+// Five-axis runs through the service: a log of machine axes uploaded with the machine's
+// kinematics (docs/api.md, "Five-axis machines") is predicted as `cutload predict --machine`
+// predicts it. The bundled five-axis demo cuts a ring groove by turning the C table; its volume
+// has a closed form, pi (41^2 - 32^2) x 2 mm (tool centre on R35 then R38, D6, 2 mm deep).
+#include "harness.hpp"
+
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+using namespace cutload::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kData = fs::path(CUTLOAD_SOURCE_DIR) / "data";
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    REQUIRE(in);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+httplib::Result upload_demo3(httplib::Client& c, httplib::MultipartFormDataItems extra) {
+    httplib::MultipartFormDataItems items{{"log", slurp(kData / "demo3_dryrun.csv"), "demo3_dryrun.csv", "text/csv"},
+                                          {"spec", slurp(kData / "demo3_run.json"), "", "application/json"}};
+    items.insert(items.end(), extra.begin(), extra.end());
+    return c.Post("/api/v1/runs", items);
+}
+
+}  // namespace
+
+TEST_CASE("kinematics: the five-axis demo uploaded with its machine cuts the ring groove's closed-form volume") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string machine = slurp(kData / "machines" / "ac_table_table.json");
+    auto r = upload_demo3(c, {{"kinematics", machine, "ac_table_table.json", "application/json"},
+                              {"tool_length_mm", "0", "", ""}});
+    REQUIRE(r->status == 202);
+    const auto id = body(r)["id"].get<std::int64_t>();
+    json run = wait_finished(c, id, 120);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    CHECK(run["inputs"]["kinematics"]["stored_as"] == "kinematics.json");
+    CHECK(run["inputs"]["kinematics"]["filename"] == "ac_table_table.json");
+    CHECK(run["inputs"]["kinematics"]["tool_length_mm"] == 0.0);
+    CHECK(fs::exists(ts.data_dir() / "uploads" / std::to_string(id) / "kinematics.json"));
+    const double groove_mm3 = std::numbers::pi * (41.0 * 41.0 - 32.0 * 32.0) * 2;
+    CHECK(run["summary"]["removed_mm3"].get<double>() == Approx(groove_mm3).epsilon(0.01));
+
+    // Without the machine the rotary columns are left out: the tool stands while the table turns
+    // under it, and only the plunges cut.
+    auto plain = upload_demo3(c, {});
+    REQUIRE(plain->status == 202);
+    json three_axis = wait_finished(c, body(plain)["id"].get<std::int64_t>(), 120);
+    REQUIRE(three_axis["state"] == "done");
+    CHECK(three_axis["summary"]["removed_mm3"].get<double>() < 0.2 * groove_mm3);
+}
+
+TEST_CASE("kinematics: a bad machine file, errors or a tool length without a machine are 400 and store nothing") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    require_error(upload_demo3(c, {{"kinematics", slurp(kData / "demo3_run.json"), "run.json", "application/json"}}), 400,
+                  "bad_kinematics", "part kinematics");
+    require_error(upload_demo3(c, {{"kinematics", "", "empty.json", "application/json"}}), 400, "bad_kinematics",
+                  "'kinematics' is empty");
+    require_error(upload_demo3(c, {{"tool_length_mm", "120", "", ""}}), 400, "bad_request",
+                  "tool_length_mm: given without part kinematics");
+    require_error(upload_demo3(c, {{"kinematics_errors", "{}", "e.json", "application/json"}}), 400, "bad_request",
+                  "kinematics_errors: given without part kinematics");
+    const std::string machine = slurp(kData / "machines" / "ac_table_table.json");
+    require_error(upload_demo3(c, {{"kinematics", machine, "m.json", "application/json"}, {"tool_length_mm", "-5", "", ""}}),
+                  400, "bad_request", "'-5' is not a length from 0 to 1000 mm");
+    require_error(upload_demo3(c, {{"kinematics", machine, "m.json", "application/json"},
+                                   {"kinematics_errors", R"({"X": {"EQQX_um": 3}})", "e.json", "application/json"}}),
+                  400, "bad_kinematics", "part kinematics_errors");
+    CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
+    CHECK(files_under(ts.data_dir() / "uploads") == 0);
+}
