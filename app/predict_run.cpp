@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <optional>
 
 namespace cutload::app {
 namespace {
@@ -39,6 +40,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         throw InputError("commanded_from_log", "the program and the log's commanded positions both give the commanded path: "
                                                "choose one");
     r.motion = motion_io::ingest(in.log_path, in.read, &r.ingest);
+    std::optional<MachineAxesForces> machine_axes;
     if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
     // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
     r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
@@ -47,7 +49,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             throw InputError("machine", "a machine definition cannot be combined with an NC program or the log's "
                                         "commanded path yet: predict the log alone");
         try {
-            r.motion = workpiece_motion(r.motion, *in.machine, in.tool_length_mm);
+            motion_io::MotionModel axes = std::move(r.motion);
+            r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm);
+            // The machine axes stay for the rows' machine-axis forces (MachineAxesForces says why
+            // they are taken at each row's time).
+            machine_axes.emplace(std::move(axes), in.machine);
         } catch (const WorkpieceMotionError& e) {
             throw InputError("machine", e.what());
         }
@@ -124,14 +130,21 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     track.begin(Phase::Predict, 0, actual_share);
     po.progress = track.engine_progress();
     std::size_t rows_out = 0;
+    std::vector<force_model::ForceSample> turned;   // rows with their machine-axis forces, on their way out
     if (in.rows_out) {
         if (in.rows_out->begin) in.rows_out->begin(r.motion.block_names, r.work.force_rows);
         po.rows_out = [&](std::span<const force_model::ForceSample> rows) {
             rows_out += rows.size();
+            if (machine_axes) {
+                turned.assign(rows.begin(), rows.end());
+                machine_axes->apply(turned);
+                rows = turned;
+            }
             in.rows_out->rows(rows);
         };
     }
     r.prediction = force_model::predict(r.motion, in.spec, po);
+    if (machine_axes) machine_axes->apply(r.prediction.samples);
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
     r.rows = rows_out + r.prediction.samples.size();
     if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));

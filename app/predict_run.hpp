@@ -54,6 +54,8 @@ struct RunInput {
     // The machine the log was recorded on (five-axis, docs/five_axis.md): its axes then go
     // through forward kinematics (workpiece_motion.hpp) before the engine; tool_length_mm is the
     // gauge point to the tip. Absent: the log's x, y, z are the tool tip, as on a three-axis machine.
+    // With a machine every row also gets its forces in machine axes (ForceSample::fx_machine_N ...,
+    // MachineAxesForces), in rows_out and in RunResult's prediction alike.
     std::shared_ptr<const machine::Machine> machine;
     double tool_length_mm = 0;
 };

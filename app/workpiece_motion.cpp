@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <numbers>
@@ -130,6 +131,72 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
         if (std::abs(axes.spindle_rpm[i]) >= 1) out.spindle_rpm[i] = axes.spindle_rpm[i] - turn_rate_deg_s / 6.0;
     }
     return out;
+}
+
+MachineAxesForces::MachineAxesForces(motion_io::MotionModel axes, std::shared_ptr<const machine::Machine> machine)
+    : axes_(std::move(axes)), machine_(std::move(machine)) {
+    if (axes_.size() == 0) throw WorkpieceMotionError("machine-axis forces of an empty motion model");
+    // The same channels workpiece_motion() reads (which has refused a log that lacks one).
+    for (const AxisSource& a : axis_sources(axes_, *machine_)) {
+        const std::vector<double>* p = a.position;
+        source_.push_back(p == &axes_.x_mm ? 0 : p == &axes_.y_mm ? 1 : p == &axes_.z_mm ? 2
+                          : p == &axes_.rot_deg[0] ? 3 : p == &axes_.rot_deg[1] ? 4 : 5);
+    }
+    sessions_ = std::max<std::size_t>(axes_.session_start.size(), 1);
+}
+
+std::size_t MachineAxesForces::session_begin(std::size_t s) const {
+    return axes_.session_start.empty() ? 0 : axes_.session_start[s];
+}
+
+std::size_t MachineAxesForces::session_end(std::size_t s) const {
+    return s + 1 < axes_.session_start.size() ? axes_.session_start[s + 1] : axes_.size();
+}
+
+MachineAxesForces::Place MachineAxesForces::locate(double t_s) {
+    const std::vector<double>& t = axes_.t_s;
+    // The current session from the cursor on, then the later sessions: rows come session by
+    // session, in time order within one, and a session may start before the previous one's time.
+    for (std::size_t s = session_; s < sessions_; ++s) {
+        const std::size_t b = session_begin(s), e = session_end(s);
+        std::size_t i = s == session_ ? std::max(index_, b) : b;
+        if (!(t_s >= t[i] && t_s <= t[e - 1])) continue;
+        while (i + 2 < e && t[i + 1] <= t_s) ++i;
+        session_ = s, index_ = i;
+        return {i, i + 1 < e, t_s};
+    }
+    // Not after the cursor (rows out of order, or a time rounded past a session's end): the
+    // current session's nearest place.
+    const std::size_t b = session_begin(session_), e = session_end(session_);
+    const double clamped = std::clamp(t_s, t[b], t[e - 1]);
+    const auto it = std::upper_bound(t.begin() + std::ptrdiff_t(b), t.begin() + std::ptrdiff_t(e), clamped);
+    const std::size_t i = std::min<std::size_t>(std::size_t(it - t.begin()) - 1, e >= b + 2 ? e - 2 : b);
+    return {i, i + 1 < e, clamped};
+}
+
+void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
+    machine::AxisPositions q;
+    for (force_model::ForceSample& row : rows) {
+        const Place at = locate(row.t_s);
+        motion_io::MotionState st;
+        if (at.interval) {
+            st = motion_io::sample_between(axes_, at.index, at.t_s);
+        } else {
+            st.pos_mm[0] = axes_.x_mm[at.index], st.pos_mm[1] = axes_.y_mm[at.index], st.pos_mm[2] = axes_.z_mm[at.index];
+            for (std::size_t k = 0; k < 3; ++k)
+                if (axes_.has_rotary(int(k))) st.rot_deg[k] = axes_.rot_deg[k][at.index];
+        }
+        for (std::size_t k = 0; k < source_.size(); ++k)
+            q.value[k] = source_[k] < 3 ? st.pos_mm[source_[k]] : st.rot_deg[source_[k] - 3];
+        const Eigen::Matrix3d R = machine::bed_to_workpiece(*machine_, q).R;
+        if (R == Eigen::Matrix3d::Identity()) {
+            row.fx_machine_N = row.fx_N, row.fy_machine_N = row.fy_N, row.fz_machine_N = row.fz_N;
+            continue;
+        }
+        // R turns machine axes into workpiece axes; its transpose turns them back.
+        const Eigen::Vector3d f_m = R.transpose() * Eigen::Vector3d(row.fx_N, row.fy_N, row.fz_N);
+        row.fx_machine_N = float(f_m.x()), row.fy_machine_N = float(f_m.y()), row.fz_machine_N = float(f_m.z());
+    }
 }
 
 std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {

@@ -18,10 +18,13 @@
 // displacement by the errors is kept.
 #pragma once
 
+#include "force_model/force_model.hpp"
 #include "machine/machine.hpp"
 #include "motion_io/motion_io.hpp"
 
+#include <cstddef>
 #include <memory>
+#include <span>
 #include <stdexcept>
 #include <string>
 
@@ -47,5 +50,49 @@ inline constexpr double kErrorTiltLimitRad = 1e-3;
 // warns). Blocks, tools, sessions and spindle speeds carry over.
 motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
                                         double tool_length_mm);
+
+// The engine's forces turned into the machine's (bed) axes: F_M = R_bed^T F_W, with R_bed the
+// rotation of bed_to_workpiece (docs/five_axis.md, section 4), filled into each row's
+// fx_machine_N, fy_machine_N, fz_machine_N.
+//
+// Why here and not in the engine: the engine cuts in workpiece (stock) axes and must not know the
+// machine (the layering keeps force_model off machine/); the application has both. Why at the
+// row's own time rather than per motion sample: rows come every angle step, between the 1 ms
+// samples, and a table turning 30 deg/s turns 0.03 deg in a sample; so each row's axes are taken
+// from the axes' own Hermite at its time (motion_io::sample_between, as the engine takes the tip),
+// and R_bed from the workpiece-side half of forward kinematics with the machine's errors: exact
+// to the joint path, and no dearer than a whole forward call (0.4 to 1.5 us, docs/five_axis.md
+// section 0: a few per cent of a core at 30 000 rows a second; not measured separately). The
+// machine axes are kept for this, whole, until the prediction ends (about as much memory again as
+// the motion model). Where R_bed is exactly the identity (every workpiece-side axis at 0 on a
+// machine without errors) the forces are copied, so a machine at rest reports machine-axis forces
+// identical to the workpiece ones, digit for digit.
+class MachineAxesForces {
+public:
+    // `axes`: the repaired log in machine axes, as workpiece_motion() took it (the rows' times
+    // are its times). Throws WorkpieceMotionError for an empty model or one the machine does not
+    // fit (as workpiece_motion() does).
+    MachineAxesForces(motion_io::MotionModel axes, std::shared_ptr<const machine::Machine> machine);
+    // Rows in the order the engine gives them: session by session, time-ordered within one (a
+    // session's time may lie before the previous one's: a restart dump in the log).
+    void apply(std::span<force_model::ForceSample> rows);
+
+private:
+
+    struct Place {
+        std::size_t index;   // the sample at or before the row
+        bool interval;       // the row lies in [index, index + 1] of one session (else: at sample index)
+        double t_s;          // the row's time, inside the session
+    };
+    Place locate(double t_s);
+    std::size_t session_begin(std::size_t s) const;
+    std::size_t session_end(std::size_t s) const;
+
+    motion_io::MotionModel axes_;
+    std::shared_ptr<const machine::Machine> machine_;
+    std::vector<int> source_;                 // per chain axis: 0..2 x, y, z; 3..5 the rotary a, b, c
+    std::size_t sessions_ = 1;
+    std::size_t session_ = 0, index_ = 0;     // cursor: the session and sample of the last row
+};
 
 }  // namespace cutload::app

@@ -45,7 +45,10 @@ void run_predict(const PredictArgs& a) {
     in.tool_length_mm = a.tool_length_mm;
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
-    const std::unique_ptr<force_model::ForcesWriter> forces = force_model::open_forces_writer(a.out);
+    // With a machine the rows carry their forces in machine axes too (docs/formats.md, FORCES.csv).
+    force_model::ForcesColumns columns;
+    columns.machine_axes = in.machine != nullptr;
+    const std::unique_ptr<force_model::ForcesWriter> forces = force_model::open_forces_writer(a.out, columns);
     in.rows_out = app::RunInput::RowsOut{[&](const std::vector<std::string>& names, double) { forces->set_block_names(names); },
                                          [&](std::span<const force_model::ForceSample> rows) { forces->write(rows); }};
 

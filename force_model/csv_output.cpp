@@ -35,10 +35,11 @@ namespace {
 
 class ForcesCsvWriter final : public ForcesWriter {
 public:
-    explicit ForcesCsvWriter(const std::string& path) : file_(path) {
+    ForcesCsvWriter(const std::string& path, const ForcesColumns& columns) : file_(path), machine_axes_(columns.machine_axes) {
         buf_.reserve(1 << 20);
         buf_ += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
-                "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n";
+                "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact";
+        buf_ += machine_axes_ ? ",fx_machine_N,fy_machine_N,fz_machine_N\n" : "\n";
     }
 
     void set_block_names(const std::vector<std::string>& block_names) override {
@@ -75,7 +76,15 @@ public:
             num(s.radial_engagement_mm, 3);
             num(s.axial_engagement_mm, 3);
             num(s.removed_mm3, 5);
-            buf_ += s.holder_contact ? "1\n" : "0\n";
+            if (machine_axes_) {
+                buf_ += s.holder_contact ? "1," : "0,";
+                num(s.fx_machine_N, 3);
+                num(s.fy_machine_N, 3);
+                num(s.fz_machine_N, 3);
+                buf_.back() = '\n';
+            } else {
+                buf_ += s.holder_contact ? "1\n" : "0\n";
+            }
             if (buf_.size() > (1 << 20) - 512) flush();
         }
     }
@@ -93,14 +102,15 @@ private:
     }
 
     StagedFile file_;
+    bool machine_axes_ = false;
     std::vector<std::string> names_;   // CSV fields of the block names
     std::string buf_;
 };
 
 }  // namespace
 
-std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path) {
-    return std::make_unique<ForcesCsvWriter>(path);
+std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path, const ForcesColumns& columns) {
+    return std::make_unique<ForcesCsvWriter>(path, columns);
 }
 
 void write_forces_csv(const Prediction& p, const std::string& path) {
@@ -110,13 +120,13 @@ void write_forces_csv(const Prediction& p, const std::string& path) {
     w->commit();
 }
 
-std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path) {
-    if (path.size() >= 4 && path.compare(path.size() - 4, 4, ".bin") == 0) return make_forces_bin_writer(path);
-    return make_forces_csv_writer(path);
+std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path, const ForcesColumns& columns) {
+    if (path.size() >= 4 && path.compare(path.size() - 4, 4, ".bin") == 0) return make_forces_bin_writer(path, columns);
+    return make_forces_csv_writer(path, columns);
 }
 
-void write_forces_file(const Prediction& p, const std::string& path) {
-    const auto w = open_forces_writer(path);
+void write_forces_file(const Prediction& p, const std::string& path, const ForcesColumns& columns) {
+    const auto w = open_forces_writer(path, columns);
     w->set_block_names(p.block_names);
     w->write(p.samples);
     w->commit();

@@ -186,6 +186,11 @@ struct ForceSample {
     float radial_engagement_mm = 0, axial_engagement_mm = 0;
     float removed_mm3 = 0;          // volume removed since the previous row
     bool holder_contact = false;
+    // fx_N, fy_N, fz_N are in workpiece (stock) axes: the frame the engine cuts in. With a machine
+    // definition the force also in the machine's (bed) axes, F_M = R_bed^T F_W (docs/five_axis.md,
+    // section 4): filled by the application, which knows the machine (app::MachineAxesForces);
+    // the engine leaves them 0. Written only with ForcesColumns::machine_axes.
+    float fx_machine_N = 0, fy_machine_N = 0, fz_machine_N = 0;
 };
 
 struct FlagHit {
@@ -276,6 +281,14 @@ std::size_t stock_bytes_per_cell();
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 
+// Optional columns of FORCES.csv and FORCES.bin (docs/formats.md). Without any, the files are
+// exactly as before these options existed.
+struct ForcesColumns {
+    // fx_machine_N, fy_machine_N, fz_machine_N after the others (ForceSample::fx_machine_N ...):
+    // for a run with a machine definition.
+    bool machine_axes = false;
+};
+
 void write_forces_csv(const Prediction& p, const std::string& path);
 // Where a prediction's rows go as they come (PredictOptions::rows_out), so the run's rows are never
 // all held in memory: into a temporary file beside PATH (created exclusively), renamed to PATH by
@@ -293,18 +306,18 @@ public:
 
 // FORCES.csv (docs/formats.md): about 90 bytes a row. Throws std::runtime_error when it cannot
 // write beside PATH.
-std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path);
+std::unique_ptr<ForcesWriter> make_forces_csv_writer(const std::string& path, const ForcesColumns& columns = {});
 // FORCES.bin (docs/formats.md, "FORCES.bin"): FORCES.csv's columns at FORCES.csv's resolution,
 // column by column in chunks of kForcesBinChunkRows rows, each value the zigzag varint of its
 // difference from the row before: about a fifth of the CSV's size, and exact to the CSV's digits.
 // write() throws std::runtime_error for a value it cannot carry (not finite, or beyond 9e15
 // quanta); set_block_names() after the first rows is a std::logic_error.
 inline constexpr std::size_t kForcesBinChunkRows = std::size_t(1) << 16;
-std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path);
+std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path, const ForcesColumns& columns = {});
 // FORCES.bin when the path ends in ".bin", else FORCES.csv.
-std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path);
+std::unique_ptr<ForcesWriter> open_forces_writer(const std::string& path, const ForcesColumns& columns = {});
 // All of a prediction's rows at once, in the format open_forces_writer picks.
-void write_forces_file(const Prediction& p, const std::string& path);
+void write_forces_file(const Prediction& p, const std::string& path, const ForcesColumns& columns = {});
 
 // Columns appended to BLOCKS.csv: `header` starts with ',', fields(block) gives the block's
 // fields, also starting with ','. (The NC program comparison adds its columns this way.)

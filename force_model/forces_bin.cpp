@@ -51,7 +51,10 @@ struct Column {
             [](ForceSample& s, double v) { s.field = static_cast<float>(v); }                     \
     }
 
-const std::array<Column, 15> kColumns{{
+// The first kBaseColumns are always written; the machine-axis forces only with
+// ForcesColumns::machine_axes (a run with a machine definition).
+constexpr std::size_t kBaseColumns = 15;
+const std::array<Column, 18> kColumns{{
     {"t_s", 6, [](const ForceSample& s) { return s.t_s; }, [](ForceSample& s, double v) { s.t_s = v; }},
     {"spindle_angle_deg", 3, [](const ForceSample& s) { return s.spindle_angle_deg; },
      [](ForceSample& s, double v) { s.spindle_angle_deg = v; }},
@@ -71,6 +74,9 @@ const std::array<Column, 15> kColumns{{
     CUTLOAD_FLOAT_COLUMN(removed_mm3, 5),
     {"holder_contact", 0, [](const ForceSample& s) { return s.holder_contact ? 1.0 : 0.0; },
      [](ForceSample& s, double v) { s.holder_contact = v != 0; }},
+    CUTLOAD_FLOAT_COLUMN(fx_machine_N, 3),
+    CUTLOAD_FLOAT_COLUMN(fy_machine_N, 3),
+    CUTLOAD_FLOAT_COLUMN(fz_machine_N, 3),
 }};
 #undef CUTLOAD_FLOAT_COLUMN
 
@@ -114,7 +120,8 @@ namespace {
 
 class ForcesBinWriter final : public ForcesWriter {
 public:
-    explicit ForcesBinWriter(const std::string& path) : file_(path) {}
+    ForcesBinWriter(const std::string& path, const ForcesColumns& columns)
+        : file_(path), n_columns_(columns.machine_axes ? kColumns.size() : kBaseColumns) {}
 
     void set_block_names(const std::vector<std::string>& block_names) override {
         if (header_written_) throw std::logic_error("FORCES.bin: block names set after the first rows");
@@ -129,7 +136,7 @@ public:
         for (const ForceSample& s : rows) {
             // The whole row is checked before any of it is kept.
             std::array<std::int64_t, kColumns.size()> q{};
-            for (std::size_t c = 0; c < kColumns.size(); ++c) {
+            for (std::size_t c = 0; c < n_columns_; ++c) {
                 const auto v = quanta(kColumns[c].get(s), kColumns[c].decimals);
                 if (!v)
                     throw std::runtime_error(fmt::format("FORCES.bin: {} = {} at t = {} s cannot be stored (not finite, "
@@ -139,7 +146,7 @@ public:
                 q[c] = *v;
             }
             if (q[2] < -1 || q[2] >= names) q[2] = -1;   // as FORCES.csv: a block without a name is none
-            for (std::size_t c = 0; c < kColumns.size(); ++c) {
+            for (std::size_t c = 0; c < n_columns_; ++c) {
                 const std::int64_t d = q[c] - previous_[c];
                 put_varint(column_bytes_[c],
                            (static_cast<std::uint64_t>(d) << 1) ^ static_cast<std::uint64_t>(d >> 63));
@@ -169,7 +176,8 @@ public:
 private:
     void write_header() {
         nlohmann::json columns = nlohmann::json::array();
-        for (const Column& c : kColumns) columns.push_back({{"name", c.name}, {"decimals", c.decimals}});
+        for (std::size_t c = 0; c < n_columns_; ++c)
+            columns.push_back({{"name", kColumns[c].name}, {"decimals", kColumns[c].decimals}});
         const std::string header = nlohmann::json{{"format", "cutload FORCES.bin"},
                                                   {"columns", columns},
                                                   {"chunk_rows", kForcesBinChunkRows},
@@ -191,7 +199,8 @@ private:
         if (chunk_rows_ == 0) return;
         out_.clear();
         put_u32(out_, chunk_rows_);
-        for (std::string& bytes : column_bytes_) {
+        for (std::size_t c = 0; c < n_columns_; ++c) {
+            std::string& bytes = column_bytes_[c];
             put_u32(out_, static_cast<std::uint32_t>(bytes.size()));
             out_ += bytes;
             bytes.clear();
@@ -202,6 +211,7 @@ private:
     }
 
     StagedFile file_;
+    std::size_t n_columns_;   // the first n of kColumns
     std::vector<std::string> block_names_;
     bool header_written_ = false;
     std::array<std::string, kColumns.size()> column_bytes_;
@@ -213,8 +223,8 @@ private:
 
 }  // namespace
 
-std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path) {
-    return std::make_unique<ForcesBinWriter>(path);
+std::unique_ptr<ForcesWriter> make_forces_bin_writer(const std::string& path, const ForcesColumns& columns) {
+    return std::make_unique<ForcesBinWriter>(path, columns);
 }
 
 // ---- Reading ----
@@ -384,7 +394,7 @@ private:
             if (!(std::abs(s.t_s) <= 1e9)) fail(offset_, fmt::format("{}: time {:g} s is beyond \u00b11e+09 s", row, s.t_s));
             if (i > 0 && s.t_s < t.samples[i - 1].t_s)
                 fail(offset_, fmt::format("{}: time {} s goes back from {} s", row, s.t_s, t.samples[i - 1].t_s));
-            for (const float f : {s.fx_N, s.fy_N, s.fz_N})
+            for (const float f : {s.fx_N, s.fy_N, s.fz_N, s.fx_machine_N, s.fy_machine_N, s.fz_machine_N})
                 if (!(std::abs(f) <= 1e6)) fail(offset_, fmt::format("{}: force {:g} N is beyond \u00b11e+06 N", row, f));
             if (s.block < -1 || s.block >= static_cast<std::int64_t>(block_names_.size()))
                 fail(offset_, fmt::format("{}: block {} where the header names {} blocks", row, s.block, block_names_.size()));

@@ -41,6 +41,12 @@ ChannelMap shdr_defaults() {
     set(m, C::XCmd, {"Xcom", "Xcmd", "X1cmdw"});
     set(m, C::YCmd, {"Ycom", "Ycmd", "Y1cmdw"});
     set(m, C::ZCmd, {"Zcom", "Zcmd", "Z1cmdw"});
+    // Rotary axes (docs/five_axis.md, section 2.1): machine-coordinate items (*actm) before the
+    // generic names and work-coordinate ones (*actw, which include a work offset), since
+    // kinematics needs the axes' own positions. Okuma names the main spindle's C axis C3.
+    set(m, C::A, {"A1actm", "Aact", "Aabs", "Apos", "A1actw"});
+    set(m, C::B, {"B1actm", "Bact", "Babs", "Bpos", "B1actw"});
+    set(m, C::C, {"C1actm", "C3actm", "Cact", "Cabs", "Cpos", "C1actw", "C3actw"});
     set(m, C::Feed, {"p1Fact", "path_feedrate", "Fact", "Frt"});
     // The milling (tool) spindle first: on Okuma multitasking controls S6 turns the cutter while
     // S1/S2 turn the workpiece; a plain machining centre only has S1.
@@ -52,11 +58,11 @@ ChannelMap shdr_defaults() {
 // Keys a format cannot use are errors, not silently ignored: a map written for the other format
 // would otherwise read as if it applied.
 void check_applies(const std::string& key, Format format, const std::string& origin) {
-    static const std::vector<std::string> csv_only{"a", "b", "c", "tool", "t", "t_pos", "t_feed", "t_spindle",
-                                                   "sample_period_ms", "units.time", "units.angle"};
+    static const std::vector<std::string> csv_only{"tool", "t", "t_pos", "t_feed", "t_spindle", "sample_period_ms",
+                                                   "units.time"};
     if (format == Format::Shdr && std::find(csv_only.begin(), csv_only.end(), key) != csv_only.end())
         throw IngestError(fmt::format("{}: key '{}' applies to CSV logs only (SHDR lines carry their own time stamps; "
-                                      "rotary axes are not read from SHDR)", origin, key));
+                                      "the tool is not read from SHDR)", origin, key));
     if (format != Format::Shdr && key == "position")
         throw IngestError(fmt::format("{}: key 'position' is an SHDR 3-D path position; a CSV log names its axis "
                                       "columns with x, y, z", origin));

@@ -21,7 +21,7 @@ enum class MapChannel : int {
     Position,                       // SHDR 3-D path position "x y z"
     X, Y, Z,                        // actual axis positions
     XCmd, YCmd, ZCmd,               // commanded axis positions (the interpolator's output)
-    A, B, C,                        // rotary axes (CSV: validated, not modelled yet)
+    A, B, C,                        // rotary axes, deg (latched with the linear ones)
     Feed, Spindle, Block,
     Tool,                           // tool number in the spindle (CSV)
     T, TPos, TFeed, TSpindle,       // CSV time columns

@@ -20,9 +20,6 @@ namespace {
 using MC = MapChannel;
 
 constexpr MC kRotary[3] = {MC::A, MC::B, MC::C};
-// A logged angle beyond this is no axis position (a counter that overflowed, a wrong column): a
-// table turning 1000 rpm for ten hours reaches 2e8 deg when its display counts on.
-constexpr double kMaxAbsRotaryDeg = 1e9;
 
 std::string ascii_lower(std::string_view s) {
     std::string out(s);

@@ -19,7 +19,10 @@
 
 namespace cutload::motion_io::detail {
 
-enum class Chan : std::uint8_t { Pos, AxisX, AxisY, AxisZ, Feed, Spindle, Block, Tool };
+// AxisA, AxisB, AxisC: single rotary items (SHDR), in degrees; the sequence stage latches them into
+// the position readings (Record::rot_deg) as it merges the single linear axes.
+enum class Chan : std::uint8_t { Pos, AxisX, AxisY, AxisZ, Feed, Spindle, Block, Tool, AxisA, AxisB, AxisC };
+constexpr bool is_rotary_axis(Chan ch) { return ch == Chan::AxisA || ch == Chan::AxisB || ch == Chan::AxisC; }
 
 // One reading of one channel, in canonical units (s, mm, mm/min, rpm).
 struct Record {
@@ -77,12 +80,20 @@ struct ReaderFacts {
     // Which rotary axes (A, B, C) the position readings carry; known before the first record.
     std::array<bool, 3> rotary{false, false, false};
     bool any_rotary() const { return rotary[0] || rotary[1] || rotary[2]; }
+    // The rotary axes come as items of their own (SHDR: Chan::AxisA..AxisC), which the sequence
+    // stage latches into every position reading; false: the readings carry them (CSV rows).
+    bool rotary_items = false;
 };
 
 // Rotary axes count as motion of this many mm per degree where the ingest weighs them against the
 // linear axes (the clock stage's velocity jumps): a point 100 mm from the axis line (design
 // docs/five_axis.md, section 2.2: rho_ref = 100 mm/rad).
 inline constexpr double kRotaryMmPerDeg = 100.0 * 3.14159265358979323846 / 180.0;
+
+// A logged angle beyond this is no axis position (a counter that overflowed, a wrong column or
+// key): a table turning 1000 rpm for ten hours reaches 2e8 deg when its display counts on. The
+// readers refuse it at its line.
+inline constexpr double kMaxAbsRotaryDeg = 1e9;
 
 // Warnings are counted per code; the first occurrence keeps its place and wording.
 class Diagnostics {

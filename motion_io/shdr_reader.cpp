@@ -8,6 +8,15 @@
 // highest-priority candidate that the log actually contains is chosen; both passes stream line by
 // line, each line bounded and decoded to UTF-8 (textio), so a Latin-1 block name reads as what it
 // means.
+//
+// Rotary items (A, B, C in degrees). The ingest must know which rotary axes the position readings
+// carry before the first record (ReaderFacts::rotary: the unwrap and resample stages are set up
+// for them), while an SHDR stream names its items only as they change. The first pass settles it:
+// it reads the whole file anyway, so a rotary axis counts as present when one of its candidate
+// keys carries a value somewhere in the file (a key that only ever says UNAVAILABLE gives no
+// position and does not make the axis present, so a later candidate with values can serve). The
+// rotary items are then latched into the position readings like single linear axes (stage
+// sequence), with a 3-D path position or with single axes alike.
 #include "channel_map.hpp"
 #include "pipeline.hpp"
 #include "motion_io/shdr.hpp"
@@ -33,6 +42,9 @@ const std::string* first_present(const std::vector<std::string>& candidates, con
         if (seen.count(k)) return &k;
     return nullptr;
 }
+
+// A value that is a reading: not UNAVAILABLE, not empty (such a value is held, see handle()).
+bool rotary_value(std::string_view value) { return !value.empty() && value != "UNAVAILABLE"; }
 
 // Character column of a field that is a view into `line`.
 std::size_t column_in(std::string_view line, std::string_view field) {
@@ -89,8 +101,9 @@ private:
     }
 
     std::set<std::string, std::less<>> scan_keys() {
-        std::set<std::string, std::less<>> wanted, seen;
+        std::set<std::string, std::less<>> wanted, seen, rotary;
         for (const auto& list : map_.candidates) wanted.insert(list.begin(), list.end());
+        for (const MapChannel c : {MapChannel::A, MapChannel::B, MapChannel::C}) rotary.insert(map_[c].begin(), map_[c].end());
         std::ifstream in(path_, std::ios::binary);
         if (!in) diag_.fail(0, "cannot open file");
         try {
@@ -106,7 +119,12 @@ private:
                 }
                 split_shdr_fields(line, fields_);
                 for (std::size_t i = 1; i < fields_.size(); i += 2)
-                    if (auto it = wanted.find(fields_[i]); it != wanted.end()) seen.insert(*it);
+                    if (auto it = wanted.find(fields_[i]); it != wanted.end()) {
+                        // A rotary key counts once it carries a value (see the top of this file).
+                        const std::string_view value = i + 1 < fields_.size() ? fields_[i + 1] : std::string_view();
+                        if (rotary.count(*it) && !rotary_value(value)) continue;
+                        seen.insert(*it);
+                    }
             }
         } catch (const textio::TextError& e) {
             throw IngestError(e.what());
@@ -139,12 +157,24 @@ private:
             axis_keys(actual, "no position data: none of the path-position keys [{0}] nor axis keys [{1}] occur (give a "
                               "--map file, see docs/formats.md)");
         }
+        const std::pair<MC, Chan> rotary[] = {{MC::A, Chan::AxisA}, {MC::B, Chan::AxisB}, {MC::C, Chan::AxisC}};
+        for (std::size_t k = 0; k < 3; ++k)
+            if (const auto* key = first_present(map_[rotary[k].first], seen)) {
+                // One item cannot be two axes: a map that says so is refused, not read one way.
+                if (!keys_.emplace(*key, rotary[k].second).second)
+                    diag_.fail(0, fmt::format("key '{}' is named for channel '{}' and for another channel (fix the map)",
+                                              *key, map_key(rotary[k].first)));
+                diag_.facts().rotary[k] = true;
+                diag_.facts().rotary_items = true;
+            }
         if (const auto* k = first_present(map_[MC::Feed], seen)) keys_.emplace(*k, Chan::Feed);
         if (const auto* k = first_present(map_[MC::Spindle], seen)) keys_.emplace(*k, Chan::Spindle);
         if (const auto* k = first_present(map_[MC::Block], seen)) keys_.emplace(*k, Chan::Block);
         try {
             const ShdrUnitFactors f = shdr_unit_factors(shdr_key_map(map_), opt_);
             length_mm_ = f.length_mm, feed_mm_min_ = f.feed_mm_min, spindle_rpm_ = f.spindle_rpm;
+            // MTConnect declares ANGLE items in degrees; a map may say otherwise.
+            angle_deg_ = angle_factor_deg(map_.angle_unit.value_or("deg"));
         } catch (const std::invalid_argument& e) {
             diag_.fail(0, map_.origin.empty() ? std::string(e.what()) : map_.origin + ": " + e.what());
         }
@@ -181,6 +211,15 @@ private:
             if (start != value.size())
                 diag_.fail_at(line_no, column_in(line_, value),
                               fmt::format("key '{}': '{}' has more than 3 numbers (expected 'x y z')", key, value));
+        } else if (is_rotary_axis(ch)) {
+            r.v[0] = number(key, value, line_no, "a number") * angle_deg_;
+            if (!(std::fabs(r.v[0]) <= kMaxAbsRotaryDeg))
+                diag_.fail_at(line_no, column_in(line_, value),
+                              fmt::format("key '{}': {:.10g} deg beyond +-{:g} deg: no axis position (a counter that "
+                                          "overflowed, or a key that is not this axis's angle)",
+                                          key, r.v[0], kMaxAbsRotaryDeg));
+            out_.push(r);
+            return;
         } else {
             const double factor = ch == Chan::Feed ? feed_mm_min_ : ch == Chan::Spindle ? spindle_rpm_ : length_mm_;
             r.v[0] = number(key, value, line_no, "a number") * factor;
@@ -237,7 +276,7 @@ private:
     std::map<std::string, int, std::less<>> axis_of_key_;
     std::vector<std::string_view> fields_;
     std::string_view line_;
-    double length_mm_ = 1, feed_mm_min_ = 60, spindle_rpm_ = 1;
+    double length_mm_ = 1, feed_mm_min_ = 60, spindle_rpm_ = 1, angle_deg_ = 1;
     bool have_origin_ = false;
     std::int64_t origin_sec_ = 0;
 };

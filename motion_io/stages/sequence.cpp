@@ -1,5 +1,12 @@
 // Stage "sequence": puts records in time order and splits sessions (a jump back in time beyond the
 // reorder horizon, or a long silence), and merges single-axis position items into 3-D positions.
+//
+// Rotary items (SHDR A, B, C: ReaderFacts::rotary_items) are latched the same way: every position
+// carries the last value of each rotary axis the log has, and a rotary item alone (a table turning
+// while X, Y, Z stand still: an adapter sends only what changes) makes a position too. A 3-D path
+// position then joins the merge as all three linear axes at once, so one time stamp gives one
+// position with every axis. Until every axis of the log has been read in a session, positions are
+// skipped (axis_incomplete): an axis's position is not invented.
 #include "stages/sequence.hpp"
 
 #include <fmt/format.h>
@@ -76,6 +83,28 @@ void Sequence::release(const Record& r) {
             axis_pending_ = true;
             break;
         }
+        case Chan::AxisA: case Chan::AxisB: case Chan::AxisC: {
+            const int k = static_cast<int>(r.ch) - static_cast<int>(Chan::AxisA);
+            axes_.rot_deg[k] = r.v[0];
+            axes_.after_glitch = axes_.after_glitch || r.after_glitch;
+            rotary_known_ |= 1u << k;
+            axes_.line = r.line;
+            axis_t_ = r.t_s;
+            axis_pending_ = true;
+            break;
+        }
+        case Chan::Pos:
+            if (diag_.facts().rotary_items) {
+                for (int k = 0; k < 3; ++k) axes_.v[k] = r.v[k];
+                axes_.after_glitch = axes_.after_glitch || r.after_glitch;
+                axes_known_ = 7u;
+                axes_.line = r.line;
+                axis_t_ = r.t_s;
+                axis_pending_ = true;
+                break;
+            }
+            emit(Flow::Positions, r);
+            break;
         default:
             emit(session_flow(r.ch), r);
     }
@@ -85,6 +114,18 @@ void Sequence::flush_axes() {
     axis_pending_ = false;
     if (axes_known_ != 7u) {
         diag_.warn("axis_incomplete", axes_.line, "position item before all three axes were known; skipped");
+        return;
+    }
+    unsigned rotary_needed = 0;
+    for (unsigned k = 0; k < 3; ++k)
+        if (diag_.facts().rotary_items && diag_.facts().rotary[k]) rotary_needed |= 1u << k;
+    if ((rotary_known_ & rotary_needed) != rotary_needed) {
+        const unsigned missing = rotary_needed & ~rotary_known_;
+        std::string axes;
+        for (unsigned k = 0; k < 3; ++k)
+            if (missing & (1u << k)) axes += fmt::format("{}{}", axes.empty() ? "" : ", ", char('A' + k));
+        diag_.warn("axis_incomplete", axes_.line,
+                   fmt::format("position before rotary axis {} was known in this session; skipped", axes));
         return;
     }
     Record p = axes_;
@@ -101,6 +142,7 @@ void Sequence::end_session() {
     emit_end_session(summary);
     in_session_ = false;
     axes_known_ = 0;
+    rotary_known_ = 0;
 }
 
 }  // namespace cutload::motion_io::detail

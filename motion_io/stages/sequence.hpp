@@ -8,7 +8,7 @@
 namespace cutload::motion_io::detail {
 
 // Accepts checked readings; emits sessions and, within them, time-ordered positions (single-axis
-// items merged into 3-D positions), feed, spindle and block readings.
+// items, linear and rotary, merged into positions), feed, spindle and block readings.
 class Sequence final : public Stage {
 public:
     Sequence(Diagnostics& diag, StageLimits limits = {});
@@ -37,6 +37,7 @@ private:
     double last_t_ = 0;
     Record axes_;
     unsigned axes_known_ = 0;
+    unsigned rotary_known_ = 0;   // bit k: rotary axis k (A, B, C) read in this session
     bool axis_pending_ = false;
     double axis_t_ = 0;
 };

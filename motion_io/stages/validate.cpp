@@ -18,13 +18,18 @@ const char* channel_name(Chan ch) {
         case Chan::Spindle: return "spindle";
         case Chan::Block: return "block";
         case Chan::Tool: return "tool";
+        case Chan::AxisA: return "a";
+        case Chan::AxisB: return "b";
+        case Chan::AxisC: return "c";
     }
     return "?";
 }
 
 // Which readings stand in for each other when one is lost: positions (3-D or per axis), spindle, the rest.
 int group_of(Chan ch) {
-    return ch == Chan::Pos || ch == Chan::AxisX || ch == Chan::AxisY || ch == Chan::AxisZ ? 0 : ch == Chan::Spindle ? 1 : 2;
+    return ch == Chan::Pos || ch == Chan::AxisX || ch == Chan::AxisY || ch == Chan::AxisZ || is_rotary_axis(ch) ? 0
+           : ch == Chan::Spindle                                                                            ? 1
+                                                                                                            : 2;
 }
 
 int values_of(Chan ch) { return ch == Chan::Pos ? 3 : (ch == Chan::Block || ch == Chan::Tool) ? 0 : 1; }
@@ -75,8 +80,11 @@ void Validate::drop_spike(const Record& r) {
 }
 
 double Validate::limit_for(Chan ch) const {
+    // A rotary axis has no physical range to judge a glitch by (a table counts on past a turn):
+    // only the readers' bound on an angle applies.
     return ch == Chan::Feed ? limits_.max_abs_feed_mm_min
            : ch == Chan::Spindle ? limits_.max_abs_spindle_rpm
+           : is_rotary_axis(ch) ? kMaxAbsRotaryDeg
                                  : limits_.max_abs_position_mm;
 }
 
@@ -97,7 +105,7 @@ void Validate::drop(const Record& r) {
         what = fmt::format("position ({:g}, {:g}, {:g}) mm beyond +-{:g} mm", r.v[0], r.v[1], r.v[2],
                            limits_.max_abs_position_mm);
     } else {
-        const char* unit = r.ch == Chan::Feed ? "mm/min" : r.ch == Chan::Spindle ? "rpm" : "mm";
+        const char* unit = r.ch == Chan::Feed ? "mm/min" : r.ch == Chan::Spindle ? "rpm" : is_rotary_axis(r.ch) ? "deg" : "mm";
         what = fmt::format("{} {:g} {} beyond +-{:g} {}", channel_name(r.ch), r.v[0], unit, limit_for(r.ch), unit);
     }
     diag_.warn("glitch_dropped", r.line,

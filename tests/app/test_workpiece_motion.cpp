@@ -51,6 +51,13 @@ motion_io::MotionModel table_turn(double x, double y, double z, double a_deg, do
     return m;
 }
 
+// A three-axis motion as the log of the AC machine standing at A = C = 0.
+motion_io::MotionModel three_axis_with_rotary(motion_io::MotionModel m) {
+    m.rot_deg[0].assign(m.size(), 0.0), m.rot_vel_deg_s[0].assign(m.size(), 0.0);
+    m.rot_deg[2].assign(m.size(), 0.0), m.rot_vel_deg_s[2].assign(m.size(), 0.0);
+    return m;
+}
+
 }  // namespace
 
 TEST_CASE("workpiece motion: a C table turning 30 deg/s feeds a tool 100 mm off its line at 3141.6 mm/min",
@@ -199,6 +206,82 @@ TEST_CASE("workpiece motion: a cut commanded through the table turned 90 deg giv
         CHECK(turned.blocks[0].peak_force_N == Approx(plain.blocks[0].peak_force_N).epsilon(1e-3));
         CHECK(turned.blocks[0].mean_force_N == Approx(plain.blocks[0].mean_force_N).epsilon(1e-3));
         CHECK(turned.blocks[0].removed_mm3 == Approx(plain.blocks[0].removed_mm3).epsilon(1e-3));
+        if (d != force_model::Device::Cpu) continue;
+
+        // Machine axes (test T3's second half). The table turned +90 deg about C maps machine
+        // axes into workpiece axes by R_bed = R_z(+90) (the machine suite: a tip d from the C line
+        // at C = 0 is at R_z(90) d at C = 90), so F_M = R_z(90)^T F_W = R_z(-90) F_W:
+        // (Fx, Fy, Fz) -> (Fy, -Fx, Fz). A feed force against the part's +X (the cut runs along it)
+        // is then along the machine's +Y, whose axis runs the other way (Y fell by 60 mm above).
+        std::vector<force_model::ForceSample> rows = turned.samples;
+        app::MachineAxesForces(axes, machine).apply(rows);
+        const machine::AxisPositions q90 = machine::positions(*machine, {{'C', 90.0}, {'A', 0.0}});
+        const Eigen::Matrix3d R = machine::bed_to_workpiece(*machine, q90).R;
+        double largest_N = 0, mean_fy_machine_N = 0;
+        for (const force_model::ForceSample& s : rows) {
+            const double scale = std::hypot(s.fx_N, s.fy_N, s.fz_N) * 1e-9 + 1e-30;
+            const Eigen::Vector3d f_m = R.transpose() * Eigen::Vector3d(s.fx_N, s.fy_N, s.fz_N);
+            REQUIRE(s.fx_machine_N == Approx(f_m.x()).epsilon(1e-9).margin(scale));
+            REQUIRE(s.fy_machine_N == Approx(f_m.y()).epsilon(1e-9).margin(scale));
+            REQUIRE(s.fz_machine_N == Approx(f_m.z()).epsilon(1e-9).margin(scale));
+            REQUIRE(s.fx_machine_N == Approx(s.fy_N).epsilon(1e-9).margin(scale));    // by hand
+            REQUIRE(s.fy_machine_N == Approx(-s.fx_N).epsilon(1e-9).margin(scale));
+            REQUIRE(s.fz_machine_N == s.fz_N);
+            largest_N = std::max(largest_N, double(std::hypot(s.fx_N, s.fy_N)));
+            mean_fy_machine_N += s.fy_machine_N / double(rows.size());
+        }
+        CHECK(largest_N > 100);   // the comparison saw real forces
+        // The workpiece forces of the same cut at C = 0 (no turn) are the machine's own: the
+        // feed force along the part's X is along the machine's X there, and along Y here.
+        std::vector<force_model::ForceSample> at_rest = plain.samples;
+        app::MachineAxesForces(three_axis_with_rotary(three_axis), machine).apply(at_rest);
+        double mean_fx_rest_N = 0;
+        for (const force_model::ForceSample& s : at_rest) {
+            // Identical, not merely close: R_bed is the identity at rest.
+            REQUIRE(s.fx_machine_N == s.fx_N);
+            REQUIRE(s.fy_machine_N == s.fy_N);
+            REQUIRE(s.fz_machine_N == s.fz_N);
+            mean_fx_rest_N += s.fx_N / double(at_rest.size());
+        }
+        CHECK(mean_fy_machine_N == Approx(-mean_fx_rest_N).epsilon(2e-3));
+    }
+}
+
+TEST_CASE("machine-axis forces: each row is turned by the table's angle at its own time, across sessions",
+          "[five_axis][workpiece_motion]") {
+    // C turning 30 deg/s from 10 deg: rows between the 1 ms samples see C at their own time, not
+    // at the nearest sample. R_bed = R_z(C), so F_M = (Fx cos C + Fy sin C, -Fx sin C + Fy cos C, Fz).
+    const auto machine = ac_table_table();
+    motion_io::MotionModel axes = table_turn(kCx + 100, kCy, -400, 0, 10, 30, 0.1);
+    // A second session starts back in time (a restart dump): C stands at 200 deg there.
+    const motion_io::MotionModel second = table_turn(kCx + 100, kCy, -400, 0, 200, 0, 0.05);
+    const std::size_t n1 = axes.size();
+    auto append = [](std::vector<double>& a, const std::vector<double>& b) { a.insert(a.end(), b.begin(), b.end()); };
+    append(axes.t_s, second.t_s);
+    append(axes.x_mm, second.x_mm), append(axes.y_mm, second.y_mm), append(axes.z_mm, second.z_mm);
+    append(axes.vx_mm_s, second.vx_mm_s), append(axes.vy_mm_s, second.vy_mm_s), append(axes.vz_mm_s, second.vz_mm_s);
+    append(axes.spindle_rpm, second.spindle_rpm), append(axes.spindle_angle_deg, second.spindle_angle_deg);
+    axes.block.insert(axes.block.end(), second.block.begin(), second.block.end());
+    for (std::size_t k : {0u, 2u}) append(axes.rot_deg[k], second.rot_deg[k]), append(axes.rot_vel_deg_s[k], second.rot_vel_deg_s[k]);
+    axes.session_start = {0, n1};
+
+    std::vector<force_model::ForceSample> rows;
+    auto row = [&](double t) {
+        force_model::ForceSample s;
+        s.t_s = t, s.fx_N = 100, s.fy_N = -40, s.fz_N = 7;
+        rows.push_back(s);
+    };
+    for (double t = 0.0; t < 0.1; t += 0.000337) row(t);
+    const std::size_t first_session_rows = rows.size();
+    for (double t = 0.0; t <= 0.05; t += 0.000337) row(t);
+    app::MachineAxesForces(axes, machine).apply(rows);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const force_model::ForceSample& s = rows[i];
+        INFO("row " << i << ", t = " << s.t_s);
+        const double c = (i < first_session_rows ? 10 + 30 * s.t_s : 200) * std::numbers::pi / 180;
+        REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
+        REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
+        REQUIRE(s.fz_machine_N == 7);
     }
 }
 

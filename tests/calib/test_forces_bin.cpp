@@ -128,6 +128,39 @@ TEST_CASE("FORCES.bin holds every column to FORCES.csv's digits in a fifth of it
     CHECK(from_bin.samples.back().tool == 12);
 }
 
+TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES.csv's digits", "[calib][forces_bin]") {
+    Scratch scratch;
+    Prediction p = made_up_run(70000);   // two chunks
+    for (ForceSample& s : p.samples)     // the table turned 90 deg: (Fx, Fy, Fz) -> (Fy, -Fx, Fz)
+        s.fx_machine_N = s.fy_N, s.fy_machine_N = -s.fx_N, s.fz_machine_N = s.fz_N;
+    const std::string plain = scratch.path("plain.bin"), turned = scratch.path("turned.bin"), csv = scratch.path("turned.csv");
+    write_forces_file(p, plain);
+    ForcesColumns columns;
+    columns.machine_axes = true;
+    write_forces_file(p, turned, columns);
+    write_forces_file(p, csv, columns);
+    const std::string header = slurp(turned).substr(16, 2000);
+    CHECK(header.find(R"({"decimals":3,"name":"fz_machine_N"})") != std::string::npos);
+    CHECK(slurp(plain).find("machine") == std::string::npos);   // without the option: as before
+    CHECK(slurp(csv).substr(0, slurp(csv).find('\n')).ends_with(",holder_contact,fx_machine_N,fy_machine_N,fz_machine_N"));
+
+    const PredictedTrace back = read_predicted_forces(turned);
+    REQUIRE(back.samples.size() == p.samples.size());
+    std::size_t mismatches = 0;
+    for (std::size_t i = 0; i < p.samples.size(); ++i) {
+        const ForceSample &b = back.samples[i], &o = p.samples[i];
+        mismatches += b.fx_machine_N != static_cast<float>(printed(o.fx_machine_N, 3)) ||
+                      b.fy_machine_N != static_cast<float>(printed(o.fy_machine_N, 3)) ||
+                      b.fz_machine_N != static_cast<float>(printed(o.fz_machine_N, 3)) ||
+                      b.fx_N != static_cast<float>(printed(o.fx_N, 3));
+    }
+    CHECK(mismatches == 0);
+    // A machine-axis force beyond +-1e6 N is refused like a workpiece one.
+    p.samples[5].fy_machine_N = 2e6f;
+    write_forces_file(p, turned, columns);
+    CHECK_THROWS_WITH(read_predicted_forces(turned), Catch::Contains("row 6: force 2e+06 N is beyond"));
+}
+
 TEST_CASE("FORCES.bin read from bytes laid out as docs/formats.md describes", "[calib][forces_bin]") {
     // Two rows, the columns in another order, other decimals, and a column this reader does not
     // know (skipped by its length): t_s (3 decimals), an unknown one, fx_N (1), block, fy_N (0),

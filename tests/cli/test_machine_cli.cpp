@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 using namespace cutload;
@@ -24,7 +26,106 @@ std::string turning_table_log(double a_deg) {
     return csv;
 }
 
+// A side cut along the part's +X at 20 mm/s (ae 1 mm on the demo stock's y = 0 wall, 3 mm deep),
+// commanded through the AC machine with the C table at c_deg (0 or 90): the machine axes are
+// p_M = p_C + R_z(-c) (p_W - p_C) about the C line at (-350, -275), readings every 4 ms.
+std::string side_cut_log(double c_deg) {
+    const double c = c_deg * 3.14159265358979323846 / 180;
+    std::string csv = "t,x,y,z,a,c,spindle,block\n";
+    for (int k = 0; k <= 300; ++k) {
+        const double t = 0.004 * k;
+        const double xw = 195 + 20 * t, yw = -303, zw = -323;   // the demo stock is x 200..305, y -300..-210
+        const double dx = xw + 350, dy = yw + 275;
+        csv += fmt::format("{:.4f},{:.4f},{:.4f},{:.4f},0,{:.3f},10000,N10\n", t, -350 + std::cos(c) * dx + std::sin(c) * dy,
+                           -275 - std::sin(c) * dx + std::cos(c) * dy, zw, c_deg);
+    }
+    return csv;
+}
+
+struct ForcesCsv {
+    std::vector<std::string> header;
+    std::vector<std::vector<std::string>> rows;
+    std::size_t col(const std::string& name) const {
+        const auto it = std::find(header.begin(), header.end(), name);
+        REQUIRE(it != header.end());
+        return std::size_t(it - header.begin());
+    }
+};
+
+std::vector<std::string> split(const std::string& line) {
+    std::vector<std::string> out;
+    std::size_t start = 0;
+    for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1)
+        out.push_back(line.substr(start, comma - start));
+    out.push_back(line.substr(start));
+    return out;
+}
+
+ForcesCsv read_forces(const fs::path& path) {
+    std::ifstream in(path);
+    ForcesCsv f;
+    std::string line;
+    REQUIRE(std::getline(in, line));
+    f.header = split(line);
+    while (std::getline(in, line)) f.rows.push_back(split(line));
+    return f;
+}
+
 }  // namespace
+
+TEST_CASE("predict --machine: FORCES.csv carries the forces in machine axes too, turned with the table (T3)",
+          "[cli][five_axis]") {
+    const fs::path dir = clitest::scratch("machine_axes_cli");
+    const std::string spec = clitest::source("data/demo_run.json");
+    const std::string machine = clitest::source("data/machines/ac_table_table.json");
+    std::ofstream(dir / "c0.csv") << side_cut_log(0);
+    std::ofstream(dir / "c90.csv") << side_cut_log(90);
+    auto predict = [&](const std::string& log, const std::string& out, const std::string& extra) {
+        const clitest::Result r = clitest::run("predict " + (dir / log).string() + " --spec " + spec +
+                                               " --device cpu -q --out " + (dir / out).string() + extra);
+        INFO(r.output);
+        REQUIRE(r.exit_code == 0);
+    };
+    predict("c0.csv", "plain.csv", "");
+    predict("c0.csv", "rest.csv", " --machine " + machine);
+    predict("c90.csv", "turned.csv", " --machine " + machine);
+    predict("c90.csv", "turned.bin", " --machine " + machine);
+
+    const std::string base = "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+                             "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact";
+    const ForcesCsv plain = read_forces(dir / "plain.csv"), rest = read_forces(dir / "rest.csv"),
+                    turned = read_forces(dir / "turned.csv");
+    // Without --machine the columns are as they always were.
+    CHECK(fmt::format("{}", fmt::join(plain.header, ",")) == base);
+    CHECK(fmt::format("{}", fmt::join(turned.header, ",")) == base + ",fx_machine_N,fy_machine_N,fz_machine_N");
+
+    // At rest (C = 0) machine axes are workpiece axes: the same digits.
+    REQUIRE(rest.rows.size() > 1000);
+    for (const auto& r : rest.rows) {
+        REQUIRE(r.size() == 18);
+        REQUIRE(r[15] == r[4]);
+        REQUIRE(r[16] == r[5]);
+        REQUIRE(r[17] == r[6]);
+    }
+    // Turned 90 deg: (Fx, Fy, Fz) in workpiece axes are (Fy, -Fx, Fz) in machine axes
+    // (tests/app/test_workpiece_motion.cpp derives the sense).
+    const std::size_t fx = turned.col("fx_N"), fy = turned.col("fy_N"), fz = turned.col("fz_N"),
+                      mx = turned.col("fx_machine_N"), my = turned.col("fy_machine_N"), mz = turned.col("fz_machine_N");
+    double largest_N = 0;
+    for (const auto& r : turned.rows) {
+        INFO("t = " << r[0]);
+        REQUIRE(std::stod(r[mx]) == Approx(std::stod(r[fy])).margin(1e-9));
+        REQUIRE(std::stod(r[my]) == Approx(-std::stod(r[fx])).margin(1e-9));
+        REQUIRE(std::stod(r[mz]) == Approx(std::stod(r[fz])).margin(1e-9));
+        largest_N = std::max(largest_N, std::abs(std::stod(r[fx])));
+    }
+    CHECK(largest_N > 50);   // it cuts
+    // FORCES.bin carries the same columns (cutload compare reads it; its size says they are there).
+    CHECK(fs::file_size(dir / "turned.bin") > 0);
+    std::ifstream bin(dir / "turned.bin", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(bin)), {});
+    CHECK(bytes.find("\"fz_machine_N\"") != std::string::npos);
+}
 
 TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted tool is refused in one line",
           "[cli][five_axis]") {
