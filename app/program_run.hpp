@@ -44,6 +44,7 @@ struct ProgramSettings {
     // G01 that turns one.
     std::string rotary_axes;
     motion_io::RotaryFeed rotary_feed = motion_io::RotaryFeed::Combined;
+    std::array<double, 3> start_deg{};       // A, B, C before the first block (the log's first angles)
 };
 
 struct ProgramRun {

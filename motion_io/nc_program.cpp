@@ -398,7 +398,7 @@ private:
                         // Inverse time only comes with rotary moves here: a three-axis program's F
                         // words stay feeds, which the feed optimizer rewrites.
                         if (!any_rotary_allowed())
-                            fail(line_no, text, "inverse time feed (G93) is read only with a machine definition that has rotary axes");
+                            fail(line_no, text, "inverse time feed (G93) is read only with a machine definition that has rotary axes (--machine FILE)");
                         m_.inverse_time = true;
                     } else if (is_code(w, 'G', 94)) {
                         m_.inverse_time = false;
@@ -427,7 +427,7 @@ private:
                 case 'A': case 'B': case 'C': {
                     const int k = w.letter - 'A';
                     if (!any_rotary_allowed())
-                        fail(line_no, text, fmt::format("rotary axis {} needs a machine definition with that axis: without one "
+                        fail(line_no, text, fmt::format("rotary axis {} needs a machine definition with that axis (--machine FILE): without one "
                                                         "the program is read as three-axis, and a rotary move cannot be left out",
                                                         w.letter));
                     if (!rotary_allowed_[k])
@@ -887,6 +887,7 @@ double block_joint_length(const NcBlock& b) {
 
 double block_time_s(const NcBlock& b, double rapid_mm_min) {
     if (!block_moves(b)) return 0;
+    if (b.feed_time_s > 0) return b.feed_time_s;   // G93, a rotary feed rule, or a piece of a joint-space block
     if (b.motion == NcMotion::Rapid) return block_joint_length(b) / (rapid_mm_min / 60.0);
     if (b.feed_time_s > 0) return b.feed_time_s;
     return block_length_mm(b) / (b.feed_mm_min / 60.0);

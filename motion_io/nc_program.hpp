@@ -69,8 +69,9 @@ struct NcBlock {
     // axis runs linearly from start to end, so the tip's path against the part is curved.
     std::array<double, 3> start_deg{}, end_deg{};
     // Seconds the block takes at its programmed feed when that is not the XYZ length over F: a
-    // G93 block (1/F minutes), or a G01 that turns a rotary axis (by NcReadOptions::rotary_feed).
-    // 0 otherwise: the time is block_length_mm / feed_mm_min, as always.
+    // G93 block (1/F minutes), or a G01 that turns a rotary axis (by NcReadOptions::rotary_feed);
+    // also a piece of a joint-space block turned into the tip's path (app::workpiece_program),
+    // rapids included. 0 otherwise: the time is block_length_mm / feed_mm_min, as always.
     double feed_time_s = 0;
     bool inverse_time = false;    // G93 in force: the block's F word is 1/minutes, not a feed
 };
