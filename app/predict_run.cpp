@@ -44,10 +44,15 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
     // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
     r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
+    // The program is read in the machine's axes, from where the log's axes start.
+    const std::optional<std::array<double, 3>> axes_start_mm = log_start_mm(r.motion);
+    std::array<double, 3> axes_start_deg{};
+    for (std::size_t k = 0; k < 3; ++k)
+        if (r.motion.has_rotary(int(k))) axes_start_deg[k] = r.motion.rot_deg[k].front();
     if (in.machine) {
-        if (in.program || in.commanded_from_log)
-            throw InputError("machine", "a machine definition cannot be combined with an NC program or the log's "
-                                        "commanded path yet: predict the log alone");
+        if (in.commanded_from_log)
+            throw InputError("machine", "a machine definition cannot be combined with the log's commanded path yet: "
+                                        "predict the log alone, or with its NC program");
         try {
             motion_io::MotionModel axes = std::move(r.motion);
             r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm);
@@ -68,7 +73,13 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         track.begin(Phase::Program, 0, 0);
         ProgramSource source = *in.program;
         source.settings.limits.sample_step_s = r.motion.step_s;   // the commanded samples it may imply
-        motion_io::NcProgram program = read_program(source, in.spec, log_start_mm(r.motion));
+        if (in.machine) {
+            source.settings.rotary_axes = machine_rotary_axes(*in.machine);
+            source.settings.start_deg = axes_start_deg;
+        }
+        motion_io::NcProgram program = read_program(source, in.spec, axes_start_mm);
+        // With a machine: the tip's commanded path against the part, where the motion now is.
+        if (in.machine) program = workpiece_program(program, *in.machine, in.tool_length_mm, source.settings.rapid_mm_min);
         // Without a tool table the run spec's one tool cuts every block; say so when the program
         // changes tools. (With a table, tools it lacks are counted after the prediction.)
         if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1 && in.spec.tools.empty()) {

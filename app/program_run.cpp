@@ -78,6 +78,9 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
     ro.decimal_less_is_increment = settings.decimal_less_is_increment;
     ro.arc_centers = settings.arc_centers;
     ro.program_units = settings.program_units;
+    ro.rotary_axes = settings.rotary_axes;
+    ro.rotary_feed = settings.rotary_feed;
+    ro.start_deg = settings.start_deg;
     ro.arc_tolerance_mm = settings.arc_tolerance_mm;
     ro.tool_change_on_t = settings.tool_change_on_t;
     ro.block_skip = settings.block_skip;

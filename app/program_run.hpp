@@ -39,6 +39,12 @@ struct ProgramSettings {
     bool block_skip = false;                 // the block skip switch is on: '/' blocks are skipped
     double min_match = 0.5;                  // of the counted samples near the path, or the program is refused
     motion_io::NcLimits limits;              // physical ranges, and the work a program may imply
+    // Five-axis programs (machine-axis form): the machine's rotary axes ("AC"; set from the machine
+    // definition, empty without one: A/B/C words are then an error) and how a G94 feed applies to a
+    // G01 that turns one.
+    std::string rotary_axes;
+    motion_io::RotaryFeed rotary_feed = motion_io::RotaryFeed::Combined;
+    std::array<double, 3> start_deg{};       // A, B, C before the first block (the log's first angles)
 };
 
 struct ProgramRun {

@@ -199,6 +199,108 @@ void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
     }
 }
 
+std::string machine_rotary_axes(const machine::Machine& machine) {
+    std::string out;
+    for (const char letter : {'A', 'B', 'C'})
+        for (const machine::Axis& a : machine.chain)
+            if (a.rotary() && a.name == letter) out += letter;
+    return out;
+}
+
+namespace {
+
+// The machine's axes at fraction u of a program block: X/Y/Z on its path, the rotary axes linear.
+machine::AxisPositions block_axes(const machine::Machine& machine, const motion_io::NcBlock& b, double u) {
+    double p[3], tangent[3];
+    motion_io::block_point(b, u, p, tangent);
+    machine::AxisPositions q;
+    for (std::size_t k = 0; k < machine.chain.size(); ++k) {
+        const machine::Axis& a = machine.chain[k];
+        if (a.rotary()) {
+            const auto r = std::size_t(a.name - 'A');
+            q.value[k] = b.start_deg[r] + u * (b.end_deg[r] - b.start_deg[r]);
+        } else {
+            q.value[k] = p[a.name - 'X'];
+        }
+    }
+    return q;
+}
+
+}  // namespace
+
+motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                       double tool_length_mm, double rapid_mm_min) {
+    using motion_io::NcBlock;
+    using motion_io::NcMotion;
+    auto tip = [&](const NcBlock& b, double u) {
+        const machine::AxisPositions q = block_axes(machine, b, u);
+        const double tilt_rad = tilt_from_z_rad(machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal));
+        if (!(tilt_rad <= kVerticalToleranceRad))
+            throw motion_io::NcProgramError(fmt::format(
+                "{}:{}: block {}: the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
+                "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
+                program.file, b.line, b.name, tilt_rad * 180.0 / std::numbers::pi));
+        return Eigen::Vector3d(machine::forward(machine, q, tool_length_mm).tip_mm());
+    };
+    auto set_ends = [](NcBlock& piece, const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+        for (int k = 0; k < 3; ++k) piece.start_mm[std::size_t(k)] = from[k], piece.end_mm[std::size_t(k)] = to[k];
+        piece.start_deg = piece.end_deg = {};
+    };
+
+    motion_io::NcProgram out = program;
+    out.blocks.clear();
+    out.rotary_axes.clear();
+    for (const NcBlock& b : program.blocks) {
+        const bool arc = b.motion == NcMotion::ArcCw || b.motion == NcMotion::ArcCcw;
+        if (!motion_io::block_moves(b) || !(arc || motion_io::block_turns(b))) {
+            // At rest, or a line with the rotary axes still: the linear axes move the tip rigidly,
+            // so the line stays a line at the same speed.
+            NcBlock piece = b;
+            set_ends(piece, tip(b, 0), tip(b, 1));
+            out.blocks.push_back(std::move(piece));
+            continue;
+        }
+        // At least one piece per quarter turn of any rotary axis or of the arc, so a whole turn
+        // (whose ends meet) is never one chord; then bisection to the tolerance.
+        double turn_deg = 0;
+        for (std::size_t r = 0; r < 3; ++r) turn_deg = std::max(turn_deg, std::abs(b.end_deg[r] - b.start_deg[r]));
+        if (arc) turn_deg = std::max(turn_deg, std::abs(b.sweep_rad) * 180.0 / std::numbers::pi);
+        const int initial = std::max(1, int(std::ceil(turn_deg / 90.0)));
+        std::vector<double> cuts{0.0};
+        std::vector<Eigen::Vector3d> tips{tip(b, 0)};
+        // Depth-first bisection of [u0, u1] (its start already in `cuts`).
+        auto refine = [&](auto&& self, double u0, double u1, const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, int depth) -> void {
+            const double um = 0.5 * (u0 + u1);
+            const Eigen::Vector3d pm = tip(b, um);
+            if (depth < 16 && (pm - 0.5 * (p0 + p1)).norm() > kProgramChordTolMm) {
+                self(self, u0, um, p0, pm, depth + 1);
+                self(self, um, u1, pm, p1, depth + 1);
+                return;
+            }
+            cuts.push_back(u1);
+            tips.push_back(p1);
+        };
+        for (int k = 0; k < initial; ++k) {
+            const double u0 = double(k) / initial, u1 = double(k + 1) / initial;
+            refine(refine, u0, u1, tips.back(), tip(b, u1), 0);
+        }
+        if (int(cuts.size()) - 1 > kMaxPiecesPerBlock)
+            throw motion_io::NcProgramError(fmt::format("{}:{}: block {}: its tip path needs more than {} pieces of {} um",
+                                                        program.file, b.line, b.name, kMaxPiecesPerBlock, kProgramChordTolMm * 1e3));
+        const double block_s = motion_io::block_time_s(b, rapid_mm_min);
+        for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
+            NcBlock piece = b;
+            piece.motion = b.motion == NcMotion::Rapid ? NcMotion::Rapid : NcMotion::Linear;
+            set_ends(piece, tips[k], tips[k + 1]);
+            piece.feed_time_s = block_s * (cuts[k + 1] - cuts[k]);
+            const double length_mm = (tips[k + 1] - tips[k]).norm();
+            if (piece.motion != NcMotion::Rapid && piece.feed_time_s > 0) piece.feed_mm_min = length_mm / piece.feed_time_s * 60.0;
+            out.blocks.push_back(std::move(piece));
+        }
+    }
+    return out;
+}
+
 std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
     auto m = std::make_shared<machine::Machine>();
     try {

@@ -21,6 +21,7 @@
 #include "force_model/force_model.hpp"
 #include "machine/machine.hpp"
 #include "motion_io/motion_io.hpp"
+#include "motion_io/nc_program.hpp"
 
 #include <cstddef>
 #include <memory>
@@ -94,5 +95,26 @@ private:
     std::size_t sessions_ = 1;
     std::size_t session_ = 0, index_ = 0;     // cursor: the session and sample of the last row
 };
+
+// The machine's rotary axes as the NC reader takes them (NcReadOptions::rotary_axes): "AC".
+std::string machine_rotary_axes(const machine::Machine& machine);
+
+// How closely the pieces of a joint-space block follow the tip's curved path (docs/five_axis.md
+// section 2.4: 1 um), and the most pieces one block becomes.
+inline constexpr double kProgramChordTolMm = 1e-3;
+inline constexpr int kMaxPiecesPerBlock = 1 << 16;
+
+// A program read in the machine's axes (NcReadOptions::rotary_axes = machine_rotary_axes) as the
+// tool tip's commanded path against the part, in workpiece coordinates like workpiece_motion's:
+// every point goes through forward kinematics with the machine's errors. A straight block that
+// turns no rotary axis stays one line (the linear axes move the tip rigidly); a block that turns
+// one, and every arc, becomes straight pieces sharing its name and line (as a canned cycle's
+// do), bisected until the tip's path lies within kProgramChordTolMm of them. Joint-space
+// interpolation runs at a constant rate along the block, so each piece takes its share of the
+// block's time (block_time_s at rapid_mm_min), and its feed_mm_min is the tip's speed against
+// the part. The result has no rotary axes. Throws motion_io::NcProgramError naming the block when
+// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit).
+motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                       double tool_length_mm, double rapid_mm_min);
 
 }  // namespace cutload::app

@@ -62,6 +62,12 @@ void add_program_options(CLI::App& cmd, ProgramOptions& o, bool for_predict) {
     cmd.add_option("--program-units", o.program_units, "Length unit of a program until it says G20/G21: mm or in")
         ->check(CLI::IsMember({"mm", "in"}))
         ->capture_default_str();
+    cmd.add_option("--rotary-feed", o.rotary_feed,
+                   "With --machine: how a G94 feed applies to a G01 that turns a rotary axis: combined (F over "
+                   "sqrt(dX^2+dY^2+dZ^2+dA^2+dB^2+dC^2), degrees as mm, FANUC) or linear_only (F over the X/Y/Z travel; "
+                   "deg/min for a pure turn)")
+        ->check(CLI::IsMember({"combined", "linear_only"}))
+        ->capture_default_str();
     cmd.add_option("--arc-tolerance-mm", o.arc_tolerance_mm,
                    "How far an arc's end may lie off the circle through its start, mm (plus 0.01 % of the radius)")
         ->check(CLI::Range(0.0, 10.0))
@@ -123,6 +129,7 @@ std::optional<app::ProgramSource> program_source(const ProgramOptions& o) {
     settings.map_blocks = o.map_blocks;
     settings.arc_centers = o.arc_centers == "absolute" ? motion_io::ArcCenters::Absolute : motion_io::ArcCenters::Incremental;
     settings.program_units = o.program_units == "in" ? motion_io::ProgramUnits::Inch : motion_io::ProgramUnits::Mm;
+    settings.rotary_feed = *motion_io::parse_rotary_feed(o.rotary_feed);   // CLI::IsMember checked the spelling
     settings.arc_tolerance_mm = o.arc_tolerance_mm;
     settings.tool_change_on_t = o.tool_change_on_t;
     settings.block_skip = o.block_skip;

@@ -23,6 +23,7 @@ struct ProgramOptions {
     bool decimal_less_increment = false;
     std::string arc_centers = "incremental";  // until G90.1 / G91.1
     std::string program_units = "mm";         // until G20 / G21
+    std::string rotary_feed = "combined";     // how G94 F applies to a G01 that turns a rotary axis (with --machine)
     double arc_tolerance_mm = motion_io::NcReadOptions{}.arc_tolerance_mm;
     bool tool_change_on_t = false;
     bool block_skip = false;

@@ -30,8 +30,16 @@ std::vector<double> commanded_durations_s(const NcProgram& program, const Comman
     std::vector<double> d(program.blocks.size(), 0.0);
     for (std::size_t i = 0; i < program.blocks.size(); ++i) {
         const NcBlock& b = program.blocks[i];
-        if (b.motion == NcMotion::Dwell) d[i] = b.dwell_s;
-        else if (block_moves(b)) d[i] = block_length_mm(b) / block_speed_mm_s(b, i, opt);
+        if (b.motion == NcMotion::Dwell) {
+            d[i] = b.dwell_s;
+        } else if (block_moves(b) && (b.feed_time_s > 0 || block_turns(b))) {
+            // Timed by G93 or by the rotary feed rule; a feed override scales a G94 block's time.
+            d[i] = block_time_s(b, opt.rapid_mm_min);
+            const bool overridden = i < opt.feed_mm_min.size() && opt.feed_mm_min[i] > 0;
+            if (overridden && b.motion != NcMotion::Rapid && !b.inverse_time) d[i] *= b.feed_mm_min / opt.feed_mm_min[i];
+        } else if (block_moves(b)) {
+            d[i] = block_length_mm(b) / block_speed_mm_s(b, i, opt);
+        }
     }
     return d;
 }
@@ -78,7 +86,9 @@ MotionModel commanded_motion(const NcProgram& program, const CommandedOptions& o
         // The last sample is the machine at rest at the program's end.
         const bool at_rest = k == n || b.motion == NcMotion::Dwell;
         block_point(b, b.motion == NcMotion::Dwell ? 1.0 : u, pos, tangent);
-        const double speed = at_rest ? 0.0 : block_speed_mm_s(b, timed[seg], opt);
+        // A block timed by G93 or the rotary feed rule runs its X/Y/Z path in its own time.
+        const bool own_time = b.feed_time_s > 0 || block_turns(b);
+        const double speed = at_rest ? 0.0 : own_time ? block_length_mm(b) / dur[timed[seg]] : block_speed_mm_s(b, timed[seg], opt);
         m.t_s.push_back(t);
         m.x_mm.push_back(pos[0]);
         m.y_mm.push_back(pos[1]);
@@ -91,6 +101,13 @@ MotionModel commanded_motion(const NcProgram& program, const CommandedOptions& o
         m.spindle_angle_deg.push_back(angle);
         m.block.push_back(index.at(b.name));
         m.tool.push_back(b.tool);
+        // Joint space: each rotary axis runs linearly over its block (machine-axis form).
+        for (const char axis : program.rotary_axes) {
+            const auto r = static_cast<std::size_t>(axis - 'a');
+            const double u_r = b.motion == NcMotion::Dwell ? 1.0 : std::clamp(u, 0.0, 1.0);
+            m.rot_deg[r].push_back(b.start_deg[r] + u_r * (b.end_deg[r] - b.start_deg[r]));
+            m.rot_vel_deg_s[r].push_back(at_rest ? 0.0 : (b.end_deg[r] - b.start_deg[r]) / dur[timed[seg]]);
+        }
     }
     m.session_start = {0};
     return m;

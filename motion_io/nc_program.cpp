@@ -173,6 +173,9 @@ std::string unsupported_g(double g) {
         case 500: case 510: return "scaling is not supported";
         case 100: case 110: return "programmable data input (G10) is not supported";
         case 520: case 920: return "local coordinate systems (G52/G92) are not supported";
+        case 434: case 435:
+            return "tool-centre-point control (G43.4/G43.5) is not supported yet: give the machine's axis positions "
+                   "(A/B/C words in machine-axis form, docs/nc_program.md)";
         default: return "this G code is not supported";
     }
 }
@@ -207,7 +210,12 @@ struct Modal {
     double initial_z_mm = 0;             // machine Z when the cycle mode was entered
     std::optional<double> r_mm, z_mm, q_mm;
     double dwell_s = 0;
+    std::array<double, 3> rot_deg{};     // A, B, C (machine-axis form; read with a machine's rotary axes)
+    bool inverse_time = false;           // G93 (else G94)
 };
+
+// A rotary word beyond this is a typo, not a position (a continuous table logs turns, not years).
+constexpr double kMaxAbsAngleDeg = 1e6;
 
 class Parser {
 public:
@@ -223,6 +231,12 @@ public:
         if (opt.start_mm) {
             m_.pos_mm = *opt.start_mm;
             m_.known = {true, true, true};
+        }
+        m_.rot_deg = opt.start_deg;
+        for (const char c : opt.rotary_axes) {
+            const char u = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+            if (u < 'A' || u > 'C') throw NcProgramError(fmt::format("{}: rotary axis '{}' is not A, B or C", file, printable(std::string(1, c))));
+            rotary_allowed_[u - 'A'] = true;
         }
     }
 
@@ -242,6 +256,8 @@ public:
         }
         for (std::size_t i = 0; i < p.lines.size() && !ended_; ++i) parse_line(p, i + 1, p.lines[i]);
         back_fill(p);
+        for (int k = 0; k < 3; ++k)
+            if (rotary_named_[k]) p.rotary_axes += static_cast<char>('a' + k);
         return p;
     }
 
@@ -286,7 +302,8 @@ private:
         } else if (block_moves(b)) {
             const double len = block_length_mm(b);
             path_mm_ += len;
-            duration_s_ += len / ((b.motion == NcMotion::Rapid ? opt_.rapid_mm_min : b.feed_mm_min) / 60.0);
+            if (b.feed_time_s > 0 || block_turns(b)) duration_s_ += block_time_s(b, opt_.rapid_mm_min);
+            else duration_s_ += len / ((b.motion == NcMotion::Rapid ? opt_.rapid_mm_min : b.feed_mm_min) / 60.0);
         }
         if (path_mm_ > lim_.max_path_mm)
             fail(line_no, culprit_, fmt::format("the programmed path reaches {:.4g} mm here, above the limit of {:.4g} mm", path_mm_, lim_.max_path_mm));
@@ -319,6 +336,7 @@ private:
         b.words = lw.words;
         b.name = fmt::format("L{}", line_no);
         const NcWord* axis[3] = {nullptr, nullptr, nullptr};
+        const NcWord* rot[3] = {nullptr, nullptr, nullptr};   // A, B, C
         const NcWord* center[3] = {nullptr, nullptr, nullptr};
         const NcWord *r_word = nullptr, *f_word = nullptr, *s_word = nullptr, *p_word = nullptr, *q_word = nullptr,
                      *t_word = nullptr, *motion_word = nullptr, *cycle_word = nullptr;
@@ -376,8 +394,16 @@ private:
                         m_.wcs = fmt::format("G{}", static_cast<int>(std::lround(g)));
                         if (!opt_.work_offsets_mm.count(m_.wcs))
                             fail(line_no, text, "no offset is set for this work coordinate system (set its offset: --work-offset in the CLI, nc_options.work_offsets_mm in the API)");
+                    } else if (is_code(w, 'G', 93)) {
+                        // Inverse time only comes with rotary moves here: a three-axis program's F
+                        // words stay feeds, which the feed optimizer rewrites.
+                        if (!any_rotary_allowed())
+                            fail(line_no, text, "inverse time feed (G93) is read only with a machine definition that has rotary axes (--machine FILE)");
+                        m_.inverse_time = true;
+                    } else if (is_code(w, 'G', 94)) {
+                        m_.inverse_time = false;
                     } else if (is_code(w, 'G', 40) || is_code(w, 'G', 43) || is_code(w, 'G', 44) || is_code(w, 'G', 49) ||
-                               is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64) || is_code(w, 'G', 94)) {
+                               is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64)) {
                         // no effect on the programmed tool-tip path at programmed feed
                     } else {
                         fail(line_no, text, unsupported_g(g));
@@ -398,12 +424,35 @@ private:
                 }
                 case 'D': fail(line_no, text, "cutter compensation numbers (D) are not supported");
                 case 'L': fail(line_no, text, "repeat counts (L) are not supported");
-                case 'A': case 'B': case 'C': case 'U': case 'V': case 'W':
+                case 'A': case 'B': case 'C': {
+                    const int k = w.letter - 'A';
+                    if (!any_rotary_allowed())
+                        fail(line_no, text, fmt::format("rotary axis {} needs a machine definition with that axis (--machine FILE): without one "
+                                                        "the program is read as three-axis, and a rotary move cannot be left out",
+                                                        w.letter));
+                    if (!rotary_allowed_[k])
+                        fail(line_no, text, fmt::format("the machine has no rotary axis {} (its rotary axes: {})", w.letter,
+                                                        allowed_rotary_names()));
+                    once(rot[k], w);
+                    rotary_named_[k] = true;
+                    break;
+                }
+                case 'U': case 'V': case 'W':
                     fail(line_no, text, "only the linear axes X, Y and Z are supported");
                 default: fail(line_no, text, "this address is not supported");
             }
         }
         if (new_plane) m_.plane = new_plane;
+        std::optional<double> inverse_f_per_min;   // G93: this block's F, 1/min
+        if (f_word && m_.inverse_time) {
+            // The block takes 1/F minutes: from 0.6 ms (F100000) to a day (F1/1440).
+            const double f = f_word->value;
+            if (!(f >= 1.0 / 1440 && f <= 100000))
+                fail(line_no, word_text(line, *f_word), "an inverse time feed (G93) must lie in 1/1440..100000 per minute (the block takes 1/F minutes)");
+            inverse_f_per_min = f;
+            b.has_feed_word = true;
+            f_word = nullptr;   // not a feed: the G94 feed stays as it was
+        }
         if (f_word) {
             const double f = m_.inch ? f_word->value * kMmPerInch : f_word->value;
             if (!(f > 0)) fail(line_no, word_text(line, *f_word), "feed must be > 0");
@@ -424,6 +473,8 @@ private:
         b.spindle_rpm = m_.direction * m_.speed_rpm;
         b.inch = m_.inch;
         b.start_mm = b.end_mm = m_.pos_mm;
+        b.start_deg = b.end_deg = m_.rot_deg;
+        b.inverse_time = m_.inverse_time;
         culprit_ = word_text(line, words.empty() ? lw.words.front() : words.front());
         for (const NcWord* w : {axis[0], axis[1], axis[2]})
             if (w) {
@@ -446,14 +497,16 @@ private:
             }
             m_.cycle = new_cycle;
         }
+        const NcWord* rot_word = rot[0] ? rot[0] : rot[1] ? rot[1] : rot[2];
         if (m_.cycle) {
+            if (rot_word) fail(line_no, word_text(line, *rot_word), "a rotary word in a canned cycle block");
             canned_cycle(p, std::move(b), line_no, line, axis, center, r_word, p_word, q_word, dwell, machine_coords);
             return;
         }
         if (q_word) fail(line_no, word_text(line, *q_word), "Q is supported only in canned cycles (G73, G83)");
 
         if (dwell) {
-            if (axis[1] || axis[2] || center[0] || center[1] || center[2] || r_word)
+            if (axis[1] || axis[2] || center[0] || center[1] || center[2] || r_word || rot_word)
                 fail(line_no, "G04", "a dwell block takes only X (s) or P (ms)");
             if (axis[0] && p_word) fail(line_no, word_text(line, *p_word), "give the dwell as X (s) or P (ms), not both");
             if (axis[0]) b.dwell_s = bounded_dwell_s(line_no, word_text(line, *axis[0]),
@@ -467,8 +520,10 @@ private:
         }
         if (p_word) fail(line_no, word_text(line, *p_word), "P is supported only as a dwell time (G04, G82, G89)");
 
-        const bool has_axes = axis[0] || axis[1] || axis[2];
+        const bool has_axes = axis[0] || axis[1] || axis[2] || rot_word;
         const bool arc = !machine_coords && (m_.motion == NcMotion::ArcCw || m_.motion == NcMotion::ArcCcw);
+        if (arc && rot_word)
+            fail(line_no, word_text(line, *rot_word), "a rotary axis cannot move in an arc block (G02/G03): program the turn with G01");
         const bool has_center = center[0] || center[1] || center[2];
         if (!arc && (has_center || r_word)) {
             const NcWord& w = r_word ? *r_word : *(center[0] ? center[0] : center[1] ? center[1] : center[2]);
@@ -484,12 +539,57 @@ private:
         const std::array<double, 3> target = axis_target(p, b, line_no, line, axis, machine_coords);
         // G53 moves at the rapid rate whatever group 01 says (and leaves it as it is).
         const NcMotion motion = machine_coords ? NcMotion::Rapid : m_.motion;
-        if (motion != NcMotion::Rapid && !(m_.feed_mm_min > 0)) fail(line_no, word_text(line, words.front()), "no feed rate (F) is in force for this move");
+        if (motion != NcMotion::Rapid && m_.inverse_time) {
+            if (!inverse_f_per_min)
+                fail(line_no, word_text(line, words.front()), "in inverse time (G93) every feed move needs its own F (1/min: the block takes 1/F minutes)");
+        } else if (motion != NcMotion::Rapid && !(m_.feed_mm_min > 0)) {
+            fail(line_no, word_text(line, words.front()), "no feed rate (F) is in force for this move");
+        }
         b.motion = motion;
         b.end_mm = target;
+        b.end_deg = rotary_target(line_no, line, rot, machine_coords);
         if (arc) make_arc(b, line, line_no, center, r_word);
+        if (motion != NcMotion::Rapid) {
+            if (inverse_f_per_min) b.feed_time_s = 60.0 / *inverse_f_per_min;
+            else if (block_turns(b)) b.feed_time_s = rotary_feed_time_s(b);
+        }
         m_.pos_mm = target;
+        m_.rot_deg = b.end_deg;
         push(p, std::move(b), line_no);
+    }
+
+    bool any_rotary_allowed() const { return rotary_allowed_[0] || rotary_allowed_[1] || rotary_allowed_[2]; }
+    std::string allowed_rotary_names() const {
+        std::string out;
+        for (int k = 0; k < 3; ++k)
+            if (rotary_allowed_[k]) out += static_cast<char>('A' + k);
+        return out;
+    }
+
+    // The block's A/B/C words as machine angles: absolute (no work offset turns them), incremental
+    // from where the axis is, or G53. Decimal-less words follow X/Y/Z's rule (0.001 deg increments).
+    std::array<double, 3> rotary_target(std::size_t line_no, const std::string& line, const NcWord* const rot[3], bool machine_coords) const {
+        std::array<double, 3> target = m_.rot_deg;
+        for (int k = 0; k < 3; ++k) {
+            if (!rot[k]) continue;
+            double v = rot[k]->value;
+            if (opt_.decimal_less_is_increment && !rot[k]->has_decimal_point) v *= 1e-3;
+            target[k] = m_.incremental && !machine_coords ? m_.rot_deg[k] + v : v;
+            if (!(std::abs(target[k]) <= kMaxAbsAngleDeg))
+                fail(line_no, word_text(line, *rot[k]), fmt::format("{:g} deg is outside the physical range +-{:g} deg", target[k], kMaxAbsAngleDeg));
+        }
+        return target;
+    }
+
+    // Seconds a G94 G01 that turns a rotary axis takes at its feed, by opt_.rotary_feed. Under G20
+    // the feed and the X/Y/Z travel are in inches, and Combined counts degrees as inches.
+    double rotary_feed_time_s(const NcBlock& b) const {
+        const double unit_mm = b.inch ? kMmPerInch : 1.0;
+        const double linear = block_length_mm(b) / unit_mm, feed = b.feed_mm_min / unit_mm;
+        const double turn = std::hypot(b.end_deg[0] - b.start_deg[0], b.end_deg[1] - b.start_deg[1], b.end_deg[2] - b.start_deg[2]);
+        double length = std::hypot(linear, turn);
+        if (opt_.rotary_feed == RotaryFeed::LinearOnly) length = linear > 1e-9 ? linear : turn;
+        return length / feed * 60.0;
     }
 
     // T selects (and with tool_change_on_t changes); M06 changes to the selected tool.
@@ -735,6 +835,7 @@ private:
     std::array<double, 3> m_first_mm_{};
     double path_mm_ = 0, duration_s_ = 0;
     std::string culprit_;   // the word a work bound names: the block's first axis word, else its first word
+    std::array<bool, 3> rotary_allowed_{}, rotary_named_{};   // A, B, C: the machine has it, the program names it
 };
 
 }  // namespace
@@ -770,11 +871,35 @@ std::vector<int> program_tools(const NcProgram& program) {
     return out;
 }
 
+bool block_turns(const NcBlock& b) { return b.start_deg != b.end_deg; }
+
 bool block_moves(const NcBlock& b) {
     return (b.motion == NcMotion::Rapid || b.motion == NcMotion::Linear || b.motion == NcMotion::ArcCw ||
             b.motion == NcMotion::ArcCcw) &&
-           block_length_mm(b) > 0;
+           (block_length_mm(b) > 0 || block_turns(b));
 }
+
+double block_joint_length(const NcBlock& b) {
+    const double path = block_length_mm(b);
+    if (!block_turns(b)) return path;
+    return std::hypot(path, std::hypot(b.end_deg[0] - b.start_deg[0], b.end_deg[1] - b.start_deg[1], b.end_deg[2] - b.start_deg[2]));
+}
+
+double block_time_s(const NcBlock& b, double rapid_mm_min) {
+    if (!block_moves(b)) return 0;
+    if (b.feed_time_s > 0) return b.feed_time_s;   // G93, a rotary feed rule, or a piece of a joint-space block
+    if (b.motion == NcMotion::Rapid) return block_joint_length(b) / (rapid_mm_min / 60.0);
+    if (b.feed_time_s > 0) return b.feed_time_s;
+    return block_length_mm(b) / (b.feed_mm_min / 60.0);
+}
+
+std::optional<RotaryFeed> parse_rotary_feed(const std::string& text) {
+    if (text == "combined") return RotaryFeed::Combined;
+    if (text == "linear_only") return RotaryFeed::LinearOnly;
+    return std::nullopt;
+}
+
+const char* rotary_feed_name(RotaryFeed f) { return f == RotaryFeed::Combined ? "combined" : "linear_only"; }
 
 double block_length_mm(const NcBlock& b) {
     switch (b.motion) {

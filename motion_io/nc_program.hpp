@@ -7,6 +7,8 @@
 // drilling cycles (G73 G81 G82 G83 G85 G86 G89 with G98/G99, R, Q, P, G80, expanded into motion),
 // F, S, M03/M04/M05, tools (T with M06), N numbers, (comments), ; comments, O numbers, %, block
 // skip '/', no-op codes (G40, G43/G44/G49, G61/G64/G09, M00/M01/M07/M08/M09), M02/M30 end.
+// With a machine's rotary axes (NcReadOptions::rotary_axes): A/B/C words in degrees in machine-axis
+// form (every axis moves linearly between block end points), and G93 inverse time.
 // Anything else is an NcProgramError naming file, line and word, unless the word is listed in
 // NcReadOptions::ignore_words. Values outside physical ranges and programs whose path, duration
 // or commanded-motion size pass NcLimits are refused while reading (issue 19).
@@ -62,6 +64,16 @@ struct NcBlock {
     int tool = -1;                // tool number in the spindle for this block; -1 before the first change
     bool tool_change = false;     // this block changes the tool (M06, or T alone with tool_change_on_t)
     int cycle = 0;                // canned cycle this motion is part of (73, 81, 82, 83, 85, 86, 89); 0 none
+    // Rotary axes A, B, C in machine degrees (0 where the program never names one; see
+    // NcReadOptions::rotary_axes). A G00/G01 block whose angles change is a joint-space move: every
+    // axis runs linearly from start to end, so the tip's path against the part is curved.
+    std::array<double, 3> start_deg{}, end_deg{};
+    // Seconds the block takes at its programmed feed when that is not the XYZ length over F: a
+    // G93 block (1/F minutes), or a G01 that turns a rotary axis (by NcReadOptions::rotary_feed);
+    // also a piece of a joint-space block turned into the tip's path (app::workpiece_program),
+    // rapids included. 0 otherwise: the time is block_length_mm / feed_mm_min, as always.
+    double feed_time_s = 0;
+    bool inverse_time = false;    // G93 in force: the block's F word is 1/minutes, not a feed
 };
 
 struct NcProgram {
@@ -69,10 +81,19 @@ struct NcProgram {
     std::vector<std::string> lines;   // source lines as read, without '\n' (a '\r' stays)
     bool final_newline = true;        // the source ended with '\n'
     std::vector<NcBlock> blocks;      // in program order; comment-only and empty lines are no blocks
+    std::string rotary_axes;          // the rotary axes its words name, lower case in order: "", "c", "ac"
 };
 
 enum class ArcCenters { Incremental, Absolute };   // I/J/K from the arc's start, or positions
 enum class ProgramUnits { Mm, Inch };                // before any G20/G21
+
+// How a G94 feed applies to a G01 that turns a rotary axis (controller-specific, so a setting and
+// not a guess; docs/nc_program.md, "Rotary axes"):
+// - Combined (FANUC): F over sqrt(dX^2 + dY^2 + dZ^2 + dA^2 + dB^2 + dC^2), degrees counted as
+//   millimetres (as inches under G20);
+// - LinearOnly: F over the X/Y/Z distance alone; a move with no X/Y/Z travel reads F as deg/min
+//   over sqrt(dA^2 + dB^2 + dC^2).
+enum class RotaryFeed { Combined, LinearOnly };
 
 // Physical ranges of values and bounds on the work a program implies. A value outside its range
 // is an error on its line and word; the work (programmed path, duration at programmed feeds and
@@ -126,7 +147,18 @@ struct NcReadOptions {
     // The machine's G00 rate, for the duration estimate.
     double rapid_mm_min = 30000;
     NcLimits limits;
+    // The rotary axes of the machine the program runs on, upper case ("AC"; a machine definition's
+    // rotary axes). Their words are read in machine-axis form, and G93 is accepted. Empty (no
+    // machine, the default): an A/B/C word or G93 is an error naming the line and the word.
+    std::string rotary_axes;
+    RotaryFeed rotary_feed = RotaryFeed::Combined;
+    // A, B, C before the first block (e.g. the log's first angles), degrees.
+    std::array<double, 3> start_deg{};
 };
+
+// "combined" / "linear_only" (the CLI's and the API's spelling); nullopt for anything else.
+std::optional<RotaryFeed> parse_rotary_feed(const std::string& text);
+const char* rotary_feed_name(RotaryFeed f);
 
 // Throws NcProgramError naming `what` when the rapid rate is outside the limits' range.
 void check_rapid_feed(double rapid_mm_min, const NcLimits& limits, const std::string& what);
@@ -142,7 +174,14 @@ NcProgram read_nc_program(const std::string& path, const NcReadOptions& opt);   
 double block_length_mm(const NcBlock& b);
 // Point and unit tangent at fraction u (0..1) of the block's path length.
 void block_point(const NcBlock& b, double u, double pos_mm[3], double tangent[3]);
-bool block_moves(const NcBlock& b);   // Rapid, Linear or an arc with non-zero length
+bool block_moves(const NcBlock& b);   // Rapid, Linear or an arc with non-zero length, or a rotary turn
+bool block_turns(const NcBlock& b);   // a rotary axis changes in the block
+// Seconds a moving block takes at its programmed feed, or at rapid_mm_min for G00 (a rapid that
+// turns a rotary axis: the combined length, degrees as mm, at the rapid rate); 0 for the rest.
+double block_time_s(const NcBlock& b, double rapid_mm_min);
+// sqrt(dX^2 + dY^2 + dZ^2 + dA^2 + dB^2 + dC^2) of a line (mm, degrees counted as mm); arcs: their
+// path length. The path parameter of a joint-space move.
+double block_joint_length(const NcBlock& b);
 
 // The tool numbers a program changes to, in the order it first uses them.
 std::vector<int> program_tools(const NcProgram& program);

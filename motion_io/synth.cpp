@@ -35,15 +35,19 @@ private:
     std::uint64_t s_;
 };
 
+// The machine's axes: X, Y, Z (mm), then A, B, C (deg). Each is interpolated, smoothed and lagged
+// on its own, as each servo does; a three-axis run leaves the rotary ones at 0 and unwritten.
+constexpr int kAxes = 6;
+
 class MovingAverage {
 public:
-    MovingAverage(int n, const double start[3]) : ring_(static_cast<std::size_t>(std::max(n, 1))) {
-        for (auto& r : ring_) std::copy(start, start + 3, r.begin());
-        for (int a = 0; a < 3; ++a) sum_[a] = start[a] * static_cast<double>(ring_.size());
+    MovingAverage(int n, const double start[kAxes]) : ring_(static_cast<std::size_t>(std::max(n, 1))) {
+        for (auto& r : ring_) std::copy(start, start + kAxes, r.begin());
+        for (int a = 0; a < kAxes; ++a) sum_[a] = start[a] * static_cast<double>(ring_.size());
     }
-    void push(const double in[3], double out[3]) {
+    void push(const double in[kAxes], double out[kAxes]) {
         auto& slot = ring_[i_];
-        for (int a = 0; a < 3; ++a) {
+        for (int a = 0; a < kAxes; ++a) {
             sum_[a] += in[a] - slot[a];
             slot[a] = in[a];
             out[a] = sum_[a] / static_cast<double>(ring_.size());
@@ -52,9 +56,9 @@ public:
     }
 
 private:
-    std::vector<std::array<double, 3>> ring_;
+    std::vector<std::array<double, kAxes>> ring_;
     std::size_t i_ = 0;
-    double sum_[3] = {0, 0, 0};
+    double sum_[kAxes] = {0, 0, 0, 0, 0, 0};
 };
 
 // One piece of the machine's work: a path (line or arc) at a speed, or a pause in place.
@@ -65,14 +69,16 @@ struct Segment {
     bool rapid = false;
     double speed_mm_s = 1;      // a pause runs at 1 "mm"/s over pause_s "mm": the path arithmetic times it
     double spindle_rpm = 0;     // target (NC programs)
-    double from[3] = {0, 0, 0}, to[3] = {0, 0, 0};
-    double length = 0;          // mm, or s for a pause
+    double from[kAxes] = {0, 0, 0, 0, 0, 0}, to[kAxes] = {0, 0, 0, 0, 0, 0};   // X Y Z mm, A B C deg
+    double length = 0;          // mm (degrees counted as mm when rotary axes turn), or s for a pause
+    double time_s = 0;          // > 0: the block's own time (G93, or a rotary feed rule) sets the speed
     NcBlock arc;                // Kind::Arc
     double v_in = 0, v_out = 0, v_max = 0;   // planned path speeds, mm/s (NC programs with max_accel)
 };
 
 struct RunSetup {
-    double start_mm[3] = {0, 0, 0};
+    double start[kAxes] = {0, 0, 0, 0, 0, 0};   // X Y Z mm, A B C deg
+    std::string rotary_axes;    // columns to write ("ac"): the rotary axes the program names
     MachineModel machine;
     double settle_s = 0;
     bool nc = false;            // spindle follows the segments (else the first demo's ramp)
@@ -82,10 +88,10 @@ struct RunSetup {
 class Machine {
 public:
     Machine(const RunSetup& run, const std::vector<Segment>& segs)
-        : run_(run), m_(run.machine), segs_(segs), ma1_(m_.accdec_ticks[0], run.start_mm), ma2_(m_.accdec_ticks[1], run.start_mm) {
-        std::copy(run.start_mm, run.start_mm + 3, cmd_);
-        std::copy(run.start_mm, run.start_mm + 3, act_);
-        std::copy(run.start_mm, run.start_mm + 3, prev_act_);
+        : run_(run), m_(run.machine), segs_(segs), ma1_(m_.accdec_ticks[0], run.start), ma2_(m_.accdec_ticks[1], run.start) {
+        std::copy(run.start, run.start + kAxes, cmd_);
+        std::copy(run.start, run.start + kAxes, act_);
+        std::copy(run.start, run.start + kAxes, prev_act_);
         planned_ = run.nc && m_.max_accel_mm_s2 > 0;
         if (segs_.empty()) program_done_ = true;
         else speed_mm_s_ = segs_[0].speed_mm_s;
@@ -97,12 +103,12 @@ public:
         ++ticks_;
         if (planned_) interpolate_planned(T);
         else interpolate(T);
-        double f1[3], f2[3];
+        double f1[kAxes], f2[kAxes];
         ma1_.push(cmd_, f1);
         ma2_.push(f1, f2);
         const double k = 1.0 - std::exp(-T / m_.servo_time_constant_s);
-        std::copy(act_, act_ + 3, prev_act_);
-        for (int a = 0; a < 3; ++a) act_[a] += (f2[a] - act_[a]) * k;
+        std::copy(act_, act_ + kAxes, prev_act_);
+        for (int a = 0; a < kAxes; ++a) act_[a] += (f2[a] - act_[a]) * k;
         if (run_.nc && !segs_.empty()) {
             const double target = segs_[std::min(seg_, segs_.size() - 1)].spindle_rpm, step = m_.spindle_accel_rpm_s * T;
             rpm_ += std::clamp(target - rpm_, -step, step);
@@ -112,10 +118,11 @@ public:
 
     double time_s() const { return static_cast<double>(ticks_) * m_.cnc_period_s; }
     bool finished() const { return program_done_ && settle_ticks_ * m_.cnc_period_s >= run_.settle_s; }
-    const double* actual_mm() const { return act_; }
+    const double* actual() const { return act_; }   // X Y Z mm, A B C deg
+    // As a FANUC shows the actual feed: degrees of a turning axis counted as mm.
     double actual_feed_mm_min() const {
         double d2 = 0;
-        for (int a = 0; a < 3; ++a) d2 += (act_[a] - prev_act_[a]) * (act_[a] - prev_act_[a]);
+        for (int a = 0; a < kAxes; ++a) d2 += (act_[a] - prev_act_[a]) * (act_[a] - prev_act_[a]);
         return std::sqrt(d2) / m_.cnc_period_s * 60.0;
     }
     double spindle_rpm() const {
@@ -136,10 +143,11 @@ private:
             block_point(g.arc, g.length > 0 ? s / g.length : 1.0, cmd_, tangent);
             return;
         }
-        for (int a = 0; a < 3; ++a) cmd_[a] = g.from[a] + (g.to[a] - g.from[a]) * s / g.length;
+        // Joint space: every axis, linear or rotary, runs linearly along the segment.
+        for (int a = 0; a < kAxes; ++a) cmd_[a] = g.from[a] + (g.to[a] - g.from[a]) * s / g.length;
     }
     void arrive(const Segment& g) {
-        if (g.kind != Segment::Kind::Pause) std::copy(g.to, g.to + 3, cmd_);
+        if (g.kind != Segment::Kind::Pause) std::copy(g.to, g.to + kAxes, cmd_);
     }
 
     // Continuous-path interpolation at the programmed speed: the distance left over at a block
@@ -221,7 +229,7 @@ private:
     const MachineModel& m_;
     const std::vector<Segment>& segs_;
     MovingAverage ma1_, ma2_;
-    double cmd_[3], act_[3], prev_act_[3];
+    double cmd_[kAxes], act_[kAxes], prev_act_[kAxes];
     double seg_s_ = 0, speed_mm_s_ = 1, v_ = 0, rpm_ = 0;
     std::size_t seg_ = 0;
     std::size_t ticks_ = 0;
@@ -233,6 +241,14 @@ double quantise(double v, double step) { return step > 0 ? std::round(v / step) 
 
 double distance3(const double a[3], const double b[3]) {
     return std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+}
+
+// The joint-space length: degrees counted as mm (FANUC's combined feed). With the rotary axes at
+// rest it is distance3, bit for bit (the extra terms add exact zeros).
+double joint_distance(const double a[kAxes], const double b[kAxes]) {
+    double d2 = (b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]);
+    for (int k = 3; k < kAxes; ++k) d2 += (b[k] - a[k]) * (b[k] - a[k]);
+    return std::sqrt(d2);
 }
 
 std::vector<Segment> segments_of(const DryRunSpec& spec) {
@@ -262,7 +278,7 @@ void tangent_at(const Segment& g, double u, double t[3]) {
         block_point(g.arc, u, p, t);
         return;
     }
-    for (int a = 0; a < 3; ++a) t[a] = g.length > 0 ? (g.to[a] - g.from[a]) / g.length : 0.0;
+    for (int a = 0; a < kAxes; ++a) t[a] = g.length > 0 ? (g.to[a] - g.from[a]) / g.length : 0.0;
 }
 
 // Junction speeds: zero at pauses, the ends and around rapids (in-position check); at a corner
@@ -283,11 +299,11 @@ void plan(std::vector<Segment>& segs, const MachineModel& m) {
     for (std::size_t k = 0; k + 1 < segs.size(); ++k) {
         Segment &a = segs[k], &b = segs[k + 1];
         if (!path(a) || !path(b) || a.rapid || b.rapid) continue;
-        double ta[3], tb[3];
+        double ta[kAxes] = {0, 0, 0, 0, 0, 0}, tb[kAxes] = {0, 0, 0, 0, 0, 0};
         tangent_at(a, 1.0, ta);
         tangent_at(b, 0.0, tb);
         double jump = 0;
-        for (int ax = 0; ax < 3; ++ax) jump = std::max(jump, std::abs(tb[ax] - ta[ax]));
+        for (int ax = 0; ax < kAxes; ++ax) jump = std::max(jump, std::abs(tb[ax] - ta[ax]));
         const double v = std::min({a.v_max, b.v_max, jump > 1e-12 ? step / jump : a.v_max});
         a.v_out = b.v_in = v;
     }
@@ -307,16 +323,18 @@ void plan(std::vector<Segment>& segs, const MachineModel& m) {
 
 std::vector<Segment> segments_of(const NcDryRunSpec& spec) {
     std::vector<Segment> out;
-    double at[3];
+    double at[kAxes];
     std::copy(spec.start_mm, spec.start_mm + 3, at);
+    std::copy(spec.start_deg, spec.start_deg + 3, at + 3);
     int tool = -1;
     auto add = [&](Segment g) {
         g.tool = tool;
         if (g.kind != Segment::Kind::Pause) {
-            std::copy(at, at + 3, g.from);
-            if (g.kind == Segment::Kind::Line) g.length = distance3(g.from, g.to);
+            std::copy(at, at + kAxes, g.from);
+            if (g.kind == Segment::Kind::Line) g.length = joint_distance(g.from, g.to);
             if (g.length < 1e-9) return;
-            std::copy(g.to, g.to + 3, at);
+            if (g.time_s > 0) g.speed_mm_s = g.length / g.time_s;
+            std::copy(g.to, g.to + kAxes, at);
         } else if (!(g.length > 0)) {
             return;
         }
@@ -329,6 +347,7 @@ std::vector<Segment> segments_of(const NcDryRunSpec& spec) {
         g.speed_mm_s = spec.machine.rapid_mm_min / 60.0;
         g.spindle_rpm = rpm;
         std::copy(to, to + 3, g.to);
+        std::copy(at + 3, at + kAxes, g.to + 3);   // the tool change leaves the rotary axes where they are
         add(g);
     };
     for (const NcBlock& b : spec.program.blocks) {
@@ -354,6 +373,10 @@ std::vector<Segment> segments_of(const NcDryRunSpec& spec) {
                 g.rapid = b.motion == NcMotion::Rapid;
                 g.speed_mm_s = (g.rapid ? spec.machine.rapid_mm_min : b.feed_mm_min) / 60.0;
                 std::copy(b.end_mm.begin(), b.end_mm.end(), g.to);
+                std::copy(b.end_deg.begin(), b.end_deg.end(), g.to + 3);
+                // G93, or a feed move that turns a rotary axis: the block's own time (by the
+                // program's rotary feed rule) over its joint-space length.
+                if (!g.rapid && (b.feed_time_s > 0 || block_turns(b))) g.time_s = block_time_s(b, spec.machine.rapid_mm_min);
                 add(g);
                 break;
             case NcMotion::ArcCw:
@@ -364,7 +387,9 @@ std::vector<Segment> segments_of(const NcDryRunSpec& spec) {
                 g.arc = b;
                 g.speed_mm_s = b.feed_mm_min / 60.0;
                 g.length = block_length_mm(b);
+                if (b.feed_time_s > 0) g.time_s = b.feed_time_s;   // G93
                 std::copy(b.end_mm.begin(), b.end_mm.end(), g.to);
+                std::copy(b.end_deg.begin(), b.end_deg.end(), g.to + 3);
                 add(g);
                 break;
             case NcMotion::Dwell:
@@ -386,8 +411,10 @@ std::size_t run_log(const RunSetup& run, const std::vector<Segment>& segs, const
     Rng rng(seed);
     const MachineModel& m = run.machine;
     fmt::memory_buffer buf;
-    fmt::format_to(std::back_inserter(buf), "t_spindle [s],spindle [rpm],t_feed [s],feed [mm/min],t_pos [s],x [mm],y [mm],z [mm],{}block\n",
-                   run.nc ? "tool," : "");
+    std::string rotary_header;
+    for (const char axis : run.rotary_axes) rotary_header += fmt::format("{} [deg],", axis);
+    fmt::format_to(std::back_inserter(buf), "t_spindle [s],spindle [rpm],t_feed [s],feed [mm/min],t_pos [s],x [mm],y [mm],z [mm],{}{}block\n",
+                   rotary_header, run.nc ? "tool," : "");
     double t = c.start_s;
     std::size_t rows = 0;
     // A read returns the state latched at the last tick before the middle of the read; its time
@@ -407,10 +434,13 @@ std::size_t run_log(const RunSetup& run, const std::vector<Segment>& segs, const
         const double t_feed = read(1);
         const double feed = std::round(machine.actual_feed_mm_min());
         const double t_pos = read(2);
-        const double* p = machine.actual_mm();
+        const double* p = machine.actual();
         const double r = m.position_resolution_mm;
         fmt::format_to(std::back_inserter(buf), "{:.6f},{:.0f},{:.6f},{:.0f},{:.6f},{:.3f},{:.3f},{:.3f},", t_spindle, rpm, t_feed,
                        feed, t_pos, quantise(p[0], r), quantise(p[1], r), quantise(p[2], r));
+        // The encoders' resolution; latched with X/Y/Z in the same read.
+        for (const char axis : run.rotary_axes)
+            fmt::format_to(std::back_inserter(buf), "{:.3f},", quantise(p[3 + (axis - 'a')], m.rotary_resolution_deg) + 0.0);   // no "-0.000"
         if (run.nc) {
             if (machine.tool() >= 0) fmt::format_to(std::back_inserter(buf), "{}", machine.tool());
             buf.push_back(',');
@@ -431,7 +461,7 @@ std::size_t run_log(const RunSetup& run, const std::vector<Segment>& segs, const
 
 std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
     RunSetup run;
-    std::copy(spec.start_mm, spec.start_mm + 3, run.start_mm);
+    std::copy(spec.start_mm, spec.start_mm + 3, run.start);
     run.machine = spec.machine;
     run.settle_s = spec.settle_s;
     return run_log(run, segments_of(spec), spec.client, spec.seed, spec.max_rows, csv);
@@ -439,7 +469,9 @@ std::size_t synthesize_dry_run(const DryRunSpec& spec, std::ostream& csv) {
 
 std::size_t synthesize_nc_dry_run(const NcDryRunSpec& spec, std::ostream& csv) {
     RunSetup run;
-    std::copy(spec.start_mm, spec.start_mm + 3, run.start_mm);
+    std::copy(spec.start_mm, spec.start_mm + 3, run.start);
+    std::copy(spec.start_deg, spec.start_deg + 3, run.start + 3);
+    run.rotary_axes = spec.program.rotary_axes;
     run.machine = spec.machine;
     run.settle_s = spec.settle_s;
     run.nc = true;
@@ -705,6 +737,52 @@ NcDryRunSpec demo2_dry_run_spec() {
     spec.client.stall_probability = 0.004;
     spec.client.stall_s = 0.03;
     spec.seed = 20250212;
+    return spec;
+}
+
+std::string demo3_program_text() {
+    // Written as a shop post writes a C-table program in machine-axis form: the rotary move in
+    // G93 (the post works out 1/F from the arc the tool travels on the part), the return turn in
+    // G94 with the control's combined feed. Ring groove: tool centre at R35 then R38, D6 tool, so
+    // the groove spans R32..R41, 2 mm deep.
+    return "%\n"
+           "O3000 (CUTLOAD DEMO 3: A RING GROOVE CUT BY TURNING THE C TABLE)\n"
+           "(AC TABLE-TABLE MACHINE, MACHINE-AXIS FORM: A0 KEEPS THE TOOL VERTICAL, C TURNS THE PART)\n"
+           "(G54 = THE C LINE ON THE STOCK TOP, MACHINE X-350. Y-275. Z-460.; X/Y/Z ARE THE TOOL TIP)\n"
+           "(T1 FLAT END MILL D6. 2 FLUTES)\n"
+           "N10 G17 G21 G40 G49 G80 G90 G94\n"
+           "N20 G00 G54 X35. Y0. A0. C0. S8000 M03\n"
+           "N30 Z5.\n"
+           "N40 G01 Z-2. F300\n"
+           "N50 G93 G01 C360. F13.642 (ONE TURN IN 1/F MIN: 3000 MM/MIN ALONG THE R35 ARC)\n"
+           "N60 G94 X38. F600 (STEP OUT 3 MM)\n"
+           "N70 C0. F3600 (ONE TURN BACK, 3600 DEG/MIN: 2388 MM/MIN ALONG THE R38 ARC)\n"
+           "N80 G00 Z5.\n"
+           "N90 Z60.\n"
+           "N100 M05\n"
+           "N110 M30\n"
+           "%\n";
+}
+
+NcReadOptions demo3_read_options() {
+    NcReadOptions o;
+    o.work_offsets_mm["G54"] = {-350, -275, -460};   // the C line (data/machines/ac_table_table.json) on the stock top
+    o.start_mm = std::array<double, 3>{-315, -275, -400};   // above the groove's start, where the log starts
+    o.rotary_axes = "AC";                              // the AC machine's rotary axes
+    o.rotary_feed = RotaryFeed::Combined;
+    return o;
+}
+
+NcDryRunSpec demo3_dry_run_spec() {
+    NcDryRunSpec spec;
+    spec.program = parse_nc_program(demo3_program_text(), "demo3_program.nc", demo3_read_options());
+    const auto start = *demo3_read_options().start_mm;
+    std::copy(start.begin(), start.end(), spec.start_mm);
+    spec.machine.max_accel_mm_s2 = 2500;   // demo2's machine; for the table, 2500 deg/s^2
+    spec.machine.corner_speed_step_mm_min = 600;
+    spec.client.stall_probability = 0.004;
+    spec.client.stall_s = 0.03;
+    spec.seed = 20250315;
     return spec;
 }
 

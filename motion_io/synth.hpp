@@ -40,6 +40,7 @@ struct MachineModel {
     double spindle_ramp_s = 0.5;          // 0 to spindle_rpm after start
     double spindle_ripple_rpm = 2;
     double position_resolution_mm = 0.001;
+    double rotary_resolution_deg = 0.001;   // A/B/C readings (programs that turn rotary axes)
     // NC programs only (0: off, the first demo's machine). Acceleration/deceleration before
     // interpolation: the path speed changes at most this fast, rapids stop at their ends (in-
     // position check), a corner is taken no faster than the speed at which each axis's velocity
@@ -86,6 +87,7 @@ struct ToolChangeModel {
 struct NcDryRunSpec {
     NcProgram program;                // parsed with the machine's work offsets (machine coordinates)
     double start_mm[3] = {0, 0, 0};   // machine position before the first block
+    double start_deg[3] = {0, 0, 0};  // A, B, C before the first block
     MachineModel machine;
     ClientModel client;
     ToolChangeModel tool_change;
@@ -96,6 +98,10 @@ struct NcDryRunSpec {
 
 // As synthesize_dry_run, with a tool column before the block column:
 //   ..., z [mm], tool, block     (tool empty before the first change)
+// A program that names rotary axes (machine-axis form, NcProgram::rotary_axes) gets their columns
+// after z, in degrees at MachineModel::rotary_resolution_deg: ..., z [mm], a [deg], c [deg], tool,
+// block. Every axis is interpolated in joint space and goes through the same acc/dec and servo
+// lag as X/Y/Z; path speeds, accelerations and the feed reading count degrees as mm (FANUC).
 std::size_t synthesize_nc_dry_run(const NcDryRunSpec& spec, std::ostream& csv);
 
 // The demo program (geometry in docs: data/README.md): a pocket cleared by ramping, slotting and
@@ -113,5 +119,15 @@ NcReadOptions demo2_read_options();
 // demo2_program_text() run on the demo machine with acceleration-limited corners, tool changes
 // and client stalls; its log is data/demo2_dryrun.csv.
 NcDryRunSpec demo2_dry_run_spec();
+
+// The third demo (data/README.md): a five-axis program in machine-axis form for the bundled AC
+// table-table machine (data/machines/ac_table_table.json) that keeps the tool vertical: a ring
+// groove cut by turning the C table under a standing tool, one turn in G93, one back in G94.
+std::string demo3_program_text();
+// How to read it: G54 at the C line on the stock top, rotary axes A and C, combined rotary feed,
+// start above the groove.
+NcReadOptions demo3_read_options();
+// demo3_program_text() on demo2's machine and client; its log is data/demo3_dryrun.csv.
+NcDryRunSpec demo3_dry_run_spec();
 
 }  // namespace cutload::motion_io

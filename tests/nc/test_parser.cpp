@@ -104,7 +104,8 @@ TEST_CASE("parser: errors name the file, the line and the word", "[parser][error
     CHECK_THAT(error_of("N1 G01 X10. Y0 Z0\n"), Catch::StartsWith("t.nc:1: word 'N1': no feed rate"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G02 X10. Y0. I3. F100\n"), Catch::StartsWith("t.nc:2: word 'G02': end point is not on the arc"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G03 X30. Y0. R10. F100\n"), Catch::StartsWith("t.nc:2: word 'R10.': radius"));
-    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0 A90.\n"), Catch::StartsWith("t.nc:1: word 'A90.': only the linear axes"));
+    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0 A90.\n"), Catch::StartsWith("t.nc:1: word 'A90.': rotary axis A needs a machine definition"));
+    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0 U90.\n"), Catch::StartsWith("t.nc:1: word 'U90.': only the linear axes"));
     CHECK_THAT(error_of("N1 G00 X0 X1.\n"), Catch::StartsWith("t.nc:1: word 'X1.': appears twice"));
     CHECK_THAT(error_of("N1 G55 G00 X0\n"), Catch::StartsWith("t.nc:1: word 'G55': no offset is set"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0 (open comment\n"), Catch::StartsWith("t.nc:1: word '(open comment': comment without ')'"));
