@@ -64,6 +64,9 @@ struct RunInput {
 // given; a bad file is an InputError("machine" or "machine_errors") whose message names the key.
 std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path,
                                                                const std::string& errors_path = "");
+// Its rotary axes as the NC reader takes them (ProgramSettings::rotary_axes): "AC"
+// (workpiece_motion.hpp; declared here for front ends, which do not see the machine).
+std::string machine_rotary_axes(const machine::Machine& machine);
 
 struct RunResult {
     motion_io::MotionModel motion;               // the repaired log; blocks named after the program's when mapped

@@ -214,8 +214,9 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
 // The machine's kinematic chain (docs/machines.md), with its geometric errors and the tool length,
 // stored beside the log: the log's x, y, z and a, b, c are then that machine's axes, turned into the
 // tool's motion against the part (docs/five_axis.md). Read once here, so a bad file is a 400 now
-// rather than a failed job later. Null without a part 'kinematics'.
-json store_kinematics(const httplib::Request& req, const fs::path& dir) {
+// rather than a failed job later. Null without a part 'kinematics'; `rotary_axes` gets the machine's
+// rotary axes ("AC"), in which an NC program uploaded with it is read.
+json store_kinematics(const httplib::Request& req, const fs::path& dir, std::string& rotary_axes) {
     const auto length = part(req, "tool_length_mm");
     if (!req.has_file("kinematics")) {
         if (req.has_file("kinematics_errors") || length)
@@ -246,7 +247,7 @@ json store_kinematics(const httplib::Request& req, const fs::path& dir) {
     }
     k["tool_length_mm"] = tool_length_mm;
     try {
-        app::load_machine_definition((dir / "kinematics.json").string(), errors_path);
+        rotary_axes = app::machine_rotary_axes(*app::load_machine_definition((dir / "kinematics.json").string(), errors_path));
     } catch (const app::InputError& e) {
         // Name the parts, not the server's files.
         std::string msg = replace_all(e.what(), (dir / "kinematics.json").string(), "part kinematics");
@@ -264,7 +265,8 @@ struct UploadedProgram {
 // Stores the uploaded NC program beside the log and reads it once, so a bad program is a 400 now
 // rather than a failed job later. Positions are checked again by the job, against the log.
 json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json,
-                      const std::optional<std::array<double, 3>>& start_mm, std::optional<UploadedProgram>& read) {
+                      const std::optional<std::array<double, 3>>& start_mm, const std::string& rotary_axes,
+                      std::optional<UploadedProgram>& read) {
     const auto f = req.get_file_value("nc_program");
     if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
     const std::string name = f.filename.empty() ? "program.nc" : fs::path(client_text(f.filename, "file name of part 'nc_program'")).filename().string();
@@ -281,6 +283,9 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     }
     app::ProgramSource source;
     source.settings = program_settings(options);
+    // With kinematics the program is in the machine's axes (A/B/C words); the job reads it again
+    // from where the log's axes start, and turns it into the tip's path against the part.
+    source.settings.rotary_axes = rotary_axes;
     source.name = name;
     source.text = text;
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
@@ -369,7 +374,8 @@ void create_run(Core& core, Ctx& x) {
         }
     }
 
-    const json kinematics = store_kinematics(req, tmp);
+    std::string rotary_axes;
+    const json kinematics = store_kinematics(req, tmp, rotary_axes);
 
     motion_io::IngestReport report;
     try {
@@ -383,7 +389,7 @@ void create_run(Core& core, Ctx& x) {
     json nc_program;
     std::optional<UploadedProgram> program_read;
     if (req.has_file("nc_program"))
-        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm, program_read);
+        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm, rotary_axes, program_read);
     else if (part(req, "nc_options"))
         bad_request("part nc_options: given without nc_program (the options are for reading the NC program)");
     std::size_t rows = 0;

@@ -134,11 +134,15 @@ app::ProgramSettings program_settings(const json& o) {
             s.map_blocks = boolean(o, "map_blocks");
         } else if (key == "decimal_less_is_increment") {
             s.decimal_less_is_increment = boolean(o, "decimal_less_is_increment");
+        } else if (key == "rotary_feed") {
+            s.rotary_feed = one_of(o, "rotary_feed", {"combined", "linear_only"}) == std::string("linear_only")
+                                ? motion_io::RotaryFeed::LinearOnly
+                                : motion_io::RotaryFeed::Combined;
         } else {
             throw ApiError(400, "bad_request",
                            fmt::format("nc_options: unknown key '{}' (known: work_offsets_mm, ignore_words, rapid_feed_mm_min, "
                                        "block_lead_ms, map_blocks, decimal_less_is_increment, arc_centers, program_units, "
-                                       "arc_tolerance_mm, tool_change_on_t, block_skip, min_match)",
+                                       "arc_tolerance_mm, tool_change_on_t, block_skip, min_match, rotary_feed)",
                                        key));
         }
     }
