@@ -27,8 +27,14 @@ LOG2=data/demo2_dryrun.csv
 SPEC2=data/demo2_run.json
 NC2=data/demo2_program.nc
 NC2_OPTIONS='{"program_units": "in", "arc_centers": "absolute"}'
+# The five-axis demo: a ring groove cut by turning the C table of the bundled AC machine (data/README.md).
+LOG3=data/demo3_dryrun.csv
+SPEC3=data/demo3_run.json
+NC3=data/demo3_program.nc
+MACHINE3=data/machines/ac_table_table.json
+NC3_OPTIONS='{"work_offsets_mm": {"G54": [-350, -275, -460]}}'
 
-for f in "$LOG" "$SPEC" "$NC" "$LOG2" "$SPEC2" "$NC2"; do
+for f in "$LOG" "$SPEC" "$NC" "$LOG2" "$SPEC2" "$NC2" "$LOG3" "$SPEC3" "$NC3" "$MACHINE3"; do
   [ -f "$f" ] || { echo "cutload start: $f is missing from this checkout" >&2; exit 1; }
 done
 mkdir -p "$STATE_DIR"
@@ -68,6 +74,12 @@ if [ -z "$RUN2" ]; then
   RUN2=$(api -F "log=@$LOG2" -F "spec=<$SPEC2" -F "nc_program=@$NC2" -F "nc_options=$NC2_OPTIONS" \
     -F name=demo2 -F program=demo2 "$URL/api/v1/runs" | json_field id)
 fi
+RUN3=$(api "$URL/api/v1/runs?program=demo3&limit=1" | json_field id)
+if [ -z "$RUN3" ]; then
+  echo "cutload start: submitting the five-axis demo ($LOG3) with its machine ($MACHINE3) and NC program ($NC3)"
+  RUN3=$(api -F "log=@$LOG3" -F "spec=<$SPEC3" -F "kinematics=@$MACHINE3" -F "nc_program=@$NC3" \
+    -F "nc_options=$NC3_OPTIONS" -F name=demo3 -F program=demo3 "$URL/api/v1/runs" | json_field id)
+fi
 wait_run() {
   local state
   while :; do
@@ -80,12 +92,14 @@ wait_run() {
 }
 STATE=$(wait_run "$RUN")
 STATE2=$(wait_run "$RUN2")
+STATE3=$(wait_run "$RUN3")
 
 cat <<EOF
 
 cutload is running at $URL  (Ctrl-C stops it)
   demo run $RUN: $STATE
   multi-tool demo run $RUN2: $STATE2 ($URL/#/runs/$RUN2)
+  five-axis demo run $RUN3: $STATE3 ($URL/#/runs/$RUN3)
   web page:         $URL/
   the run:          $URL/api/v1/runs/$RUN
   per-block loads:  $URL/api/v1/runs/$RUN/blocks
