@@ -173,7 +173,7 @@ std::string opencl_device_name();
 // first prediction starts at once; throws what opencl_device_name() throws.
 void prepare_opencl();
 
-// One row per angle step while cutting (air time coarser). Forces act on the tool, in machine axes.
+// One row per angle step while cutting (air time coarser). Forces act on the tool.
 struct ForceSample {
     double t_s = 0;
     double spindle_angle_deg = 0;

@@ -889,7 +889,6 @@ double block_time_s(const NcBlock& b, double rapid_mm_min) {
     if (!block_moves(b)) return 0;
     if (b.feed_time_s > 0) return b.feed_time_s;   // G93, a rotary feed rule, or a piece of a joint-space block
     if (b.motion == NcMotion::Rapid) return block_joint_length(b) / (rapid_mm_min / 60.0);
-    if (b.feed_time_s > 0) return b.feed_time_s;
     return block_length_mm(b) / (b.feed_mm_min / 60.0);
 }
 

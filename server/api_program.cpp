@@ -84,6 +84,13 @@ void create_optimization(Core& core, Ctx& x) {
     if (!inputs.contains("nc_program"))
         throw ApiError(409, "no_program",
                        fmt::format("run {} was uploaded without an NC program: feeds are recommended per program block", run_id));
+    // The optimizer predicts the log's motion as it stands (three axes); a five-axis run's log is
+    // the machine's axes, which only the run's own prediction turns into the tool's motion.
+    if (inputs.contains("kinematics"))
+        throw ApiError(409, "kinematics_unsupported",
+                       fmt::format("run {} was uploaded with the machine's kinematics: feed optimization of five-axis runs "
+                                   "is not built yet (docs/five_axis.md)",
+                                   run_id));
     // The job would fail on these; say so now.
     const auto spec = force_model::parse_run_spec(inputs["spec"]);
     const auto& l = spec.limits;

@@ -7,6 +7,7 @@
 #include <limits>
 #include <exception>
 #include <optional>
+#include <system_error>
 #include <thread>
 
 namespace cutload::motion_io::detail {
@@ -119,15 +120,21 @@ std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, 
             all[i].roughness = tracked_roughness(r, n, all[i].period_s, phases);
     };
     const double work = double(all.size()) * double(n) * double(phases);
+    std::thread second;
+    std::exception_ptr failed;
     if (work >= kParallelScanWork && std::thread::hardware_concurrency() > 1) {
-        std::exception_ptr failed;
-        std::thread second([&] {
-            try {
-                evaluate(1, 2);
-            } catch (...) {
-                failed = std::current_exception();
-            }
-        });
+        try {
+            second = std::thread([&] {
+                try {
+                    evaluate(1, 2);
+                } catch (...) {
+                    failed = std::current_exception();
+                }
+            });
+        } catch (const std::system_error&) {   // no thread to be had (a busy service): one does it all
+        }
+    }
+    if (second.joinable()) {
         try {
             evaluate(0, 2);
         } catch (...) {
