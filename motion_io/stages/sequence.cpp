@@ -75,22 +75,12 @@ void Sequence::release(const Record& r) {
     switch (r.ch) {
         case Chan::AxisX: case Chan::AxisY: case Chan::AxisZ: {
             const int k = static_cast<int>(r.ch) - static_cast<int>(Chan::AxisX);
-            axes_.v[k] = r.v[0];
-            axes_.after_glitch = axes_.after_glitch || r.after_glitch;
-            axes_known_ |= 1u << k;
-            axes_.line = r.line;
-            axis_t_ = r.t_s;
-            axis_pending_ = true;
+            latch_axis(r, axes_.v[k], axes_known_, k);
             break;
         }
         case Chan::AxisA: case Chan::AxisB: case Chan::AxisC: {
             const int k = static_cast<int>(r.ch) - static_cast<int>(Chan::AxisA);
-            axes_.rot_deg[k] = r.v[0];
-            axes_.after_glitch = axes_.after_glitch || r.after_glitch;
-            rotary_known_ |= 1u << k;
-            axes_.line = r.line;
-            axis_t_ = r.t_s;
-            axis_pending_ = true;
+            latch_axis(r, axes_.rot_deg[k], rotary_known_, k);
             break;
         }
         case Chan::Pos:
@@ -108,6 +98,15 @@ void Sequence::release(const Record& r) {
         default:
             emit(session_flow(r.ch), r);
     }
+}
+
+void Sequence::latch_axis(const Record& r, double& slot, unsigned& known, int k) {
+    slot = r.v[0];
+    axes_.after_glitch = axes_.after_glitch || r.after_glitch;
+    known |= 1u << k;
+    axes_.line = r.line;
+    axis_t_ = r.t_s;
+    axis_pending_ = true;
 }
 
 void Sequence::flush_axes() {

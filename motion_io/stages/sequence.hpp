@@ -24,6 +24,8 @@ private:
     void drain(bool all);
     void release(const Record& r);
     void flush_axes();
+    // A single-axis reading into the position being latched: its value, its axis known (bit k).
+    void latch_axis(const Record& r, double& slot, unsigned& known, int k);
     void end_session();
 
     Diagnostics& diag_;
