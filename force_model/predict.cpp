@@ -135,27 +135,33 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
     check_plan(plan);
     const auto wall0 = Clock::now();
     EnginePhases phases;
-    std::optional<PhaseTimer> setup_timer(std::in_place, phases.setup_s);
-    EngineSetup setup(spec, plan, opt, settings);
-    Engine engine(motion, spec, plan, opt, settings, setup, phases);
-    std::optional<RowsOut> rows_out;
-    if (opt.rows_out) {
-        rows_out.emplace(motion, plan);
-        engine.take_rows_as_they_come([&](const RowTable& rows, std::size_t n) {
-            const std::span<const ForceSample> piece(rows.samples.data(), n);
-            check_rows(piece);
-            rows_out->blocks.add_rows(rows.samples.data(), rows.extra.data(), n);
-            for (std::size_t r = 0; r < n; ++r) rows_out->cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
-            opt.rows_out(piece);
-        });
-    }
-    setup_timer.reset();
+    Prediction p;
+    // The finish phase ends after the engine and its set-up are gone: releasing the stock (clearing
+    // its pages for the next run, zero_pages.cpp) is part of a prediction's cost.
+    std::optional<PhaseTimer> finish_timer;
     {
-        PhaseTimer timer(phases.walk_s);
-        engine.run();
+        std::optional<PhaseTimer> setup_timer(std::in_place, phases.setup_s);
+        EngineSetup setup(spec, plan, opt, settings);
+        Engine engine(motion, spec, plan, opt, settings, setup, phases);
+        std::optional<RowsOut> rows_out;
+        if (opt.rows_out) {
+            rows_out.emplace(motion, plan);
+            engine.take_rows_as_they_come([&](const RowTable& rows, std::size_t n) {
+                const std::span<const ForceSample> piece(rows.samples.data(), n);
+                check_rows(piece);
+                rows_out->blocks.add_rows(rows.samples.data(), rows.extra.data(), n);
+                for (std::size_t r = 0; r < n; ++r) rows_out->cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
+                opt.rows_out(piece);
+            });
+        }
+        setup_timer.reset();
+        {
+            PhaseTimer timer(phases.walk_s);
+            engine.run();
+        }
+        finish_timer.emplace(phases.finish_s);
+        p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr, opt.keep_final_stock);
     }
-    std::optional<PhaseTimer> finish_timer(std::in_place, phases.finish_s);
-    Prediction p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr, opt.keep_final_stock);
     finish_timer.reset();
     // The walk's own share: what the timed phases inside it leave over (step generation, batching,
     // air checks).

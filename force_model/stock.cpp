@@ -1,7 +1,5 @@
 #include "stock.hpp"
 
-#include <sys/mman.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <bit>
@@ -50,39 +48,6 @@ struct Header {
 };
 
 }  // namespace
-
-ZeroPages::ZeroPages(std::size_t bytes) : bytes_(bytes) {
-    if (bytes == 0) return;
-    void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    data_ = p;
-}
-
-ZeroPages::ZeroPages(const ZeroPages& other) : ZeroPages(other.bytes_) {
-    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
-    const auto* src = static_cast<const unsigned char*>(other.data_);
-    auto* dst = static_cast<unsigned char*>(data_);
-    for (std::size_t at = 0; at < bytes_; at += page) {
-        const std::size_t n = std::min(page, bytes_ - at);
-        if (std::any_of(src + at, src + at + n, [](unsigned char b) { return b != 0; })) std::memcpy(dst + at, src + at, n);
-    }
-}
-
-ZeroPages::ZeroPages(ZeroPages&& other) noexcept
-    : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
-
-ZeroPages& ZeroPages::operator=(ZeroPages&& other) noexcept {
-    if (this != &other) {
-        if (data_) munmap(data_, bytes_);
-        data_ = std::exchange(other.data_, nullptr);
-        bytes_ = std::exchange(other.bytes_, 0);
-    }
-    return *this;
-}
-
-ZeroPages::~ZeroPages() {
-    if (data_) munmap(data_, bytes_);
-}
 
 bool Stock::untouched(std::size_t r) const {
     const float* s = stored() + r * kernels::kDexelFloats;

@@ -13,7 +13,9 @@
 namespace cutload::force_model {
 
 // Page-aligned, zero-filled memory mapped from the OS; pages are faulted in on first write. Copies
-// copy only the pages that are not all zero, so a copy stays as lazy as its source.
+// copy only the pages that are not all zero, so a copy stays as lazy as its source. A released
+// mapping is cleared and kept (up to CUTLOAD_ZERO_POOL_MB, default 256) for the next request of
+// the same size, whose pages are then already mapped (zero_pages.cpp).
 class ZeroPages {
 public:
     ZeroPages() = default;
@@ -28,9 +30,16 @@ public:
     std::size_t bytes() const { return bytes_; }
 
 private:
+    void release() noexcept;
+
     void* data_ = nullptr;
     std::size_t bytes_ = 0;
 };
+
+// Makes a page-aligned anonymous mapping of `len` bytes (whole pages) all zero again, touching only
+// the pages it holds; false when the kernel refused a call. `machine_has_swap`: pages the kernel
+// reports absent may be in swap and are dropped too. The pool calls it with what sysinfo says.
+bool clear_zero_pages(void* mapping, std::size_t len, bool machine_has_swap);
 
 class Stock {
 public:

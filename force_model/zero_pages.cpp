@@ -1,0 +1,189 @@
+// ZeroPages and the process-wide pool of released mappings it draws from.
+//
+// Why a pool: a fresh mapping costs a page fault on every page a run touches, and on a virtual
+// machine a fault costs several microseconds (bench_force: about a fifth of a PoCL prediction's CPU
+// time went to faults on the stock, its walls and its top map). A released mapping is made all
+// zero again, touching only what the run touched, and handed to the next request of the same size,
+// so the second and later predictions of a process (the service, a worker, a bench) find their
+// pages already mapped.
+#include "stock.hpp"
+
+#include <sys/mman.h>
+#include <sys/sysinfo.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <new>
+#include <utility>
+#include <vector>
+
+namespace cutload::force_model {
+
+namespace {
+
+std::size_t page_bytes() {
+    static const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    return page;
+}
+
+std::size_t round_to_pages(std::size_t bytes) {
+    const std::size_t page = page_bytes();
+    return (bytes + page - 1) / page * page;
+}
+
+bool page_is_zero(const unsigned char* p, std::size_t n) {
+    const auto* w = reinterpret_cast<const std::uint64_t*>(p);
+    std::uint64_t any = 0;
+    for (std::size_t k = 0; k < n / 8; ++k) any |= w[k];
+    return any == 0;
+}
+
+}  // namespace
+
+// Pages the kernel reports resident are read (the shared zero page, where a run only looked, is
+// cache-hot) and cleared where written. A page it reports absent was never touched, or is in swap:
+// on a machine with swap, absent pages are dropped with MADV_DONTNEED, which discards any copy in
+// swap too (a call per run of them; without swap there is no copy to discard).
+bool clear_zero_pages(void* mapping, std::size_t len, bool machine_has_swap) {
+    auto* base = static_cast<unsigned char*>(mapping);
+    const std::size_t page = page_bytes(), pages = len / page;
+    std::vector<unsigned char> resident(pages);
+    if (mincore(base, len, resident.data()) != 0) return false;
+    std::size_t run = pages;   // first page of the current run of absent pages
+    for (std::size_t k = 0; k <= pages; ++k) {
+        const bool absent = k < pages && !(resident[k] & 1);
+        if (absent) {
+            if (machine_has_swap && run == pages) run = k;
+            continue;
+        }
+        if (run != pages) {
+            if (madvise(base + run * page, (k - run) * page, MADV_DONTNEED) != 0) return false;
+            run = pages;
+        }
+        if (k < pages && !page_is_zero(base + k * page, page)) std::memset(base + k * page, 0, page);
+    }
+    return true;
+}
+
+namespace {
+
+// False when the kernel refused a call: the mapping is then unmapped.
+bool clear_mapping(unsigned char* base, std::size_t len) {
+    struct sysinfo info {};
+    if (sysinfo(&info) != 0) return false;
+    return clear_zero_pages(base, len, info.totalswap != 0);
+}
+
+// Released mappings kept for reuse, newest last. Bounded by CUTLOAD_ZERO_POOL_MB (default 256;
+// 0 turns the pool off): what it keeps is resident memory the process holds while idle.
+class Pool {
+public:
+    void* take(std::size_t len) {
+        std::lock_guard lock(mutex_);
+        for (std::size_t k = kept_.size(); k-- > 0;)
+            if (kept_[k].len == len) {
+                void* p = kept_[k].data;
+                kept_.erase(kept_.begin() + std::ptrdiff_t(k));
+                bytes_ -= len;
+                return p;
+            }
+        return nullptr;
+    }
+
+    void give(void* data, std::size_t len) {
+        if (len > limit_bytes() || !clear_mapping(static_cast<unsigned char*>(data), len)) {
+            munmap(data, len);
+            return;
+        }
+        std::vector<Mapping> drop;
+        {
+            std::lock_guard lock(mutex_);
+            kept_.push_back({data, len});
+            bytes_ += len;
+            while (bytes_ > limit_bytes()) {   // oldest first
+                drop.push_back(kept_.front());
+                bytes_ -= kept_.front().len;
+                kept_.erase(kept_.begin());
+            }
+        }
+        for (const Mapping& m : drop) munmap(m.data, m.len);
+    }
+
+private:
+    struct Mapping {
+        void* data;
+        std::size_t len;
+    };
+
+    static std::size_t limit_bytes() {
+        static const std::size_t limit = [] {
+            const char* v = std::getenv("CUTLOAD_ZERO_POOL_MB");
+            char* end = nullptr;
+            const long long mb = v && *v ? std::strtoll(v, &end, 10) : 256;
+            if (v && *v && (*end != '\0' || mb < 0)) return std::size_t(256) << 20;   // unreadable: the default
+            return std::size_t(std::min<long long>(mb, 1 << 20)) << 20;
+        }();
+        return limit;
+    }
+
+    std::mutex mutex_;
+    std::vector<Mapping> kept_;
+    std::size_t bytes_ = 0;
+};
+
+Pool& pool() {
+    static Pool* p = new Pool();   // never destroyed: mappings may be released during static destruction
+    return *p;
+}
+
+}  // namespace
+
+ZeroPages::ZeroPages(std::size_t bytes) : bytes_(bytes) {
+    if (bytes == 0) return;
+    const std::size_t len = round_to_pages(bytes);
+    void* p = pool().take(len);
+    if (!p) p = mmap(nullptr, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = p;
+}
+
+ZeroPages::ZeroPages(const ZeroPages& other) : ZeroPages(other.bytes_) {
+    const std::size_t page = page_bytes();
+    const auto* src = static_cast<const unsigned char*>(other.data_);
+    auto* dst = static_cast<unsigned char*>(data_);
+    for (std::size_t at = 0; at < bytes_; at += page) {
+        const std::size_t n = std::min(page, bytes_ - at);
+        if (std::any_of(src + at, src + at + n, [](unsigned char b) { return b != 0; })) std::memcpy(dst + at, src + at, n);
+    }
+}
+
+ZeroPages::ZeroPages(ZeroPages&& other) noexcept
+    : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
+
+ZeroPages& ZeroPages::operator=(ZeroPages&& other) noexcept {
+    if (this != &other) {
+        release();
+        data_ = std::exchange(other.data_, nullptr);
+        bytes_ = std::exchange(other.bytes_, 0);
+    }
+    return *this;
+}
+
+ZeroPages::~ZeroPages() { release(); }
+
+void ZeroPages::release() noexcept {
+    if (!data_) return;
+    try {
+        pool().give(data_, round_to_pages(bytes_));
+    } catch (...) {   // the pool could not grow its list: the mapping is simply returned
+        munmap(data_, round_to_pages(bytes_));
+    }
+    data_ = nullptr;
+    bytes_ = 0;
+}
+
+}  // namespace cutload::force_model
