@@ -136,8 +136,8 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
     const auto wall0 = Clock::now();
     EnginePhases phases;
     Prediction p;
-    // The finish phase ends after the engine and its set-up are gone: releasing the stock (clearing
-    // its pages for the next run, zero_pages.cpp) is part of a prediction's cost.
+    // The finish phase ends after the engine and its set-up are gone: tearing them down is part of a
+    // prediction's cost.
     std::optional<PhaseTimer> finish_timer;
     {
         std::optional<PhaseTimer> setup_timer(std::in_place, phases.setup_s);

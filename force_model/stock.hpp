@@ -14,8 +14,8 @@ namespace cutload::force_model {
 
 // Page-aligned, zero-filled memory mapped from the OS; pages are faulted in on first write. Copies
 // copy only the pages that are not all zero, so a copy stays as lazy as its source. A released
-// mapping is cleared and kept (up to CUTLOAD_ZERO_POOL_MB, default 256) for the next request of
-// the same size, whose pages are then already mapped (zero_pages.cpp).
+// mapping is kept (up to CUTLOAD_ZERO_POOL_MB, default 256) for the next request of the same size,
+// which gets it cleared, its pages already mapped (zero_pages.cpp).
 class ZeroPages {
 public:
     ZeroPages() = default;

@@ -2,10 +2,10 @@
 //
 // Why a pool: a fresh mapping costs a page fault on every page a run touches, and on a virtual
 // machine a fault costs several microseconds (bench_force: about a fifth of a PoCL prediction's CPU
-// time went to faults on the stock, its walls and its top map). A released mapping is made all
-// zero again, touching only what the run touched, and handed to the next request of the same size,
-// so the second and later predictions of a process (the service, a worker, a bench) find their
-// pages already mapped.
+// time went to faults on the stock, its walls and its top map). A released mapping is kept and
+// handed to the next request of the same size, made all zero again first (touching only what the
+// run touched), so the second and later predictions of a process (the service, a worker, a bench)
+// find their pages already mapped. The clearing is part of the next prediction's set-up phase.
 #include "stock.hpp"
 
 #include <sys/mman.h>
@@ -82,20 +82,30 @@ bool clear_mapping(unsigned char* base, std::size_t len) {
 // 0 turns the pool off): what it keeps is resident memory the process holds while idle.
 class Pool {
 public:
+    // A kept mapping of exactly `len` bytes, made all zero; null when there is none. Clearing
+    // happens here, not on release, so a process that ends after its one prediction (the CLI) never
+    // pays for it.
     void* take(std::size_t len) {
-        std::lock_guard lock(mutex_);
-        for (std::size_t k = kept_.size(); k-- > 0;)
-            if (kept_[k].len == len) {
-                void* p = kept_[k].data;
-                kept_.erase(kept_.begin() + std::ptrdiff_t(k));
-                bytes_ -= len;
-                return p;
-            }
-        return nullptr;
+        void* p = nullptr;
+        {
+            std::lock_guard lock(mutex_);
+            for (std::size_t k = kept_.size(); k-- > 0;)
+                if (kept_[k].len == len) {
+                    p = kept_[k].data;
+                    kept_.erase(kept_.begin() + std::ptrdiff_t(k));
+                    bytes_ -= len;
+                    break;
+                }
+        }
+        if (p && !clear_mapping(static_cast<unsigned char*>(p), len)) {
+            munmap(p, len);
+            return nullptr;
+        }
+        return p;
     }
 
     void give(void* data, std::size_t len) {
-        if (len > limit_bytes() || !clear_mapping(static_cast<unsigned char*>(data), len)) {
+        if (len > limit_bytes()) {
             munmap(data, len);
             return;
         }
