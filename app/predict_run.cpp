@@ -1,6 +1,7 @@
 #include "app/predict_run.hpp"
 #include "app/workpiece_motion.hpp"
 
+#include "rows_pipe.hpp"
 #include "tracker.hpp"
 
 #include "force_model/logged_commanded.hpp"
@@ -141,20 +142,20 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     track.begin(Phase::Predict, 0, actual_share);
     po.progress = track.engine_progress();
     std::size_t rows_out = 0;
-    std::vector<force_model::ForceSample> turned;   // rows with their machine-axis forces, on their way out
+    std::optional<RowsPipe> pipe;   // the rows' encoding and writing overlap the engine's walk
     if (in.rows_out) {
         if (in.rows_out->begin) in.rows_out->begin(r.motion.block_names, r.work.force_rows);
+        pipe.emplace([&](std::span<force_model::ForceSample> rows) {
+            if (machine_axes) machine_axes->apply(rows);
+            in.rows_out->rows(rows);
+        });
         po.rows_out = [&](std::span<const force_model::ForceSample> rows) {
             rows_out += rows.size();
-            if (machine_axes) {
-                turned.assign(rows.begin(), rows.end());
-                machine_axes->apply(turned);
-                rows = turned;
-            }
-            in.rows_out->rows(rows);
+            pipe->push(rows);
         };
     }
     r.prediction = force_model::predict(r.motion, in.spec, po);
+    if (pipe) pipe->finish();
     if (machine_axes) machine_axes->apply(r.prediction.samples);
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
     r.rows = rows_out + r.prediction.samples.size();

@@ -1,0 +1,83 @@
+#include "rows_pipe.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace cutload::app {
+
+RowsPipe::RowsPipe(Consumer consume, std::size_t depth)
+    : consume_(std::move(consume)), depth_(std::max<std::size_t>(1, depth)), thread_([this] { consume_loop(); }) {}
+
+RowsPipe::~RowsPipe() {
+    {
+        std::lock_guard lock(mutex_);
+        closing_ = true;
+        queued_.clear();
+    }
+    changed_.notify_all();
+    thread_.join();
+}
+
+void RowsPipe::rethrow_locked() {
+    if (error_) std::rethrow_exception(error_);
+}
+
+void RowsPipe::push(std::span<const force_model::ForceSample> rows) {
+    std::vector<force_model::ForceSample> piece;
+    {
+        std::unique_lock lock(mutex_);
+        changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
+        rethrow_locked();
+        if (!spare_.empty()) {
+            piece = std::move(spare_.back());
+            spare_.pop_back();
+        }
+    }
+    piece.assign(rows.begin(), rows.end());
+    {
+        std::lock_guard lock(mutex_);
+        queued_.push_back(std::move(piece));
+    }
+    changed_.notify_all();
+}
+
+void RowsPipe::finish() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return error_ || (queued_.empty() && !busy_); });
+    rethrow_locked();
+}
+
+void RowsPipe::consume_loop() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+        changed_.wait(lock, [&] { return closing_ || !queued_.empty(); });
+        if (closing_) return;
+        std::vector<force_model::ForceSample> piece = std::move(queued_.front());
+        queued_.pop_front();
+        busy_ = true;
+        lock.unlock();
+        changed_.notify_all();   // a slot is free
+        std::exception_ptr failed;
+        try {
+            consume_(piece);
+        } catch (...) {
+            failed = std::current_exception();
+        }
+        lock.lock();
+        busy_ = false;
+        if (failed) {
+            error_ = failed;
+            queued_.clear();
+        } else if (spare_.size() < depth_) {
+            spare_.push_back(std::move(piece));
+        }
+        changed_.notify_all();
+        if (failed) {
+            // Nothing more is consumed; push() and finish() report the error.
+            changed_.wait(lock, [&] { return closing_; });
+            return;
+        }
+    }
+}
+
+}  // namespace cutload::app
