@@ -5,7 +5,12 @@
 namespace cutload::motion_io::detail {
 
 double nearest_equivalent_deg(double deg, double previous_deg) {
-    return deg + 360.0 * std::round((previous_deg - deg) / 360.0);
+    // Two equivalents tie when the reading is an odd number of half turns away. The one nearer the
+    // reading as shown wins: a head swung from 0 to 180 deg while the adapter said nothing reads
+    // 180, not -180 (std::round would take the tie away from zero).
+    const double turns = (previous_deg - deg) / 360.0;
+    if (std::abs(turns - std::trunc(turns)) == 0.5) return deg + 360.0 * std::trunc(turns);
+    return deg + 360.0 * std::round(turns);
 }
 
 void UnwrapRotary::begin_session() {

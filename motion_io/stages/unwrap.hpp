@@ -25,7 +25,8 @@ private:
     double prev_deg_[3] = {0, 0, 0};
 };
 
-// The angle equivalent to `deg` modulo 360 nearest `previous_deg`.
+// The angle equivalent to `deg` modulo 360 nearest `previous_deg`; of two as near (an odd number of
+// half turns away), the one nearer `deg` itself.
 double nearest_equivalent_deg(double deg, double previous_deg);
 
 }  // namespace cutload::motion_io::detail

@@ -55,6 +55,11 @@ TEST_CASE("unwrap: each angle takes the equivalent nearest the one before", "[ro
     CHECK(detail::nearest_equivalent_deg(-179.0, 179.0) == 181.0);
     CHECK(detail::nearest_equivalent_deg(10.5, 10.0) == 10.5);
     CHECK(detail::nearest_equivalent_deg(0.25, 1080.0) == 1080.25);
+    // Exactly half a turn: a head that swung 0 -> 180 deg between readings reads 180, not -180.
+    CHECK(detail::nearest_equivalent_deg(180.0, 0.0) == 180.0);
+    CHECK(detail::nearest_equivalent_deg(-180.0, 0.0) == -180.0);
+    CHECK(detail::nearest_equivalent_deg(540.0, 0.0) == 180.0);   // 180 and -180 tie: nearer 540
+    CHECK(detail::nearest_equivalent_deg(180.001, 0.0) == Approx(-179.999));
 
     detail::Diagnostics diag("log.csv");
     diag.facts().rotary = {false, false, true};
