@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 namespace cutload::app {
 
@@ -142,41 +143,58 @@ MachineAxesForces::MachineAxesForces(motion_io::MotionModel axes, std::shared_pt
         source_.push_back(p == &axes_.x_mm ? 0 : p == &axes_.y_mm ? 1 : p == &axes_.z_mm ? 2
                           : p == &axes_.rot_deg[0] ? 3 : p == &axes_.rot_deg[1] ? 4 : 5);
     }
-    sessions_ = std::max<std::size_t>(axes_.session_start.size(), 1);
+    // Until the engine says otherwise, the first session (the whole model when it has one).
+    const std::vector<std::size_t>& starts = axes_.session_start;
+    const auto later = std::upper_bound(starts.begin(), starts.end(), std::size_t(0));
+    end_ = later == starts.end() ? axes_.size() : *later;
+    several_sessions_ = end_ < axes_.size();
 }
 
-std::size_t MachineAxesForces::session_begin(std::size_t s) const {
-    return axes_.session_start.empty() ? 0 : axes_.session_start[s];
-}
-
-std::size_t MachineAxesForces::session_end(std::size_t s) const {
-    return s + 1 < axes_.session_start.size() ? axes_.session_start[s + 1] : axes_.size();
+void MachineAxesForces::begin_session(std::size_t begin, std::size_t end, std::size_t first_row) {
+    // One of the model's sessions: it starts at 0 or at a listed start, and ends at the next.
+    const std::vector<std::size_t>& starts = axes_.session_start;
+    const auto later = std::upper_bound(starts.begin(), starts.end(), begin);
+    const std::size_t session_end = later == starts.end() ? axes_.size() : *later;
+    const bool listed = begin == 0 || std::binary_search(starts.begin(), starts.end(), begin);
+    if (!listed || end != session_end || begin >= end)
+        throw std::invalid_argument(fmt::format("machine-axis forces: samples [{}, {}) are not a session of the motion "
+                                                "model ({} samples, {} session starts)",
+                                                begin, end, axes_.size(), starts.size()));
+    if (!starts_.empty() && first_row < starts_.back().first_row)
+        throw std::invalid_argument(fmt::format("machine-axis forces: a session said to begin at row {}, before the "
+                                                "previous one's row {}",
+                                                first_row, starts_.back().first_row));
+    starts_.push_back({first_row, begin, end});
 }
 
 MachineAxesForces::Place MachineAxesForces::locate(double t_s) {
     const std::vector<double>& t = axes_.t_s;
-    // The current session from the cursor on, then the later sessions: rows come session by
-    // session, in time order within one, and a session may start before the previous one's time.
-    for (std::size_t s = session_; s < sessions_; ++s) {
-        const std::size_t b = session_begin(s), e = session_end(s);
-        std::size_t i = s == session_ ? std::max(index_, b) : b;
-        if (!(t_s >= t[i] && t_s <= t[e - 1])) continue;
-        while (i + 2 < e && t[i + 1] <= t_s) ++i;
-        session_ = s, index_ = i;
-        return {i, i + 1 < e, t_s};
-    }
-    // Not after the cursor (rows out of order, or a time rounded past a session's end): the
-    // current session's nearest place.
-    const std::size_t b = session_begin(session_), e = session_end(session_);
+    const std::size_t b = begin_, e = end_;
+    // Within one session the rows come in time order: on from the cursor; a row before it (not
+    // written so by the engine) is looked up.
     const double clamped = std::clamp(t_s, t[b], t[e - 1]);
-    const auto it = std::upper_bound(t.begin() + std::ptrdiff_t(b), t.begin() + std::ptrdiff_t(e), clamped);
-    const std::size_t i = std::min<std::size_t>(std::size_t(it - t.begin()) - 1, e >= b + 2 ? e - 2 : b);
+    std::size_t i = std::max(index_, b);
+    if (clamped < t[i]) {
+        const auto it = std::upper_bound(t.begin() + std::ptrdiff_t(b), t.begin() + std::ptrdiff_t(e), clamped);
+        i = std::size_t(it - t.begin()) - 1;
+    }
+    while (i + 2 < e && t[i + 1] <= clamped) ++i;
+    index_ = i;
     return {i, i + 1 < e, clamped};
 }
 
 void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
+    if (several_sessions_ && starts_.empty() && !rows.empty())
+        throw std::logic_error("machine-axis forces of a motion model of several sessions need the engine's word on "
+                               "where each session's rows begin (PredictOptions::session_begins)");
     machine::AxisPositions q;
     for (force_model::ForceSample& row : rows) {
+        // The session this row is of: the last one the engine began at or before its row.
+        while (next_start_ < starts_.size() && starts_[next_start_].first_row <= rows_seen_) {
+            begin_ = starts_[next_start_].begin, end_ = starts_[next_start_].end, index_ = begin_;
+            ++next_start_;
+        }
+        ++rows_seen_;
         const Place at = locate(row.t_s);
         motion_io::MotionState st;
         if (at.interval) {

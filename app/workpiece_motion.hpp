@@ -71,29 +71,41 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
 class MachineAxesForces {
 public:
     // `axes`: the repaired log in machine axes, as workpiece_motion() took it (the rows' times
-    // are its times). Throws WorkpieceMotionError for an empty model or one the machine does not
-    // fit (as workpiece_motion() does).
+    // are its times, its samples the engine's). Throws WorkpieceMotionError for an empty model or
+    // one the machine does not fit (as workpiece_motion() does).
     MachineAxesForces(motion_io::MotionModel axes, std::shared_ptr<const machine::Machine> machine);
-    // Rows in the order the engine gives them: session by session, time-ordered within one (a
-    // session's time may lie before the previous one's: a restart dump in the log).
+    // Which rows are which session's, as the engine says (force_model::PredictOptions::
+    // session_begins): the rows from first_row on (counted over every apply() call) lie in samples
+    // [begin, end). A row's time alone cannot say it: sessions may overlap in time (a restart
+    // dump) and a session may end in a stretch without rows. Needed for a model of more than one
+    // session; throws std::invalid_argument for a range that is not one of the model's sessions,
+    // or a first_row before one already given.
+    void begin_session(std::size_t begin, std::size_t end, std::size_t first_row);
+    // Rows in the order the engine writes them (session by session, time-ordered within one),
+    // continuing the count of those given before. Throws std::logic_error for rows of a model of
+    // several sessions when begin_session() has not placed them.
     void apply(std::span<force_model::ForceSample> rows);
 
 private:
-
     struct Place {
         std::size_t index;   // the sample at or before the row
-        bool interval;       // the row lies in [index, index + 1] of one session (else: at sample index)
+        bool interval;       // the row lies in [index, index + 1] of its session (else: at sample index)
         double t_s;          // the row's time, inside the session
     };
+    struct SessionRows {
+        std::size_t first_row, begin, end;
+    };
     Place locate(double t_s);
-    std::size_t session_begin(std::size_t s) const;
-    std::size_t session_end(std::size_t s) const;
 
     motion_io::MotionModel axes_;
     std::shared_ptr<const machine::Machine> machine_;
     std::vector<int> source_;                 // per chain axis: 0..2 x, y, z; 3..5 the rotary a, b, c
-    std::size_t sessions_ = 1;
-    std::size_t session_ = 0, index_ = 0;     // cursor: the session and sample of the last row
+    bool several_sessions_ = false;
+    std::vector<SessionRows> starts_;         // from begin_session(), in row order
+    std::size_t next_start_ = 0;              // the first of starts_ not yet entered
+    std::size_t rows_seen_ = 0;               // rows given to apply() so far
+    std::size_t begin_ = 0, end_ = 0;         // the current session's samples
+    std::size_t index_ = 0;                   // cursor: the sample of the last row
 };
 
 // The machine's rotary axes as the NC reader takes them (NcReadOptions::rotary_axes): "AC".
