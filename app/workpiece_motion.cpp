@@ -247,7 +247,7 @@ machine::AxisPositions block_axes(const machine::Machine& machine, const motion_
 }  // namespace
 
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min) {
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits) {
     using motion_io::NcBlock;
     using motion_io::NcMotion;
     auto tip = [&](const NcBlock& b, double u) {
@@ -268,11 +268,26 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
     motion_io::NcProgram out = program;
     out.blocks.clear();
     out.rotary_axes.clear();
+    // The pieces a block may have: its own limit, and what the program's leaves.
+    auto room = [&](double pieces) {
+        return pieces <= double(limits.per_block) && double(out.blocks.size()) + pieces <= double(limits.total);
+    };
+    auto too_many = [&](const NcBlock& b, double pieces, double u_reached) {
+        const std::string where = u_reached > 0 ? fmt::format(", passed {:.3g} % into the block", 100 * u_reached) : "";
+        if (pieces <= double(limits.per_block))
+            return motion_io::NcProgramError(fmt::format(
+                "{}:{}: block {}: the program's tip path needs more than {} pieces of {} um in all{} (split the program)",
+                program.file, b.line, b.name, limits.total, kProgramChordTolMm * 1e3, where));
+        return motion_io::NcProgramError(fmt::format(
+            "{}:{}: block {}: its tip path needs more than {} pieces of {} um{} (turn the rotary axes less in one block)",
+            program.file, b.line, b.name, limits.per_block, kProgramChordTolMm * 1e3, where));
+    };
     for (const NcBlock& b : program.blocks) {
         const bool arc = b.motion == NcMotion::ArcCw || b.motion == NcMotion::ArcCcw;
         if (!motion_io::block_moves(b) || !(arc || motion_io::block_turns(b))) {
             // At rest, or a line with the rotary axes still: the linear axes move the tip rigidly,
             // so the line stays a line at the same speed.
+            if (!room(1)) throw too_many(b, 1, 0);
             NcBlock piece = b;
             set_ends(piece, tip(b, 0), tip(b, 1));
             out.blocks.push_back(std::move(piece));
@@ -283,10 +298,15 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
         double turn_deg = 0;
         for (std::size_t r = 0; r < 3; ++r) turn_deg = std::max(turn_deg, std::abs(b.end_deg[r] - b.start_deg[r]));
         if (arc) turn_deg = std::max(turn_deg, std::abs(b.sweep_rad) * 180.0 / std::numbers::pi);
-        const int initial = std::max(1, int(std::ceil(turn_deg / 90.0)));
+        const double quarter_turns = std::max(1.0, std::ceil(turn_deg / 90.0));
+        // Refused before a single pose is computed when the quarter turns alone are too many.
+        if (!room(quarter_turns)) throw too_many(b, quarter_turns, 0);
+        const auto initial = std::size_t(quarter_turns);
         std::vector<double> cuts{0.0};
         std::vector<Eigen::Vector3d> tips{tip(b, 0)};
-        // Depth-first bisection of [u0, u1] (its start already in `cuts`).
+        // Depth-first bisection of [u0, u1] (its start already in `cuts`). The pieces are counted
+        // as they are made, so a block that needs too many stops where it passes the limit, before
+        // it has taken their memory.
         auto refine = [&](auto&& self, double u0, double u1, const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, int depth) -> void {
             const double um = 0.5 * (u0 + u1);
             const Eigen::Vector3d pm = tip(b, um);
@@ -295,16 +315,14 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
                 self(self, um, u1, pm, p1, depth + 1);
                 return;
             }
+            if (!room(double(cuts.size()))) throw too_many(b, double(cuts.size()), u1);   // this piece would pass
             cuts.push_back(u1);
             tips.push_back(p1);
         };
-        for (int k = 0; k < initial; ++k) {
-            const double u0 = double(k) / initial, u1 = double(k + 1) / initial;
+        for (std::size_t k = 0; k < initial; ++k) {
+            const double u0 = double(k) / double(initial), u1 = double(k + 1) / double(initial);
             refine(refine, u0, u1, tips.back(), tip(b, u1), 0);
         }
-        if (int(cuts.size()) - 1 > kMaxPiecesPerBlock)
-            throw motion_io::NcProgramError(fmt::format("{}:{}: block {}: its tip path needs more than {} pieces of {} um",
-                                                        program.file, b.line, b.name, kMaxPiecesPerBlock, kProgramChordTolMm * 1e3));
         const double block_s = motion_io::block_time_s(b, rapid_mm_min);
         for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
             NcBlock piece = b;

@@ -112,9 +112,18 @@ private:
 std::string machine_rotary_axes(const machine::Machine& machine);
 
 // How closely the pieces of a joint-space block follow the tip's curved path (docs/five_axis.md
-// section 2.4: 1 um), and the most pieces one block becomes.
+// section 2.4: 1 um), and the most pieces one block and the whole program become. A piece is a
+// program block (272 B and 40 B a word: 0.4 to 0.5 kB), so the total bounds the memory a program
+// can take here to about 0.5 GB: a full turn 100 mm from the C line takes 1024 pieces, a CAM
+// program's degree-sized steps a few each. Counted as the pieces are made, so a hostile program
+// is refused before it takes the memory.
 inline constexpr double kProgramChordTolMm = 1e-3;
-inline constexpr int kMaxPiecesPerBlock = 1 << 16;
+inline constexpr std::size_t kMaxPiecesPerBlock = std::size_t(1) << 16;
+inline constexpr std::size_t kMaxProgramPieces = std::size_t(1) << 20;
+struct PieceLimits {
+    std::size_t per_block = kMaxPiecesPerBlock;
+    std::size_t total = kMaxProgramPieces;   // blocks of the result, pieces or not
+};
 
 // A program read in the machine's axes (NcReadOptions::rotary_axes = machine_rotary_axes) as the
 // tool tip's commanded path against the part, in workpiece coordinates like workpiece_motion's:
@@ -125,8 +134,9 @@ inline constexpr int kMaxPiecesPerBlock = 1 << 16;
 // interpolation runs at a constant rate along the block, so each piece takes its share of the
 // block's time (block_time_s at rapid_mm_min), and its feed_mm_min is the tip's speed against
 // the part. The result has no rotary axes. Throws motion_io::NcProgramError naming the block when
-// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit).
+// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit), or as soon
+// as a block or the program passes `limits` (saying how far into the block).
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min);
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {});
 
 }  // namespace cutload::app
