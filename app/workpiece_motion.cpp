@@ -337,21 +337,25 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
     return out;
 }
 
-std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
+std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFiles& files) {
     auto m = std::make_shared<machine::Machine>();
     try {
-        *m = machine::load_machine(path);
+        *m = machine::load_machine(files.path, files.shown_as);
     } catch (const std::exception& e) {
         throw InputError("machine", e.what());
     }
-    if (!errors_path.empty()) {
+    if (!files.errors_path.empty()) {
         try {
-            machine::load_errors(*m, errors_path);
+            machine::load_errors(*m, files.errors_path, files.errors_shown_as);
         } catch (const std::exception& e) {
             throw InputError("machine_errors", e.what());
         }
     }
     return m;
+}
+
+std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
+    return load_machine_definition(MachineFiles{path, errors_path, "", ""});
 }
 
 }  // namespace cutload::app

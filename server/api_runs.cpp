@@ -230,12 +230,10 @@ json store_kinematics(const httplib::Request& req, const fs::path& dir, std::str
     k["filename"] = def.filename.empty() ? "kinematics.json"
                                          : fs::path(client_text(def.filename, "file name of part 'kinematics'")).filename().string();
     write_durable(dir / "kinematics.json", client_text(def.content, "part kinematics"));
-    std::string errors_path;
     if (req.has_file("kinematics_errors")) {
         const auto errors = req.get_file_value("kinematics_errors");
         if (errors.content.empty()) throw ApiError(400, "bad_kinematics", "part 'kinematics_errors' is empty");
         write_durable(dir / "kinematics_errors.json", client_text(errors.content, "part kinematics_errors"));
-        errors_path = (dir / "kinematics_errors.json").string();
         k["errors"] = "kinematics_errors.json";
     }
     double tool_length_mm = 0;
@@ -247,11 +245,9 @@ json store_kinematics(const httplib::Request& req, const fs::path& dir, std::str
     }
     k["tool_length_mm"] = tool_length_mm;
     try {
-        rotary_axes = app::machine_rotary_axes(*app::load_machine_definition((dir / "kinematics.json").string(), errors_path));
+        rotary_axes = app::machine_rotary_axes(*app::load_machine_definition(kinematics_files(dir, k)));
     } catch (const app::InputError& e) {
-        // Name the parts, not the server's files.
-        std::string msg = replace_all(e.what(), (dir / "kinematics.json").string(), "part kinematics");
-        throw ApiError(400, "bad_kinematics", replace_all(msg, errors_path, "part kinematics_errors"));
+        throw ApiError(400, "bad_kinematics", e.what());
     }
     return k;
 }

@@ -3,6 +3,7 @@
 // predicts it. The bundled five-axis demo cuts a ring groove by turning the C table; its volume
 // has a closed form, pi (41^2 - 32^2) x 2 mm (tool centre on R35 then R38, D6, 2 mm deep).
 #include "harness.hpp"
+#include "server/jobs.hpp"
 
 #include <fstream>
 #include <numbers>
@@ -111,4 +112,40 @@ TEST_CASE("kinematics: a bad machine file, errors or a tool length without a mac
                   400, "bad_kinematics", "part kinematics_errors");
     CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
     CHECK(files_under(ts.data_dir() / "uploads") == 0);
+}
+
+TEST_CASE("kinematics: a machine file that fails to load in the job names the part, not the server's path") {
+    // The job reads the stored files again (run_input); a file spoiled on disk since its upload (a
+    // disk fault, an edit by hand) fails the run, and the run's error, which API clients read, is
+    // this message.
+    TempDir dir;
+    const fs::path upload = dir.path() / "uploads" / "7";
+    fs::create_directories(upload);
+    std::ofstream(upload / "demo3_dryrun.csv") << slurp(kData / "demo3_dryrun.csv");
+    std::ofstream(upload / "kinematics.json") << slurp(kData / "machines" / "ac_table_table.json");
+    std::ofstream(upload / "bad.json") << "{\"code\": ";
+    std::ofstream(upload / "bad_errors.json") << R"({"X": {"EQQX_um": 3}})";
+    const json inputs{{"log", {{"stored_as", "demo3_dryrun.csv"}, {"format", "auto"}}},
+                      {"spec", json::parse(slurp(kData / "demo3_run.json"))}};
+    auto error_of = [&](const json& kinematics) -> std::string {
+        json in = inputs;
+        in["kinematics"] = kinematics;
+        try {
+            cutload::server::run_input(in, upload, false);
+        } catch (const std::exception& e) {
+            return e.what();
+        }
+        return "(loaded)";
+    };
+    CHECK(error_of({{"stored_as", "kinematics.json"}}) == "(loaded)");
+    const std::string definition = error_of({{"stored_as", "bad.json"}});
+    const std::string errors = error_of({{"stored_as", "kinematics.json"}, {"errors", "bad_errors.json"}});
+    CHECK_THAT(definition, Catch::StartsWith("machine: part kinematics: not valid JSON"));
+    CHECK_THAT(errors, Catch::StartsWith("machine_errors: part kinematics_errors: "));
+    for (const std::string& e : {definition, errors}) {
+        INFO(e);
+        CHECK_THAT(e, !Catch::Contains(dir.path().string()));
+        CHECK_THAT(e, !Catch::Contains("uploads"));
+        CHECK_THAT(e, !Catch::Contains("bad"));
+    }
 }
