@@ -73,6 +73,11 @@ struct MachineFiles {
     std::string errors_shown_as;
 };
 std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFiles& files);
+// A log whose rotary axes (IngestReport::rotary_axes: "ac", as inspect and ingest report them)
+// lack one the machine needs: InputError("machine") naming the axis and its column, the message
+// predict_run gives once it has ingested such a log. Cheap, so a front end can refuse at upload,
+// from the inspect report, what the job would refuse.
+void check_log_axes(const machine::Machine& machine, const std::string& log_rotary_axes);
 // Its rotary axes as the NC reader takes them (ProgramSettings::rotary_axes): "AC"
 // (workpiece_motion.hpp; declared here for front ends, which do not see the machine).
 std::string machine_rotary_axes(const machine::Machine& machine);

@@ -30,6 +30,26 @@ int rotary_index(const std::string& channel) {
     return -1;
 }
 
+// The log channel (0..2: a, b, c) a rotary axis of the machine reads.
+int rotary_channel(const machine::Machine& machine, const machine::Axis& a) {
+    const std::string channel = a.channel.empty() ? std::string(1, char(std::tolower(a.name))) : a.channel;
+    const int k = rotary_index(channel);
+    if (k < 0)
+        throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} reads channel '{}', which a log cannot "
+                                               "hold (a, b or c)",
+                                               machine.name, a.name, channel));
+    return k;
+}
+
+// The one message for a log without a rotary axis's channel, from the ingested motion or from the
+// inspect report alike.
+void require_rotary(const machine::Machine& machine, const machine::Axis& a, int k, bool present) {
+    if (!present)
+        throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} needs column '{}' in the log, which has "
+                                               "none",
+                                               machine.name, a.name, char('a' + k)));
+}
+
 std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const machine::Machine& machine) {
     std::vector<AxisSource> out;
     for (const machine::Axis& a : machine.chain) {
@@ -44,16 +64,8 @@ std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const mach
                                                            machine.name, a.name));
             }
         } else {
-            const std::string channel = a.channel.empty() ? std::string(1, char(std::tolower(a.name))) : a.channel;
-            const int k = rotary_index(channel);
-            if (k < 0)
-                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} reads channel '{}', which a log cannot "
-                                                       "hold (a, b or c)",
-                                                       machine.name, a.name, channel));
-            if (!m.has_rotary(k))
-                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} needs column '{}' in the log, which has "
-                                                       "none",
-                                                       machine.name, a.name, channel));
+            const int k = rotary_channel(machine, a);
+            require_rotary(machine, a, k, m.has_rotary(k));
             s = {&m.rot_deg[std::size_t(k)], &m.rot_vel_deg_s[std::size_t(k)]};
         }
         out.push_back(s);
@@ -356,6 +368,18 @@ std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFil
 
 std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
     return load_machine_definition(MachineFiles{path, errors_path, "", ""});
+}
+
+void check_log_axes(const machine::Machine& machine, const std::string& log_rotary_axes) {
+    try {
+        for (const machine::Axis& a : machine.chain) {
+            if (!a.rotary()) continue;
+            const int k = rotary_channel(machine, a);
+            require_rotary(machine, a, k, log_rotary_axes.find(char('a' + k)) != std::string::npos);
+        }
+    } catch (const WorkpieceMotionError& e) {
+        throw InputError("machine", e.what());
+    }
 }
 
 }  // namespace cutload::app

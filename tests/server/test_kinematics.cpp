@@ -5,6 +5,7 @@
 #include "harness.hpp"
 #include "server/jobs.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <numbers>
 #include <sstream>
@@ -29,6 +30,25 @@ httplib::Result upload_demo3(httplib::Client& c, httplib::MultipartFormDataItems
                                           {"spec", slurp(kData / "demo3_run.json"), "", "application/json"}};
     items.insert(items.end(), extra.begin(), extra.end());
     return c.Post("/api/v1/runs", items);
+}
+
+// The CSV log without the column headed `name` ("c [deg]").
+std::string without_column(const std::string& csv, const std::string& name) {
+    std::istringstream in(csv);
+    std::string out, line;
+    std::ptrdiff_t drop = -1;
+    while (std::getline(in, line)) {
+        std::vector<std::string> cells;
+        std::stringstream ss(line);
+        for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+        if (!line.empty() && line.back() == ',') cells.emplace_back();
+        if (drop < 0) drop = std::find(cells.begin(), cells.end(), name) - cells.begin();
+        REQUIRE(std::size_t(drop) < cells.size());
+        cells.erase(cells.begin() + drop);
+        for (std::size_t k = 0; k < cells.size(); ++k) out += (k ? "," : "") + cells[k];
+        out += "\n";
+    }
+    return out;
 }
 
 }  // namespace
@@ -112,6 +132,28 @@ TEST_CASE("kinematics: a bad machine file, errors or a tool length without a mac
                   400, "bad_kinematics", "part kinematics_errors");
     CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
     CHECK(files_under(ts.data_dir() / "uploads") == 0);
+}
+
+TEST_CASE("kinematics: a log without a rotary axis the machine needs is 400 at upload, naming the axis and its column") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string machine = slurp(kData / "machines" / "ac_table_table.json");
+    // The demo's log with its c column dropped: the AC machine's C axis has nothing to read.
+    const std::string log = without_column(slurp(kData / "demo3_dryrun.csv"), "c [deg]");
+    httplib::MultipartFormDataItems items{{"log", log, "no_c.csv", "text/csv"},
+                                          {"spec", slurp(kData / "demo3_run.json"), "", "application/json"},
+                                          {"kinematics", machine, "ac_table_table.json", "application/json"}};
+    const auto r = c.Post("/api/v1/runs", items);
+    require_error(r, 400, "bad_log", "no_c.csv: machine: machine ");
+    const std::string message = body(r)["error"]["message"];
+    CHECK_THAT(message, Catch::Contains("rotary axis C needs column 'c' in the log, which has none") &&
+                            Catch::EndsWith("(part kinematics)"));
+    CHECK_THAT(message, !Catch::Contains(ts.data_dir().string()));
+    CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
+    CHECK(files_under(ts.data_dir() / "uploads") == 0);
+    // The same log without the machine is a three-axis run, as before.
+    items.pop_back();
+    CHECK(c.Post("/api/v1/runs", items)->status == 202);
 }
 
 TEST_CASE("kinematics: a machine file that fails to load in the job names the part, not the server's path") {
