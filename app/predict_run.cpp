@@ -154,10 +154,17 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             pipe->push(rows);
         };
     }
+    // The engine says where each session's rows begin: their times alone cannot (sessions may
+    // overlap in time).
+    if (machine_axes)
+        po.session_begins = [&](std::size_t begin, std::size_t end, std::size_t first_row) {
+            machine_axes->begin_session(begin, end, first_row);
+        };
     r.prediction = force_model::predict(r.motion, in.spec, po);
     if (pipe) pipe->finish();
     if (machine_axes) machine_axes->apply(r.prediction.samples);
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
+    po.session_begins = nullptr;
     r.rows = rows_out + r.prediction.samples.size();
     if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));
     if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);

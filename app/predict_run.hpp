@@ -64,6 +64,20 @@ struct RunInput {
 // given; a bad file is an InputError("machine" or "machine_errors") whose message names the key.
 std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path,
                                                                const std::string& errors_path = "");
+// The same, with the files named in messages as the user knows them: a service names the parts a
+// client uploaded ("part kinematics"), never the paths it stored them at.
+struct MachineFiles {
+    std::string path;            // the definition
+    std::string errors_path;     // its geometric errors; empty: none
+    std::string shown_as;        // how messages name each; empty: by its path
+    std::string errors_shown_as;
+};
+std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFiles& files);
+// A log whose rotary axes (IngestReport::rotary_axes: "ac", as inspect and ingest report them)
+// lack one the machine needs: InputError("machine") naming the axis and its column, the message
+// predict_run gives once it has ingested such a log. Cheap, so a front end can refuse at upload,
+// from the inspect report, what the job would refuse.
+void check_log_axes(const machine::Machine& machine, const std::string& log_rotary_axes);
 // Its rotary axes as the NC reader takes them (ProgramSettings::rotary_axes): "AC"
 // (workpiece_motion.hpp; declared here for front ends, which do not see the machine).
 std::string machine_rotary_axes(const machine::Machine& machine);

@@ -30,7 +30,17 @@ struct WorkLimits {
 
 // What one force row, one stock cell and one motion sample cost a job at its peak, in bytes
 // (measured figures and their derivation: docs/api.md, "Work limits").
-inline constexpr double kJobBytesPerForceRow = 240;
+//
+// A held row (the commanded prediction's; the actual one's are streamed) peaks in the engine, at
+// the moment its row vectors double past their reserve: the rows twice (the old buffer and the
+// new one it is copied to) and the 24 B the engine keeps beside each (force_model's RowExtra),
+// 2 x 80 + 24 = 184 B. Measured with `cutload serve` (one worker, CPU path, SQLite) on the demo
+// and its program at 0.2 and 0.1 deg (4.20e6 and 8.41e6 commanded rows, each just past a
+// doubling, at 2^22 and 2^23 rows): peak RSS less 184 B for each row at the doubling leaves 73.1
+// and 74.0 MB, the same fixed cost both times; below the reserve a row costs 137.5 B (0.5 to 0.25
+// deg: the rows and the series built from them while the run is stored). Taken from the struct's
+// size, so a ForceSample that grows again is followed here.
+inline constexpr double kJobBytesPerForceRow = 2.0 * sizeof(force_model::ForceSample) + 24;
 inline constexpr double kJobBytesPerMotionSample = 200;
 // Beyond the stocks themselves (force_model::stock_bytes_per_cell() each): the final stock as
 // stored, about 40 B a cell (32 B per ray, 24 B per sub-cell wall), twice while it is written:

@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 namespace cutload::app {
 
@@ -29,6 +30,26 @@ int rotary_index(const std::string& channel) {
     return -1;
 }
 
+// The log channel (0..2: a, b, c) a rotary axis of the machine reads.
+int rotary_channel(const machine::Machine& machine, const machine::Axis& a) {
+    const std::string channel = a.channel.empty() ? std::string(1, char(std::tolower(a.name))) : a.channel;
+    const int k = rotary_index(channel);
+    if (k < 0)
+        throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} reads channel '{}', which a log cannot "
+                                               "hold (a, b or c)",
+                                               machine.name, a.name, channel));
+    return k;
+}
+
+// The one message for a log without a rotary axis's channel, from the ingested motion or from the
+// inspect report alike.
+void require_rotary(const machine::Machine& machine, const machine::Axis& a, int k, bool present) {
+    if (!present)
+        throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} needs column '{}' in the log, which has "
+                                               "none",
+                                               machine.name, a.name, char('a' + k)));
+}
+
 std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const machine::Machine& machine) {
     std::vector<AxisSource> out;
     for (const machine::Axis& a : machine.chain) {
@@ -43,16 +64,8 @@ std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const mach
                                                            machine.name, a.name));
             }
         } else {
-            const std::string channel = a.channel.empty() ? std::string(1, char(std::tolower(a.name))) : a.channel;
-            const int k = rotary_index(channel);
-            if (k < 0)
-                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} reads channel '{}', which a log cannot "
-                                                       "hold (a, b or c)",
-                                                       machine.name, a.name, channel));
-            if (!m.has_rotary(k))
-                throw WorkpieceMotionError(fmt::format("machine {}: rotary axis {} needs column '{}' in the log, which has "
-                                                       "none",
-                                                       machine.name, a.name, channel));
+            const int k = rotary_channel(machine, a);
+            require_rotary(machine, a, k, m.has_rotary(k));
             s = {&m.rot_deg[std::size_t(k)], &m.rot_vel_deg_s[std::size_t(k)]};
         }
         out.push_back(s);
@@ -142,41 +155,58 @@ MachineAxesForces::MachineAxesForces(motion_io::MotionModel axes, std::shared_pt
         source_.push_back(p == &axes_.x_mm ? 0 : p == &axes_.y_mm ? 1 : p == &axes_.z_mm ? 2
                           : p == &axes_.rot_deg[0] ? 3 : p == &axes_.rot_deg[1] ? 4 : 5);
     }
-    sessions_ = std::max<std::size_t>(axes_.session_start.size(), 1);
+    // Until the engine says otherwise, the first session (the whole model when it has one).
+    const std::vector<std::size_t>& starts = axes_.session_start;
+    const auto later = std::upper_bound(starts.begin(), starts.end(), std::size_t(0));
+    end_ = later == starts.end() ? axes_.size() : *later;
+    several_sessions_ = end_ < axes_.size();
 }
 
-std::size_t MachineAxesForces::session_begin(std::size_t s) const {
-    return axes_.session_start.empty() ? 0 : axes_.session_start[s];
-}
-
-std::size_t MachineAxesForces::session_end(std::size_t s) const {
-    return s + 1 < axes_.session_start.size() ? axes_.session_start[s + 1] : axes_.size();
+void MachineAxesForces::begin_session(std::size_t begin, std::size_t end, std::size_t first_row) {
+    // One of the model's sessions: it starts at 0 or at a listed start, and ends at the next.
+    const std::vector<std::size_t>& starts = axes_.session_start;
+    const auto later = std::upper_bound(starts.begin(), starts.end(), begin);
+    const std::size_t session_end = later == starts.end() ? axes_.size() : *later;
+    const bool listed = begin == 0 || std::binary_search(starts.begin(), starts.end(), begin);
+    if (!listed || end != session_end || begin >= end)
+        throw std::invalid_argument(fmt::format("machine-axis forces: samples [{}, {}) are not a session of the motion "
+                                                "model ({} samples, {} session starts)",
+                                                begin, end, axes_.size(), starts.size()));
+    if (!starts_.empty() && first_row < starts_.back().first_row)
+        throw std::invalid_argument(fmt::format("machine-axis forces: a session said to begin at row {}, before the "
+                                                "previous one's row {}",
+                                                first_row, starts_.back().first_row));
+    starts_.push_back({first_row, begin, end});
 }
 
 MachineAxesForces::Place MachineAxesForces::locate(double t_s) {
     const std::vector<double>& t = axes_.t_s;
-    // The current session from the cursor on, then the later sessions: rows come session by
-    // session, in time order within one, and a session may start before the previous one's time.
-    for (std::size_t s = session_; s < sessions_; ++s) {
-        const std::size_t b = session_begin(s), e = session_end(s);
-        std::size_t i = s == session_ ? std::max(index_, b) : b;
-        if (!(t_s >= t[i] && t_s <= t[e - 1])) continue;
-        while (i + 2 < e && t[i + 1] <= t_s) ++i;
-        session_ = s, index_ = i;
-        return {i, i + 1 < e, t_s};
-    }
-    // Not after the cursor (rows out of order, or a time rounded past a session's end): the
-    // current session's nearest place.
-    const std::size_t b = session_begin(session_), e = session_end(session_);
+    const std::size_t b = begin_, e = end_;
+    // Within one session the rows come in time order: on from the cursor; a row before it (not
+    // written so by the engine) is looked up.
     const double clamped = std::clamp(t_s, t[b], t[e - 1]);
-    const auto it = std::upper_bound(t.begin() + std::ptrdiff_t(b), t.begin() + std::ptrdiff_t(e), clamped);
-    const std::size_t i = std::min<std::size_t>(std::size_t(it - t.begin()) - 1, e >= b + 2 ? e - 2 : b);
+    std::size_t i = std::max(index_, b);
+    if (clamped < t[i]) {
+        const auto it = std::upper_bound(t.begin() + std::ptrdiff_t(b), t.begin() + std::ptrdiff_t(e), clamped);
+        i = std::size_t(it - t.begin()) - 1;
+    }
+    while (i + 2 < e && t[i + 1] <= clamped) ++i;
+    index_ = i;
     return {i, i + 1 < e, clamped};
 }
 
 void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
+    if (several_sessions_ && starts_.empty() && !rows.empty())
+        throw std::logic_error("machine-axis forces of a motion model of several sessions need the engine's word on "
+                               "where each session's rows begin (PredictOptions::session_begins)");
     machine::AxisPositions q;
     for (force_model::ForceSample& row : rows) {
+        // The session this row is of: the last one the engine began at or before its row.
+        while (next_start_ < starts_.size() && starts_[next_start_].first_row <= rows_seen_) {
+            begin_ = starts_[next_start_].begin, end_ = starts_[next_start_].end, index_ = begin_;
+            ++next_start_;
+        }
+        ++rows_seen_;
         const Place at = locate(row.t_s);
         motion_io::MotionState st;
         if (at.interval) {
@@ -229,7 +259,7 @@ machine::AxisPositions block_axes(const machine::Machine& machine, const motion_
 }  // namespace
 
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min) {
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits) {
     using motion_io::NcBlock;
     using motion_io::NcMotion;
     auto tip = [&](const NcBlock& b, double u) {
@@ -250,11 +280,26 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
     motion_io::NcProgram out = program;
     out.blocks.clear();
     out.rotary_axes.clear();
+    // The pieces a block may have: its own limit, and what the program's leaves.
+    auto room = [&](double pieces) {
+        return pieces <= double(limits.per_block) && double(out.blocks.size()) + pieces <= double(limits.total);
+    };
+    auto too_many = [&](const NcBlock& b, double pieces, double u_reached) {
+        const std::string where = u_reached > 0 ? fmt::format(", passed {:.3g} % into the block", 100 * u_reached) : "";
+        if (pieces <= double(limits.per_block))
+            return motion_io::NcProgramError(fmt::format(
+                "{}:{}: block {}: the program's tip path needs more than {} pieces of {} um in all{} (split the program)",
+                program.file, b.line, b.name, limits.total, kProgramChordTolMm * 1e3, where));
+        return motion_io::NcProgramError(fmt::format(
+            "{}:{}: block {}: its tip path needs more than {} pieces of {} um{} (turn the rotary axes less in one block)",
+            program.file, b.line, b.name, limits.per_block, kProgramChordTolMm * 1e3, where));
+    };
     for (const NcBlock& b : program.blocks) {
         const bool arc = b.motion == NcMotion::ArcCw || b.motion == NcMotion::ArcCcw;
         if (!motion_io::block_moves(b) || !(arc || motion_io::block_turns(b))) {
             // At rest, or a line with the rotary axes still: the linear axes move the tip rigidly,
             // so the line stays a line at the same speed.
+            if (!room(1)) throw too_many(b, 1, 0);
             NcBlock piece = b;
             set_ends(piece, tip(b, 0), tip(b, 1));
             out.blocks.push_back(std::move(piece));
@@ -265,10 +310,15 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
         double turn_deg = 0;
         for (std::size_t r = 0; r < 3; ++r) turn_deg = std::max(turn_deg, std::abs(b.end_deg[r] - b.start_deg[r]));
         if (arc) turn_deg = std::max(turn_deg, std::abs(b.sweep_rad) * 180.0 / std::numbers::pi);
-        const int initial = std::max(1, int(std::ceil(turn_deg / 90.0)));
+        const double quarter_turns = std::max(1.0, std::ceil(turn_deg / 90.0));
+        // Refused before a single pose is computed when the quarter turns alone are too many.
+        if (!room(quarter_turns)) throw too_many(b, quarter_turns, 0);
+        const auto initial = std::size_t(quarter_turns);
         std::vector<double> cuts{0.0};
         std::vector<Eigen::Vector3d> tips{tip(b, 0)};
-        // Depth-first bisection of [u0, u1] (its start already in `cuts`).
+        // Depth-first bisection of [u0, u1] (its start already in `cuts`). The pieces are counted
+        // as they are made, so a block that needs too many stops where it passes the limit, before
+        // it has taken their memory.
         auto refine = [&](auto&& self, double u0, double u1, const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, int depth) -> void {
             const double um = 0.5 * (u0 + u1);
             const Eigen::Vector3d pm = tip(b, um);
@@ -277,16 +327,14 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
                 self(self, um, u1, pm, p1, depth + 1);
                 return;
             }
+            if (!room(double(cuts.size()))) throw too_many(b, double(cuts.size()), u1);   // this piece would pass
             cuts.push_back(u1);
             tips.push_back(p1);
         };
-        for (int k = 0; k < initial; ++k) {
-            const double u0 = double(k) / initial, u1 = double(k + 1) / initial;
+        for (std::size_t k = 0; k < initial; ++k) {
+            const double u0 = double(k) / double(initial), u1 = double(k + 1) / double(initial);
             refine(refine, u0, u1, tips.back(), tip(b, u1), 0);
         }
-        if (int(cuts.size()) - 1 > kMaxPiecesPerBlock)
-            throw motion_io::NcProgramError(fmt::format("{}:{}: block {}: its tip path needs more than {} pieces of {} um",
-                                                        program.file, b.line, b.name, kMaxPiecesPerBlock, kProgramChordTolMm * 1e3));
         const double block_s = motion_io::block_time_s(b, rapid_mm_min);
         for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
             NcBlock piece = b;
@@ -301,21 +349,37 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
     return out;
 }
 
-std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
+std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFiles& files) {
     auto m = std::make_shared<machine::Machine>();
     try {
-        *m = machine::load_machine(path);
+        *m = machine::load_machine(files.path, files.shown_as);
     } catch (const std::exception& e) {
         throw InputError("machine", e.what());
     }
-    if (!errors_path.empty()) {
+    if (!files.errors_path.empty()) {
         try {
-            machine::load_errors(*m, errors_path);
+            machine::load_errors(*m, files.errors_path, files.errors_shown_as);
         } catch (const std::exception& e) {
             throw InputError("machine_errors", e.what());
         }
     }
     return m;
+}
+
+std::shared_ptr<const machine::Machine> load_machine_definition(const std::string& path, const std::string& errors_path) {
+    return load_machine_definition(MachineFiles{path, errors_path, "", ""});
+}
+
+void check_log_axes(const machine::Machine& machine, const std::string& log_rotary_axes) {
+    try {
+        for (const machine::Axis& a : machine.chain) {
+            if (!a.rotary()) continue;
+            const int k = rotary_channel(machine, a);
+            require_rotary(machine, a, k, log_rotary_axes.find(char('a' + k)) != std::string::npos);
+        }
+    } catch (const WorkpieceMotionError& e) {
+        throw InputError("machine", e.what());
+    }
 }
 
 }  // namespace cutload::app

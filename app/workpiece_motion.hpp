@@ -71,38 +71,59 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
 class MachineAxesForces {
 public:
     // `axes`: the repaired log in machine axes, as workpiece_motion() took it (the rows' times
-    // are its times). Throws WorkpieceMotionError for an empty model or one the machine does not
-    // fit (as workpiece_motion() does).
+    // are its times, its samples the engine's). Throws WorkpieceMotionError for an empty model or
+    // one the machine does not fit (as workpiece_motion() does).
     MachineAxesForces(motion_io::MotionModel axes, std::shared_ptr<const machine::Machine> machine);
-    // Rows in the order the engine gives them: session by session, time-ordered within one (a
-    // session's time may lie before the previous one's: a restart dump in the log).
+    // Which rows are which session's, as the engine says (force_model::PredictOptions::
+    // session_begins): the rows from first_row on (counted over every apply() call) lie in samples
+    // [begin, end). A row's time alone cannot say it: sessions may overlap in time (a restart
+    // dump) and a session may end in a stretch without rows. Needed for a model of more than one
+    // session; throws std::invalid_argument for a range that is not one of the model's sessions,
+    // or a first_row before one already given.
+    void begin_session(std::size_t begin, std::size_t end, std::size_t first_row);
+    // Rows in the order the engine writes them (session by session, time-ordered within one),
+    // continuing the count of those given before. Throws std::logic_error for rows of a model of
+    // several sessions when begin_session() has not placed them.
     void apply(std::span<force_model::ForceSample> rows);
 
 private:
-
     struct Place {
         std::size_t index;   // the sample at or before the row
-        bool interval;       // the row lies in [index, index + 1] of one session (else: at sample index)
+        bool interval;       // the row lies in [index, index + 1] of its session (else: at sample index)
         double t_s;          // the row's time, inside the session
     };
+    struct SessionRows {
+        std::size_t first_row, begin, end;
+    };
     Place locate(double t_s);
-    std::size_t session_begin(std::size_t s) const;
-    std::size_t session_end(std::size_t s) const;
 
     motion_io::MotionModel axes_;
     std::shared_ptr<const machine::Machine> machine_;
     std::vector<int> source_;                 // per chain axis: 0..2 x, y, z; 3..5 the rotary a, b, c
-    std::size_t sessions_ = 1;
-    std::size_t session_ = 0, index_ = 0;     // cursor: the session and sample of the last row
+    bool several_sessions_ = false;
+    std::vector<SessionRows> starts_;         // from begin_session(), in row order
+    std::size_t next_start_ = 0;              // the first of starts_ not yet entered
+    std::size_t rows_seen_ = 0;               // rows given to apply() so far
+    std::size_t begin_ = 0, end_ = 0;         // the current session's samples
+    std::size_t index_ = 0;                   // cursor: the sample of the last row
 };
 
 // The machine's rotary axes as the NC reader takes them (NcReadOptions::rotary_axes): "AC".
 std::string machine_rotary_axes(const machine::Machine& machine);
 
 // How closely the pieces of a joint-space block follow the tip's curved path (docs/five_axis.md
-// section 2.4: 1 um), and the most pieces one block becomes.
+// section 2.4: 1 um), and the most pieces one block and the whole program become. A piece is a
+// program block (272 B and 40 B a word: 0.4 to 0.5 kB), so the total bounds the memory a program
+// can take here to about 0.5 GB: a full turn 100 mm from the C line takes 1024 pieces, a CAM
+// program's degree-sized steps a few each. Counted as the pieces are made, so a hostile program
+// is refused before it takes the memory.
 inline constexpr double kProgramChordTolMm = 1e-3;
-inline constexpr int kMaxPiecesPerBlock = 1 << 16;
+inline constexpr std::size_t kMaxPiecesPerBlock = std::size_t(1) << 16;
+inline constexpr std::size_t kMaxProgramPieces = std::size_t(1) << 20;
+struct PieceLimits {
+    std::size_t per_block = kMaxPiecesPerBlock;
+    std::size_t total = kMaxProgramPieces;   // blocks of the result, pieces or not
+};
 
 // A program read in the machine's axes (NcReadOptions::rotary_axes = machine_rotary_axes) as the
 // tool tip's commanded path against the part, in workpiece coordinates like workpiece_motion's:
@@ -113,8 +134,9 @@ inline constexpr int kMaxPiecesPerBlock = 1 << 16;
 // interpolation runs at a constant rate along the block, so each piece takes its share of the
 // block's time (block_time_s at rapid_mm_min), and its feed_mm_min is the tip's speed against
 // the part. The result has no rotary axes. Throws motion_io::NcProgramError naming the block when
-// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit).
+// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit), or as soon
+// as a block or the program passes `limits` (saying how far into the block).
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min);
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {});
 
 }  // namespace cutload::app

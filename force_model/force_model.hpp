@@ -250,6 +250,14 @@ struct PredictOptions {
     // the motion model and the stock, whatever the run's length (a run of an hour writes about 10^8
     // rows). Blocks, stats and the final stock are as without it, and so are the rows.
     std::function<void(std::span<const ForceSample> rows)> rows_out;
+    // When set, called as the walk begins each session (MotionModel::session_start), before any of
+    // its rows: the session's samples [begin, end) and the rows written before it (those handed to
+    // rows_out included), so the rows from first_row up to the next call's are that session's.
+    // Rows come session by session, but their times alone cannot say which session a row is of
+    // where sessions overlap in time (a restart dump: a later session's times lie before the
+    // previous one's), and a session may end in a stretch without rows (no angle step in its last
+    // intervals).
+    std::function<void(std::size_t begin, std::size_t end, std::size_t first_row)> session_begins;
     // False: the caller has no use for the final stock, so Prediction::final_stock comes back empty
     // and a GPU reads none of it back (the stock lives on the device for the run).
     bool keep_final_stock = true;

@@ -76,13 +76,15 @@ struct Machine {
 // Explicit form ({"workpiece_side": [...], "tool_side": [...]}) or form-shaping code form
 // ({"code": "C A b Y X Z t", "axes": {...}}); see docs/machines.md. Throws MachineError naming the key.
 Machine parse_machine(const nlohmann::json& j);
-// As parse_machine; errors are prefixed with the file name.
-Machine load_machine(const std::string& path);
+// As parse_machine; errors are prefixed with the file name, or with `shown_as` when given (a
+// service names the part a client uploaded, not the path it stored it at).
+Machine load_machine(const std::string& path, const std::string& shown_as = "");
 // Replaces the errors of the machine's axes by those of an "errors" object (the same schema as a
 // definition's "errors" key); `path` prefixes the key paths of error messages.
 void set_errors(Machine& machine, const nlohmann::json& errors, const std::string& path = "errors");
-// set_errors from a file holding such an object (data/machines/ac_table_table_errors.json).
-void load_errors(Machine& machine, const std::string& path);
+// set_errors from a file holding such an object (data/machines/ac_table_table_errors.json);
+// messages name the file as load_machine's do.
+void load_errors(Machine& machine, const std::string& path, const std::string& shown_as = "");
 
 // Form-shaping code (document 000, eq. 3.25, and Inasaki's letter notation): the chain from the
 // workpiece to the tool as axis letters X Y Z A B C or motion digits 1-6 (1/2/3: along X/Y/Z,

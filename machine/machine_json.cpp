@@ -230,35 +230,38 @@ Machine parse_machine(const json& j) {
 
 namespace {
 
-json read_json_file(const std::string& path) {
+// `name` stands for the file in messages.
+json read_json_file(const std::string& path, const std::string& name) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw MachineError(path + ": cannot open the file");
+    if (!in) throw MachineError(name + ": cannot open the file");
     std::ostringstream ss;
     ss << in.rdbuf();
     try {
         return json::parse(ss.str());
     } catch (const json::parse_error& e) {
-        throw MachineError(fmt::format("{}: not valid JSON (byte {}): {}", path, e.byte, e.what()));
+        throw MachineError(fmt::format("{}: not valid JSON (byte {}): {}", name, e.byte, e.what()));
     }
 }
 
 }  // namespace
 
-Machine load_machine(const std::string& path) {
-    const json j = read_json_file(path);
+Machine load_machine(const std::string& path, const std::string& shown_as) {
+    const std::string& name = shown_as.empty() ? path : shown_as;
+    const json j = read_json_file(path, name);
     try {
         return parse_machine(j);
     } catch (const MachineError& e) {
-        throw MachineError(path + ": " + e.what());
+        throw MachineError(name + ": " + e.what());
     }
 }
 
-void load_errors(Machine& machine, const std::string& path) {
-    const json j = read_json_file(path);
+void load_errors(Machine& machine, const std::string& path, const std::string& shown_as) {
+    const std::string& name = shown_as.empty() ? path : shown_as;
+    const json j = read_json_file(path, name);
     try {
         set_errors(machine, j, "");
     } catch (const MachineError& e) {
-        throw MachineError(path + ": " + e.what());
+        throw MachineError(name + ": " + e.what());
     }
 }
 

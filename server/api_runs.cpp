@@ -214,9 +214,9 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
 // The machine's kinematic chain (docs/machines.md), with its geometric errors and the tool length,
 // stored beside the log: the log's x, y, z and a, b, c are then that machine's axes, turned into the
 // tool's motion against the part (docs/five_axis.md). Read once here, so a bad file is a 400 now
-// rather than a failed job later. Null without a part 'kinematics'; `rotary_axes` gets the machine's
-// rotary axes ("AC"), in which an NC program uploaded with it is read.
-json store_kinematics(const httplib::Request& req, const fs::path& dir, std::string& rotary_axes) {
+// rather than a failed job later. Null without a part 'kinematics'; `machine` gets the machine read,
+// whose rotary axes ("AC") the log must hold and an NC program uploaded with it is read in.
+json store_kinematics(const httplib::Request& req, const fs::path& dir, std::shared_ptr<const machine::Machine>& machine) {
     const auto length = part(req, "tool_length_mm");
     if (!req.has_file("kinematics")) {
         if (req.has_file("kinematics_errors") || length)
@@ -230,12 +230,10 @@ json store_kinematics(const httplib::Request& req, const fs::path& dir, std::str
     k["filename"] = def.filename.empty() ? "kinematics.json"
                                          : fs::path(client_text(def.filename, "file name of part 'kinematics'")).filename().string();
     write_durable(dir / "kinematics.json", client_text(def.content, "part kinematics"));
-    std::string errors_path;
     if (req.has_file("kinematics_errors")) {
         const auto errors = req.get_file_value("kinematics_errors");
         if (errors.content.empty()) throw ApiError(400, "bad_kinematics", "part 'kinematics_errors' is empty");
         write_durable(dir / "kinematics_errors.json", client_text(errors.content, "part kinematics_errors"));
-        errors_path = (dir / "kinematics_errors.json").string();
         k["errors"] = "kinematics_errors.json";
     }
     double tool_length_mm = 0;
@@ -247,11 +245,9 @@ json store_kinematics(const httplib::Request& req, const fs::path& dir, std::str
     }
     k["tool_length_mm"] = tool_length_mm;
     try {
-        rotary_axes = app::machine_rotary_axes(*app::load_machine_definition((dir / "kinematics.json").string(), errors_path));
+        machine = app::load_machine_definition(kinematics_files(dir, k));
     } catch (const app::InputError& e) {
-        // Name the parts, not the server's files.
-        std::string msg = replace_all(e.what(), (dir / "kinematics.json").string(), "part kinematics");
-        throw ApiError(400, "bad_kinematics", replace_all(msg, errors_path, "part kinematics_errors"));
+        throw ApiError(400, "bad_kinematics", e.what());
     }
     return k;
 }
@@ -374,8 +370,9 @@ void create_run(Core& core, Ctx& x) {
         }
     }
 
-    std::string rotary_axes;
-    const json kinematics = store_kinematics(req, tmp, rotary_axes);
+    std::shared_ptr<const machine::Machine> machine;
+    const json kinematics = store_kinematics(req, tmp, machine);
+    const std::string rotary_axes = machine ? app::machine_rotary_axes(*machine) : std::string();
 
     motion_io::IngestReport report;
     try {
@@ -385,6 +382,16 @@ void create_run(Core& core, Ctx& x) {
         std::string msg = replace_all(e.what(), (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename);
         msg = replace_all(msg, (tmp / "mapping.json").string(), "mapping");
         throw ApiError(400, "bad_log", msg);
+    }
+    if (machine) {
+        // A rotary axis of the machine without its column fails the job once it has ingested the
+        // log: said now, from the report the upload has just made.
+        try {
+            app::check_log_axes(*machine, report.rotary_axes);
+        } catch (const app::InputError& e) {
+            throw ApiError(400, "bad_log", fmt::format("{}: {} (part kinematics)", log_part.filename.empty() ? "log" : log_part.filename,
+                                                       e.what()));
+        }
     }
     json nc_program;
     std::optional<UploadedProgram> program_read;

@@ -35,11 +35,21 @@ app::RunInput run_input(const json& inputs, const fs::path& upload_dir, bool use
     in.device = app::choose_device(use_opencl ? "opencl" : "cpu").device;
     if (inputs.contains("kinematics")) {
         const json& k = inputs.at("kinematics");
-        in.machine = app::load_machine_definition((upload_dir / k.at("stored_as").get<std::string>()).string(),
-                                                  k.contains("errors") ? (upload_dir / k["errors"].get<std::string>()).string() : "");
+        in.machine = app::load_machine_definition(kinematics_files(upload_dir, k));
         in.tool_length_mm = k.value("tool_length_mm", 0.0);
     }
     return in;
+}
+
+app::MachineFiles kinematics_files(const fs::path& upload_dir, const json& kinematics) {
+    app::MachineFiles f;
+    f.path = (upload_dir / kinematics.at("stored_as").get<std::string>()).string();
+    f.shown_as = "part kinematics";
+    if (kinematics.contains("errors")) {
+        f.errors_path = (upload_dir / kinematics["errors"].get<std::string>()).string();
+        f.errors_shown_as = "part kinematics_errors";
+    }
+    return f;
 }
 
 app::WorkLimits work_limits(const ServerOptions& opt) {

@@ -34,6 +34,11 @@ namespace cutload::server {
 // input; an nc_options object that is no longer valid is ApiError 400 naming the key.
 app::RunInput run_input(const json& inputs, const std::filesystem::path& upload_dir, bool use_opencl);
 
+// The machine files of a run's inputs.kinematics in its upload folder, named in messages by the
+// parts they were uploaded as ("part kinematics", "part kinematics_errors"): a client sees its
+// own names, never the server's paths, at upload and in a failed job's error alike.
+app::MachineFiles kinematics_files(const std::filesystem::path& upload_dir, const json& kinematics);
+
 // The work limits of `cutload serve` (--max-force-rows, --max-stock-cells, --max-job-memory-mb),
 // checked at upload and again by the job.
 app::WorkLimits work_limits(const ServerOptions& opt);

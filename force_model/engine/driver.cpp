@@ -37,6 +37,8 @@ void Engine::run() {
     // Each session is a separate stretch: batches and pending removal end with it, so nothing is
     // interpolated or swept across the jump to the next one.
     for (const auto& [begin, end] : session_ranges(motion_)) {
+        // The previous session's rows are all written (its batch and removal completed below).
+        if (options_.session_begins) options_.session_begins(begin, end, rows_taken_ + rows_.size());
         for (std::size_t i = begin; i + 1 < end; ++i) {
             current_interval_ = i;
             walk_interval(i);

@@ -140,3 +140,47 @@ TEST_CASE("demo3: the program through the AC machine is the tip's path against t
         CHECK_THAT(std::string(e.what()), Catch::StartsWith("tilt.nc:2: block N20: the tool axis leans"));
     }
 }
+
+TEST_CASE("demo3: a rotary move that needs more pieces than allowed is refused as the pieces are made, naming line and "
+          "block",
+          "[demo3][five_axis]") {
+    const auto machine = app::load_machine_definition(source("data/machines/ac_table_table.json"));
+    const motion_io::NcReadOptions ro = motion_io::demo3_read_options();
+    auto refusal = [&](const std::string& text, const app::PieceLimits& limits) -> std::string {
+        const motion_io::NcProgram p = motion_io::parse_nc_program(text, "many.nc", ro);
+        try {
+            app::workpiece_program(p, *machine, 0, 30000, limits);
+        } catch (const motion_io::NcProgramError& e) {
+            return e.what();
+        }
+        return "(not refused)";
+    };
+    // 2000 turns of the C table at R35 (the reader's own bound is 1e6 deg): 512 pieces of 1 um a
+    // turn, about a million in all. The limit of 65536 is passed 128 turns in, 6.4 % into the
+    // block, and the refusal comes there rather than after every piece has been made.
+    const std::string m = refusal("N1 G00 X35. Y0 Z5. A0 C0\nN2 G93 G01 C720000. F0.5\n", {});
+    INFO(m);
+    REQUIRE_THAT(m, Catch::StartsWith("many.nc:2: block N2: its tip path needs more than 65536 pieces of 1 um, passed "));
+    const double percent = std::stod(m.substr(m.find("passed ") + 7));
+    CHECK(percent > 5);
+    CHECK(percent < 8);
+
+    // A block whose quarter turns alone pass the limit is refused before any pose is computed.
+    app::PieceLimits small;
+    small.per_block = 1000;
+    CHECK_THAT(refusal("N1 G00 X35. Y0 Z5. A0 C0\nN2 G93 G01 C360000. F1.\n", small),
+               Catch::Equals("many.nc:2: block N2: its tip path needs more than 1000 pieces of 1 um (turn the rotary axes "
+                             "less in one block)"));
+
+    // The program's total: three turns of 512 pieces after the rapid's one pass 1500 in the third
+    // (N4), with its 476th piece: 476 / 512 = 93 % into it.
+    app::PieceLimits total;
+    total.total = 1500;
+    const std::string t = refusal("N1 G00 X35. Y0 Z5. A0 C0\nN2 G93 G01 C360. F10.\nN3 C720. F10.\nN4 C1080. F10.\n", total);
+    INFO(t);
+    CHECK_THAT(t, Catch::Equals("many.nc:4: block N4: the program's tip path needs more than 1500 pieces of 1 um in all, "
+                                    "passed 93 % into the block (split the program)"));
+    total.total = 1537;   // exactly enough
+    CHECK(refusal("N1 G00 X35. Y0 Z5. A0 C0\nN2 G93 G01 C360. F10.\nN3 C720. F10.\nN4 C1080. F10.\n", total) ==
+          "(not refused)");
+}

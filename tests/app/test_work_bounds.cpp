@@ -67,6 +67,10 @@ TEST_CASE("work bounds: a uniform log's rows, cells and memory are the hand-comp
     const double bytes = 1'450'002 * app::kJobBytesPerForceRow + 10001 * app::kJobBytesPerMotionSample +
                          100'000 * (64 + app::kJobBytesPerStoredCell);
     CHECK(force_model::stock_bytes_per_cell() == 64);   // 8 floats of intervals, 2 walls of 4 floats
+    // A held row at its peak: the rows twice while their vector doubles, and the engine's 24 B
+    // beside each (work_bounds.hpp; measured: docs/api.md, "Work limits").
+    CHECK(sizeof(force_model::ForceSample) == 80);
+    CHECK(app::kJobBytesPerForceRow == 184);
     CHECK(w.memory_mb == Approx(bytes / 1048576.0).epsilon(1e-3));
 
     // The same log ingested: the extent the engine walks is the one inspect reported.

@@ -58,6 +58,49 @@ motion_io::MotionModel three_axis_with_rotary(motion_io::MotionModel m) {
     return m;
 }
 
+// `first` followed by `second` as a later session whose times are second's shifted by
+// `shift_s` (less than first's end: the sessions overlap in time, as in a restart dump). Both
+// name their blocks alike.
+motion_io::MotionModel two_sessions(motion_io::MotionModel first, const motion_io::MotionModel& second, double shift_s) {
+    const std::size_t n1 = first.size();
+    auto append = [](std::vector<double>& a, const std::vector<double>& b) { a.insert(a.end(), b.begin(), b.end()); };
+    for (double t : second.t_s) first.t_s.push_back(t + shift_s);
+    append(first.x_mm, second.x_mm), append(first.y_mm, second.y_mm), append(first.z_mm, second.z_mm);
+    append(first.vx_mm_s, second.vx_mm_s), append(first.vy_mm_s, second.vy_mm_s), append(first.vz_mm_s, second.vz_mm_s);
+    append(first.spindle_rpm, second.spindle_rpm), append(first.spindle_angle_deg, second.spindle_angle_deg);
+    first.block.insert(first.block.end(), second.block.begin(), second.block.end());
+    for (std::size_t k = 0; k < 3; ++k)
+        if (first.has_rotary(int(k))) append(first.rot_deg[k], second.rot_deg[k]), append(first.rot_vel_deg_s[k], second.rot_vel_deg_s[k]);
+    first.session_start = {0, n1};
+    return first;
+}
+
+// The machine axes (the bundled AC machine, A = 0, C = c_deg held) that put the tip on the
+// workpiece path `tip` (a three-axis motion): each sample by inverse kinematics (a vertical tool
+// on a C table leaves C where it was), the rates by the map's derivative.
+motion_io::MotionModel axes_for(const motion_io::MotionModel& tip, const machine::Machine& machine, double c_deg) {
+    machine::AxisPositions previous = machine::positions(machine, {{'C', c_deg}, {'A', 0.0}});
+    const std::size_t ix = machine.index_of('X'), iy = machine.index_of('Y'), iz = machine.index_of('Z'),
+                      ic = machine.index_of('C');
+    motion_io::MotionModel axes = tip;
+    axes.rot_deg[0].assign(axes.size(), 0.0), axes.rot_vel_deg_s[0].assign(axes.size(), 0.0);
+    axes.rot_deg[2].assign(axes.size(), c_deg), axes.rot_vel_deg_s[2].assign(axes.size(), 0.0);
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    for (std::size_t i = 0; i < axes.size(); ++i) {
+        const Eigen::Vector3d p(tip.x_mm[i], tip.y_mm[i], tip.z_mm[i]);
+        const Eigen::Vector3d v(tip.vx_mm_s[i], tip.vy_mm_s[i], tip.vz_mm_s[i]);
+        const machine::AxisPositions q = machine::inverse(machine, p, up, 0, previous);
+        const machine::AxisPositions q1 = machine::inverse(machine, p + 1e-3 * v, up, 0, q);
+        REQUIRE(q.value[ic] == Approx(c_deg));
+        axes.x_mm[i] = q.value[ix], axes.y_mm[i] = q.value[iy], axes.z_mm[i] = q.value[iz];
+        axes.vx_mm_s[i] = (q1.value[ix] - q.value[ix]) / 1e-3;
+        axes.vy_mm_s[i] = (q1.value[iy] - q.value[iy]) / 1e-3;
+        axes.vz_mm_s[i] = (q1.value[iz] - q.value[iz]) / 1e-3;
+        previous = q;
+    }
+    return axes;
+}
+
 }  // namespace
 
 TEST_CASE("workpiece motion: a C table turning 30 deg/s feeds a tool 100 mm off its line at 3141.6 mm/min",
@@ -164,28 +207,9 @@ TEST_CASE("workpiece motion: a cut commanded through the table turned 90 deg giv
     const motion_io::MotionModel three_axis =
         legs_motion({kCx - 30, y_w, z_w}, {{{kCx + 30, y_w, z_w}, 3000, "N10"}});
 
-    // The same path through the machine with C at 90 deg: each sample's axes by inverse kinematics
-    // (a vertical tool on a C table leaves C where it was), rates by the map's derivative.
+    // The same path through the machine with C at 90 deg.
     const auto machine = ac_table_table();
-    machine::AxisPositions previous = machine::positions(*machine, {{'C', 90.0}, {'A', 0.0}});
-    const std::size_t ix = machine->index_of('X'), iy = machine->index_of('Y'), iz = machine->index_of('Z'),
-                      ic = machine->index_of('C');
-    motion_io::MotionModel axes = three_axis;
-    axes.rot_deg[0].assign(axes.size(), 0.0), axes.rot_vel_deg_s[0].assign(axes.size(), 0.0);
-    axes.rot_deg[2].assign(axes.size(), 90.0), axes.rot_vel_deg_s[2].assign(axes.size(), 0.0);
-    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-    for (std::size_t i = 0; i < axes.size(); ++i) {
-        const Eigen::Vector3d tip(three_axis.x_mm[i], three_axis.y_mm[i], three_axis.z_mm[i]);
-        const Eigen::Vector3d v(three_axis.vx_mm_s[i], three_axis.vy_mm_s[i], three_axis.vz_mm_s[i]);
-        const machine::AxisPositions q = machine::inverse(*machine, tip, up, 0, previous);
-        const machine::AxisPositions q1 = machine::inverse(*machine, tip + 1e-3 * v, up, 0, q);
-        REQUIRE(q.value[ic] == Approx(90));
-        axes.x_mm[i] = q.value[ix], axes.y_mm[i] = q.value[iy], axes.z_mm[i] = q.value[iz];
-        axes.vx_mm_s[i] = (q1.value[ix] - q.value[ix]) / 1e-3;
-        axes.vy_mm_s[i] = (q1.value[iy] - q.value[iy]) / 1e-3;
-        axes.vz_mm_s[i] = (q1.value[iz] - q.value[iz]) / 1e-3;
-        previous = q;
-    }
+    const motion_io::MotionModel axes = axes_for(three_axis, *machine, 90);
     // The logged axes really are turned: X moves along the workpiece's Y.
     CHECK(std::abs(axes.y_mm.back() - axes.y_mm.front()) == Approx(60).epsilon(1e-9));
     CHECK(std::abs(axes.x_mm.back() - axes.x_mm.front()) < 1e-9);
@@ -252,18 +276,10 @@ TEST_CASE("machine-axis forces: each row is turned by the table's angle at its o
     // C turning 30 deg/s from 10 deg: rows between the 1 ms samples see C at their own time, not
     // at the nearest sample. R_bed = R_z(C), so F_M = (Fx cos C + Fy sin C, -Fx sin C + Fy cos C, Fz).
     const auto machine = ac_table_table();
-    motion_io::MotionModel axes = table_turn(kCx + 100, kCy, -400, 0, 10, 30, 0.1);
     // A second session starts back in time (a restart dump): C stands at 200 deg there.
-    const motion_io::MotionModel second = table_turn(kCx + 100, kCy, -400, 0, 200, 0, 0.05);
-    const std::size_t n1 = axes.size();
-    auto append = [](std::vector<double>& a, const std::vector<double>& b) { a.insert(a.end(), b.begin(), b.end()); };
-    append(axes.t_s, second.t_s);
-    append(axes.x_mm, second.x_mm), append(axes.y_mm, second.y_mm), append(axes.z_mm, second.z_mm);
-    append(axes.vx_mm_s, second.vx_mm_s), append(axes.vy_mm_s, second.vy_mm_s), append(axes.vz_mm_s, second.vz_mm_s);
-    append(axes.spindle_rpm, second.spindle_rpm), append(axes.spindle_angle_deg, second.spindle_angle_deg);
-    axes.block.insert(axes.block.end(), second.block.begin(), second.block.end());
-    for (std::size_t k : {0u, 2u}) append(axes.rot_deg[k], second.rot_deg[k]), append(axes.rot_vel_deg_s[k], second.rot_vel_deg_s[k]);
-    axes.session_start = {0, n1};
+    const motion_io::MotionModel axes =
+        two_sessions(table_turn(kCx + 100, kCy, -400, 0, 10, 30, 0.1), table_turn(kCx + 100, kCy, -400, 0, 200, 0, 0.05), 0);
+    const std::size_t n1 = axes.session_start[1];
 
     std::vector<force_model::ForceSample> rows;
     auto row = [&](double t) {
@@ -274,7 +290,12 @@ TEST_CASE("machine-axis forces: each row is turned by the table's angle at its o
     for (double t = 0.0; t < 0.1; t += 0.000337) row(t);
     const std::size_t first_session_rows = rows.size();
     for (double t = 0.0; t <= 0.05; t += 0.000337) row(t);
-    app::MachineAxesForces(axes, machine).apply(rows);
+    // As the engine says (PredictOptions::session_begins); the rows go in two pieces, as streamed.
+    app::MachineAxesForces turn(axes, machine);
+    turn.begin_session(0, n1, 0);
+    turn.begin_session(n1, axes.size(), first_session_rows);
+    turn.apply(std::span(rows).first(100));
+    turn.apply(std::span(rows).subspan(100));
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const force_model::ForceSample& s = rows[i];
         INFO("row " << i << ", t = " << s.t_s);
@@ -282,6 +303,104 @@ TEST_CASE("machine-axis forces: each row is turned by the table's angle at its o
         REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
         REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
         REQUIRE(s.fz_machine_N == 7);
+    }
+}
+
+TEST_CASE("machine-axis forces: sessions overlapping in time each take their own C, by the engine's word on their rows",
+          "[five_axis][workpiece_motion]") {
+    const auto machine = ac_table_table();
+    SECTION("rows as the engine writes them: the first session's tail has none") {
+        // C turning 30 deg/s from 10 deg over 0.1 s; then a restart dump 0.05 s long with C held
+        // at 200 deg, whose times (0.04 .. 0.09 s) lie inside the first session's. The first
+        // session's rows stop at 0.03 s (no angle step in its last intervals: a slow spindle in
+        // material), so the second's first row comes later than the first's last: by time alone it
+        // continues the first session.
+        const motion_io::MotionModel axes =
+            two_sessions(table_turn(kCx + 100, kCy, -400, 0, 10, 30, 0.1), table_turn(kCx + 100, kCy, -400, 0, 200, 0, 0.05), 0.04);
+        const std::size_t n1 = axes.session_start[1];
+        std::vector<force_model::ForceSample> rows;
+        auto row = [&](double t) {
+            force_model::ForceSample s;
+            s.t_s = t, s.fx_N = 100, s.fy_N = -40, s.fz_N = 7;
+            rows.push_back(s);
+        };
+        for (double t = 0.0; t < 0.03; t += 0.000337) row(t);
+        const std::size_t first_session_rows = rows.size();
+        for (double t = 0.04; t <= 0.09; t += 0.000337) row(t);
+        app::MachineAxesForces turn(axes, machine);
+        turn.begin_session(0, n1, 0);
+        turn.begin_session(n1, axes.size(), first_session_rows);
+        turn.apply(rows);
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            const force_model::ForceSample& s = rows[i];
+            INFO("row " << i << ", t = " << s.t_s);
+            // R_bed = R_z(C): F_M = (Fx cos C + Fy sin C, -Fx sin C + Fy cos C, Fz).
+            const double c = (i < first_session_rows ? 10 + 30 * s.t_s : 200) * std::numbers::pi / 180;
+            REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
+            REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
+            REQUIRE(s.fz_machine_N == 7);
+        }
+        // Without the engine's word, a model of two sessions is refused rather than guessed.
+        std::vector<force_model::ForceSample> unplaced(rows.begin(), rows.begin() + 3);
+        CHECK_THROWS_AS(app::MachineAxesForces(axes, machine).apply(unplaced), std::logic_error);
+        CHECK_THROWS_AS(app::MachineAxesForces(axes, machine).begin_session(1, n1, 0), std::invalid_argument);
+    }
+    SECTION("through the engine: a side cut at C = 0, then 1 mm deeper at C = 90 in a session half as late") {
+        // The T3 side cut (along X at ae 1 mm, ap 3 mm) on the stock about the C line.
+        using enginetest::legs_motion;
+        force_model::RunSpec spec = enginetest::base_spec(40, 20, 10);
+        spec.offset_mm[0] = -kCx + 20, spec.offset_mm[1] = -kCy + 10, spec.offset_mm[2] = 310;
+        const double y_w = kCy - 10 - 3, z_w = -303;
+        const motion_io::MotionModel cut = legs_motion({kCx - 30, y_w, z_w}, {{{kCx + 30, y_w, z_w}, 3000, "N10"}});
+        motion_io::MotionModel deeper = cut;
+        for (double& z : deeper.z_mm) z -= 1;
+        const double half_s = 0.5 * cut.t_s.back();
+        const motion_io::MotionModel axes =
+            two_sessions(three_axis_with_rotary(cut), axes_for(deeper, *machine, 90), half_s);
+        const std::size_t n1 = axes.session_start[1];
+        const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, 0);
+
+        // The first session's rows, counted apart: it is walked first, on the fresh stock, so its
+        // rows are the same alone as before the second.
+        motion_io::MotionModel first_alone = app::workpiece_motion(three_axis_with_rotary(cut), *machine, 0);
+        const std::size_t first_rows = enginetest::run_on(first_alone, spec, force_model::Device::Cpu).samples.size();
+
+        // Wired as predict_run wires it.
+        app::MachineAxesForces turn(axes, machine);
+        std::vector<std::array<std::size_t, 3>> said;
+        force_model::PredictOptions po;
+        po.device = force_model::Device::Cpu;
+        po.session_begins = [&](std::size_t begin, std::size_t end, std::size_t first_row) {
+            said.push_back({begin, end, first_row});
+            turn.begin_session(begin, end, first_row);
+        };
+        force_model::Prediction p = force_model::predict(w, spec, po);
+        turn.apply(p.samples);
+        REQUIRE(said == std::vector<std::array<std::size_t, 3>>{{0, n1, 0}, {n1, axes.size(), first_rows}});
+        REQUIRE(p.samples.size() > first_rows);
+        // The sessions do overlap in their rows' times.
+        CHECK(p.samples[first_rows].t_s < p.samples[first_rows - 1].t_s);
+        double largest_first_N = 0, largest_second_N = 0;
+        for (std::size_t i = 0; i < p.samples.size(); ++i) {
+            const force_model::ForceSample& s = p.samples[i];
+            INFO("row " << i << ", t = " << s.t_s);
+            if (i < first_rows) {
+                // C = 0: R_bed is the identity, the forces are copied.
+                REQUIRE(s.fx_machine_N == s.fx_N);
+                REQUIRE(s.fy_machine_N == s.fy_N);
+                REQUIRE(s.fz_machine_N == s.fz_N);
+                largest_first_N = std::max(largest_first_N, double(std::hypot(s.fx_N, s.fy_N)));
+            } else {
+                // C = 90: (Fx, Fy, Fz) -> (Fy, -Fx, Fz).
+                const double scale = std::hypot(s.fx_N, s.fy_N, s.fz_N) * 1e-6 + 1e-30;
+                REQUIRE(s.fx_machine_N == Approx(s.fy_N).margin(scale));
+                REQUIRE(s.fy_machine_N == Approx(-s.fx_N).margin(scale));
+                REQUIRE(s.fz_machine_N == s.fz_N);
+                largest_second_N = std::max(largest_second_N, double(std::hypot(s.fx_N, s.fy_N)));
+            }
+        }
+        CHECK(largest_first_N > 100);    // both sessions cut
+        CHECK(largest_second_N > 10);
     }
 }
 

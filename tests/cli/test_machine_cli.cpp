@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 using namespace cutload;
 namespace fs = std::filesystem;
@@ -172,4 +173,20 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted too
     INFO(bad.output);
     CHECK(bad.exit_code != 0);
     CHECK_THAT(bad.output, Catch::Contains("demo_run.json"));
+
+    // A log without the c column the AC machine's C axis reads: one line naming the axis and the
+    // column, as the service's upload says it (docs/api.md, "Five-axis machines").
+    {
+        std::string no_c;
+        std::istringstream in(turning_table_log(0));
+        for (std::string line; std::getline(in, line);) no_c += line.substr(0, line.rfind(',', line.rfind(',') - 1)) + line.substr(line.rfind(',')) + "\n";
+        REQUIRE(no_c.substr(0, no_c.find('\n')) == "t,x,y,z,a,spindle");
+        std::ofstream(dir / "no_c.csv") << no_c;
+    }
+    const clitest::Result no_c = predict("no_c.csv", " --machine " + machine);
+    INFO(no_c.output);
+    CHECK(no_c.exit_code != 0);
+    CHECK_THAT(no_c.output, Catch::Contains("machine: machine ") &&
+                                Catch::Contains("rotary axis C needs column 'c' in the log, which has none"));
+    CHECK(std::count(no_c.output.begin(), no_c.output.end(), '\n') == 1);
 }

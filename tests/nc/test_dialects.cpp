@@ -4,6 +4,7 @@
 // the cycle definitions in docs/nc_program.md), G53, tape marks, program numbers, block skip,
 // bytes that are not UTF-8, and tool selection carried into blocks and the commanded motion.
 #include "nc_fixtures.hpp"
+#include "nc_read.hpp"
 
 #include "motion_io/commanded.hpp"
 
@@ -25,16 +26,8 @@ NcReadOptions options() {
     return o;
 }
 
-NcProgram parse(const std::string& text, const NcReadOptions& o = options()) { return parse_nc_program(text, "t.nc", o); }
-
-std::string error_of(const std::string& text, const NcReadOptions& o = options()) {
-    try {
-        parse(text, o);
-    } catch (const NcProgramError& e) {
-        return e.what();
-    }
-    return "(no error)";
-}
+NcProgram parse(const std::string& text, const NcReadOptions& o = options()) { return nctest::read_text(text, o); }
+std::string error_of(const std::string& text, const NcReadOptions& o = options()) { return nctest::read_error(text, o); }
 
 std::vector<const NcBlock*> named(const NcProgram& p, const std::string& name) {
     std::vector<const NcBlock*> out;

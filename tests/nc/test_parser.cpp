@@ -1,6 +1,7 @@
 // The ISO 6983 reader: geometry of lines and arcs (I/J/K, R, planes, helix), modal words, units,
 // work offsets, and errors that name the line and the word.
 #include "nc_fixtures.hpp"
+#include "nc_read.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -18,23 +19,9 @@ NcReadOptions options(std::array<double, 3> g54 = {0, 0, 0}) {
     return o;
 }
 
-NcProgram parse(const std::string& text, const NcReadOptions& o = options()) { return parse_nc_program(text, "t.nc", o); }
-
-std::string error_of(const std::string& text, const NcReadOptions& o = options()) {
-    try {
-        parse(text, o);
-    } catch (const NcProgramError& e) {
-        return e.what();
-    }
-    return "(no error)";
-}
-
-const NcBlock& named(const NcProgram& p, const std::string& name) {
-    for (const auto& b : p.blocks)
-        if (b.name == name) return b;
-    FAIL("no block " << name);
-    throw;
-}
+NcProgram parse(const std::string& text, const NcReadOptions& o = options()) { return nctest::read_text(text, o); }
+std::string error_of(const std::string& text, const NcReadOptions& o = options()) { return nctest::read_error(text, o); }
+using nctest::named;
 
 }  // namespace
 

@@ -3,6 +3,7 @@
 // the G94 rotary feed rules; the commanded motion's rotary channels; the generator's a/b/c columns;
 // and the clear refusals (no machine, an axis the machine lacks, tool-centre-point mode).
 #include "nc_fixtures.hpp"
+#include "nc_read.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -24,23 +25,8 @@ NcReadOptions ac_options(RotaryFeed feed = RotaryFeed::Combined, std::array<doub
     return o;
 }
 
-NcProgram parse(const std::string& text, const NcReadOptions& o = ac_options()) { return parse_nc_program(text, "t.nc", o); }
-
-std::string error_of(const std::string& text, const NcReadOptions& o) {
-    try {
-        parse(text, o);
-    } catch (const NcProgramError& e) {
-        return e.what();
-    }
-    return "(no error)";
-}
-
-const NcBlock& named(const NcProgram& p, const std::string& name) {
-    for (const NcBlock& b : p.blocks)
-        if (b.name == name) return b;
-    FAIL("no block " << name);
-    return p.blocks.front();
-}
+NcProgram parse(const std::string& text, const NcReadOptions& o = ac_options()) { return read_text(text, o); }
+std::string error_of(const std::string& text, const NcReadOptions& o) { return read_error(text, o); }
 
 }  // namespace
 

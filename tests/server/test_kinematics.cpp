@@ -3,7 +3,9 @@
 // predicts it. The bundled five-axis demo cuts a ring groove by turning the C table; its volume
 // has a closed form, pi (41^2 - 32^2) x 2 mm (tool centre on R35 then R38, D6, 2 mm deep).
 #include "harness.hpp"
+#include "server/jobs.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <numbers>
 #include <sstream>
@@ -28,6 +30,25 @@ httplib::Result upload_demo3(httplib::Client& c, httplib::MultipartFormDataItems
                                           {"spec", slurp(kData / "demo3_run.json"), "", "application/json"}};
     items.insert(items.end(), extra.begin(), extra.end());
     return c.Post("/api/v1/runs", items);
+}
+
+// The CSV log without the column headed `name` ("c [deg]").
+std::string without_column(const std::string& csv, const std::string& name) {
+    std::istringstream in(csv);
+    std::string out, line;
+    std::ptrdiff_t drop = -1;
+    while (std::getline(in, line)) {
+        std::vector<std::string> cells;
+        std::stringstream ss(line);
+        for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+        if (!line.empty() && line.back() == ',') cells.emplace_back();
+        if (drop < 0) drop = std::find(cells.begin(), cells.end(), name) - cells.begin();
+        REQUIRE(std::size_t(drop) < cells.size());
+        cells.erase(cells.begin() + drop);
+        for (std::size_t k = 0; k < cells.size(); ++k) out += (k ? "," : "") + cells[k];
+        out += "\n";
+    }
+    return out;
 }
 
 }  // namespace
@@ -111,4 +132,62 @@ TEST_CASE("kinematics: a bad machine file, errors or a tool length without a mac
                   400, "bad_kinematics", "part kinematics_errors");
     CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
     CHECK(files_under(ts.data_dir() / "uploads") == 0);
+}
+
+TEST_CASE("kinematics: a log without a rotary axis the machine needs is 400 at upload, naming the axis and its column") {
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    const std::string machine = slurp(kData / "machines" / "ac_table_table.json");
+    // The demo's log with its c column dropped: the AC machine's C axis has nothing to read.
+    const std::string log = without_column(slurp(kData / "demo3_dryrun.csv"), "c [deg]");
+    httplib::MultipartFormDataItems items{{"log", log, "no_c.csv", "text/csv"},
+                                          {"spec", slurp(kData / "demo3_run.json"), "", "application/json"},
+                                          {"kinematics", machine, "ac_table_table.json", "application/json"}};
+    const auto r = c.Post("/api/v1/runs", items);
+    require_error(r, 400, "bad_log", "no_c.csv: machine: machine ");
+    const std::string message = body(r)["error"]["message"];
+    CHECK_THAT(message, Catch::Contains("rotary axis C needs column 'c' in the log, which has none") &&
+                            Catch::EndsWith("(part kinematics)"));
+    CHECK_THAT(message, !Catch::Contains(ts.data_dir().string()));
+    CHECK(body(c.Get("/api/v1/runs"))["items"].empty());
+    CHECK(files_under(ts.data_dir() / "uploads") == 0);
+    // The same log without the machine is a three-axis run, as before.
+    items.pop_back();
+    CHECK(c.Post("/api/v1/runs", items)->status == 202);
+}
+
+TEST_CASE("kinematics: a machine file that fails to load in the job names the part, not the server's path") {
+    // The job reads the stored files again (run_input); a file spoiled on disk since its upload (a
+    // disk fault, an edit by hand) fails the run, and the run's error, which API clients read, is
+    // this message.
+    TempDir dir;
+    const fs::path upload = dir.path() / "uploads" / "7";
+    fs::create_directories(upload);
+    std::ofstream(upload / "demo3_dryrun.csv") << slurp(kData / "demo3_dryrun.csv");
+    std::ofstream(upload / "kinematics.json") << slurp(kData / "machines" / "ac_table_table.json");
+    std::ofstream(upload / "bad.json") << "{\"code\": ";
+    std::ofstream(upload / "bad_errors.json") << R"({"X": {"EQQX_um": 3}})";
+    const json inputs{{"log", {{"stored_as", "demo3_dryrun.csv"}, {"format", "auto"}}},
+                      {"spec", json::parse(slurp(kData / "demo3_run.json"))}};
+    auto error_of = [&](const json& kinematics) -> std::string {
+        json in = inputs;
+        in["kinematics"] = kinematics;
+        try {
+            cutload::server::run_input(in, upload, false);
+        } catch (const std::exception& e) {
+            return e.what();
+        }
+        return "(loaded)";
+    };
+    CHECK(error_of({{"stored_as", "kinematics.json"}}) == "(loaded)");
+    const std::string definition = error_of({{"stored_as", "bad.json"}});
+    const std::string errors = error_of({{"stored_as", "kinematics.json"}, {"errors", "bad_errors.json"}});
+    CHECK_THAT(definition, Catch::StartsWith("machine: part kinematics: not valid JSON"));
+    CHECK_THAT(errors, Catch::StartsWith("machine_errors: part kinematics_errors: "));
+    for (const std::string& e : {definition, errors}) {
+        INFO(e);
+        CHECK_THAT(e, !Catch::Contains(dir.path().string()));
+        CHECK_THAT(e, !Catch::Contains("uploads"));
+        CHECK_THAT(e, !Catch::Contains("bad"));
+    }
 }
