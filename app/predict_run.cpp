@@ -156,9 +156,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
     // The engine says where each session's rows begin: their times alone cannot (sessions may
     // overlap in time).
+    // With the rows on the pipe's thread, the session's start goes there too, in order with them.
     if (machine_axes)
         po.session_begins = [&](std::size_t begin, std::size_t end, std::size_t first_row) {
-            machine_axes->begin_session(begin, end, first_row);
+            if (pipe) pipe->post([&machine_axes, begin, end, first_row] { machine_axes->begin_session(begin, end, first_row); });
+            else machine_axes->begin_session(begin, end, first_row);
         };
     r.prediction = force_model::predict(r.motion, in.spec, po);
     if (pipe) pipe->finish();

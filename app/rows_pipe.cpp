@@ -23,20 +23,35 @@ void RowsPipe::rethrow_locked() {
 }
 
 void RowsPipe::push(std::span<const force_model::ForceSample> rows) {
-    std::vector<force_model::ForceSample> piece;
+    Item item;
     {
         std::unique_lock lock(mutex_);
         changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
         rethrow_locked();
         if (!spare_.empty()) {
-            piece = std::move(spare_.back());
+            item.rows = std::move(spare_.back());
             spare_.pop_back();
         }
     }
-    piece.assign(rows.begin(), rows.end());
+    item.rows.assign(rows.begin(), rows.end());
+    enqueue(std::move(item));
+}
+
+void RowsPipe::post(std::function<void()> task) {
+    Item item;
+    item.task = std::move(task);
+    {
+        std::unique_lock lock(mutex_);
+        changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
+        rethrow_locked();
+    }
+    enqueue(std::move(item));
+}
+
+void RowsPipe::enqueue(Item item) {
     {
         std::lock_guard lock(mutex_);
-        queued_.push_back(std::move(piece));
+        queued_.push_back(std::move(item));
     }
     changed_.notify_all();
 }
@@ -52,14 +67,15 @@ void RowsPipe::consume_loop() {
     for (;;) {
         changed_.wait(lock, [&] { return closing_ || !queued_.empty(); });
         if (closing_) return;
-        std::vector<force_model::ForceSample> piece = std::move(queued_.front());
+        Item item = std::move(queued_.front());
         queued_.pop_front();
         busy_ = true;
         lock.unlock();
         changed_.notify_all();   // a slot is free
         std::exception_ptr failed;
         try {
-            consume_(piece);
+            if (item.task) item.task();
+            else consume_(item.rows);
         } catch (...) {
             failed = std::current_exception();
         }
@@ -68,8 +84,8 @@ void RowsPipe::consume_loop() {
         if (failed) {
             error_ = failed;
             queued_.clear();
-        } else if (spare_.size() < depth_) {
-            spare_.push_back(std::move(piece));
+        } else if (!item.task && spare_.size() < depth_) {
+            spare_.push_back(std::move(item.rows));
         }
         changed_.notify_all();
         if (failed) {

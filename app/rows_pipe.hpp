@@ -32,10 +32,18 @@ public:
     // Copies the rows and queues them; waits while `depth` pieces are queued. Rethrows what the
     // consumer threw (a full disk), so the engine stops at its next piece.
     void push(std::span<const force_model::ForceSample> rows);
+    // Runs `task` on the consumer's thread after the pieces pushed before it and before those pushed
+    // after it (what the consumer's state needs in order with the rows: a session's start).
+    void post(std::function<void()> task);
     // Returns once every piece is consumed; rethrows what the consumer threw.
     void finish();
 
 private:
+    struct Item {
+        std::vector<force_model::ForceSample> rows;
+        std::function<void()> task;   // set: a task, not rows
+    };
+    void enqueue(Item item);
     void consume_loop();
     void rethrow_locked();
 
@@ -43,7 +51,7 @@ private:
     std::size_t depth_;
     std::mutex mutex_;
     std::condition_variable changed_;
-    std::deque<std::vector<force_model::ForceSample>> queued_;
+    std::deque<Item> queued_;
     std::vector<std::vector<force_model::ForceSample>> spare_;   // consumed pieces' buffers, reused
     std::exception_ptr error_;
     bool busy_ = false;    // the consumer holds a piece

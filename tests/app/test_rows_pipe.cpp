@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -96,4 +97,21 @@ TEST_CASE("rows pipe: dropped with pieces still queued (a run that failed), it s
     }
     releaser.join();
     CHECK(calls == 1);
+}
+
+TEST_CASE("rows pipe: a posted task runs after the pieces pushed before it and before those after it",
+          "[app][rows_pipe]") {
+    std::vector<std::string> events;   // touched only on the pipe's thread until finish()
+    app::RowsPipe pipe([&](std::span<force_model::ForceSample> rows) {
+        std::this_thread::sleep_for(std::chrono::microseconds(300));
+        events.push_back("rows " + std::to_string(rows.size()));
+    });
+    pipe.push(piece(0, 3));
+    pipe.post([&] { events.push_back("session 1"); });
+    pipe.push(piece(3, 4));
+    pipe.push(piece(7, 5));
+    pipe.post([&] { events.push_back("session 2"); });
+    pipe.push(piece(12, 6));
+    pipe.finish();
+    CHECK(events == std::vector<std::string>{"rows 3", "session 1", "rows 4", "rows 5", "session 2", "rows 6"});
 }
