@@ -113,11 +113,22 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
         // microradians, which the vertical-tool engine then leaves out (their tip offset is kept).
         const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
         const double tilt_rad = tilt_from_z_rad(machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal));
-        if (!(tilt_rad <= kVerticalToleranceRad))
+        if (!(tilt_rad <= kVerticalToleranceRad)) {
+            // The first lean past the tolerance may be a few microradians where a tilt begins: say
+            // how far the log goes too, so the message shows what the program does.
+            double most_rad = tilt_rad, most_t_s = axes.t_s[i];
+            for (std::size_t j = i + 1; j < n; ++j) {
+                machine::AxisPositions qj;
+                for (std::size_t k = 0; k < sources.size(); ++k) qj.value[k] = (*sources[k].position)[j];
+                const double tj = tilt_from_z_rad(machine::forward(machine, qj, tool_length_mm, machine::ErrorMode::Nominal));
+                if (tj > most_rad) most_rad = tj, most_t_s = axes.t_s[j];
+            }
             throw WorkpieceMotionError(fmt::format(
-                "at t = {:.4f} s the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
-                "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
-                axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi));
+                "at t = {:.4f} s the tool axis leans {:.4g} deg from the stock's +Z (at most {:.4g} deg, at t = {:.4f} "
+                "s): a tilted tool needs the multi-direction stock, which is not built yet (docs/five_axis.md, "
+                "section 3)",
+                axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi, most_rad * 180.0 / std::numbers::pi, most_t_s));
+        }
         if (const double error_tilt_rad = tilt_from_z_rad(pose); !(error_tilt_rad <= kErrorTiltLimitRad))
             throw WorkpieceMotionError(fmt::format(
                 "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from the stock's +Z, more "

@@ -245,7 +245,8 @@ struct PredictOptions {
     // Most rows the prediction may hold (0: unchecked): checked as rows are written, so a run
     // whose estimate (expected_rows) was too low still stops (TooManyRows) instead of growing.
     std::size_t max_rows = 0;
-    // When set, the rows are handed here in time order as they become final, in pieces of about
+    // When set, the rows are handed here as they become final (in time order within a session,
+    // session after session: sessions may overlap in time), in pieces of about
     // kRowsOutPiece rows, and Prediction::samples comes back empty: memory then stays bounded by
     // the motion model and the stock, whatever the run's length (a run of an hour writes about 10^8
     // rows). Blocks, stats and the final stock are as without it, and so are the rows.
