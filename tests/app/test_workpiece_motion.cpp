@@ -101,6 +101,28 @@ motion_io::MotionModel axes_for(const motion_io::MotionModel& tip, const machine
     return axes;
 }
 
+// Rows of a constant workpiece force (100, -40, 7) N at the times given.
+void add_constant_rows(std::vector<force_model::ForceSample>& rows, double t0_s, double t1_s, bool t1_included) {
+    for (double t = t0_s; t1_included ? t <= t1_s : t < t1_s; t += 0.000337) {
+        force_model::ForceSample s;
+        s.t_s = t, s.fx_N = 100, s.fy_N = -40, s.fz_N = 7;
+        rows.push_back(s);
+    }
+}
+
+// R_bed = R_z(C): F_M = (Fx cos C + Fy sin C, -Fx sin C + Fy cos C, Fz), with C = 10 + 30 t deg in
+// the first session's rows and 200 deg in the second's.
+void require_turned_by_c(const std::vector<force_model::ForceSample>& rows, std::size_t first_session_rows) {
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const force_model::ForceSample& s = rows[i];
+        INFO("row " << i << ", t = " << s.t_s);
+        const double c = (i < first_session_rows ? 10 + 30 * s.t_s : 200) * std::numbers::pi / 180;
+        REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
+        REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
+        REQUIRE(s.fz_machine_N == 7);
+    }
+}
+
 }  // namespace
 
 TEST_CASE("workpiece motion: a C table turning 30 deg/s feeds a tool 100 mm off its line at 3141.6 mm/min",
@@ -282,28 +304,16 @@ TEST_CASE("machine-axis forces: each row is turned by the table's angle at its o
     const std::size_t n1 = axes.session_start[1];
 
     std::vector<force_model::ForceSample> rows;
-    auto row = [&](double t) {
-        force_model::ForceSample s;
-        s.t_s = t, s.fx_N = 100, s.fy_N = -40, s.fz_N = 7;
-        rows.push_back(s);
-    };
-    for (double t = 0.0; t < 0.1; t += 0.000337) row(t);
+    add_constant_rows(rows, 0.0, 0.1, false);
     const std::size_t first_session_rows = rows.size();
-    for (double t = 0.0; t <= 0.05; t += 0.000337) row(t);
+    add_constant_rows(rows, 0.0, 0.05, true);
     // As the engine says (PredictOptions::session_begins); the rows go in two pieces, as streamed.
     app::MachineAxesForces turn(axes, machine);
     turn.begin_session(0, n1, 0);
     turn.begin_session(n1, axes.size(), first_session_rows);
     turn.apply(std::span(rows).first(100));
     turn.apply(std::span(rows).subspan(100));
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        const force_model::ForceSample& s = rows[i];
-        INFO("row " << i << ", t = " << s.t_s);
-        const double c = (i < first_session_rows ? 10 + 30 * s.t_s : 200) * std::numbers::pi / 180;
-        REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
-        REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
-        REQUIRE(s.fz_machine_N == 7);
-    }
+    require_turned_by_c(rows, first_session_rows);
 }
 
 TEST_CASE("machine-axis forces: sessions overlapping in time each take their own C, by the engine's word on their rows",
@@ -319,27 +329,14 @@ TEST_CASE("machine-axis forces: sessions overlapping in time each take their own
             two_sessions(table_turn(kCx + 100, kCy, -400, 0, 10, 30, 0.1), table_turn(kCx + 100, kCy, -400, 0, 200, 0, 0.05), 0.04);
         const std::size_t n1 = axes.session_start[1];
         std::vector<force_model::ForceSample> rows;
-        auto row = [&](double t) {
-            force_model::ForceSample s;
-            s.t_s = t, s.fx_N = 100, s.fy_N = -40, s.fz_N = 7;
-            rows.push_back(s);
-        };
-        for (double t = 0.0; t < 0.03; t += 0.000337) row(t);
+        add_constant_rows(rows, 0.0, 0.03, false);
         const std::size_t first_session_rows = rows.size();
-        for (double t = 0.04; t <= 0.09; t += 0.000337) row(t);
+        add_constant_rows(rows, 0.04, 0.09, true);
         app::MachineAxesForces turn(axes, machine);
         turn.begin_session(0, n1, 0);
         turn.begin_session(n1, axes.size(), first_session_rows);
         turn.apply(rows);
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            const force_model::ForceSample& s = rows[i];
-            INFO("row " << i << ", t = " << s.t_s);
-            // R_bed = R_z(C): F_M = (Fx cos C + Fy sin C, -Fx sin C + Fy cos C, Fz).
-            const double c = (i < first_session_rows ? 10 + 30 * s.t_s : 200) * std::numbers::pi / 180;
-            REQUIRE(s.fx_machine_N == Approx(100 * std::cos(c) - 40 * std::sin(c)).epsilon(1e-6));
-            REQUIRE(s.fy_machine_N == Approx(-100 * std::sin(c) - 40 * std::cos(c)).epsilon(1e-6));
-            REQUIRE(s.fz_machine_N == 7);
-        }
+        require_turned_by_c(rows, first_session_rows);
         // Without the engine's word, a model of two sessions is refused rather than guessed.
         std::vector<force_model::ForceSample> unplaced(rows.begin(), rows.begin() + 3);
         CHECK_THROWS_AS(app::MachineAxesForces(axes, machine).apply(unplaced), std::logic_error);
