@@ -22,12 +22,16 @@ void RowsPipe::rethrow_locked() {
     if (error_) std::rethrow_exception(error_);
 }
 
+void RowsPipe::wait_for_slot(std::unique_lock<std::mutex>& lock) {
+    changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
+    rethrow_locked();
+}
+
 void RowsPipe::push(std::span<const force_model::ForceSample> rows) {
     Item item;
     {
         std::unique_lock lock(mutex_);
-        changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
-        rethrow_locked();
+        wait_for_slot(lock);
         if (!spare_.empty()) {
             item.rows = std::move(spare_.back());
             spare_.pop_back();
@@ -42,8 +46,7 @@ void RowsPipe::post(std::function<void()> task) {
     item.task = std::move(task);
     {
         std::unique_lock lock(mutex_);
-        changed_.wait(lock, [&] { return error_ || queued_.size() < depth_; });
-        rethrow_locked();
+        wait_for_slot(lock);
     }
     enqueue(std::move(item));
 }

@@ -46,6 +46,8 @@ private:
     void enqueue(Item item);
     void consume_loop();
     void rethrow_locked();
+    // Waits until fewer than depth_ items are queued; rethrows the consumer's error.
+    void wait_for_slot(std::unique_lock<std::mutex>& lock);
 
     Consumer consume_;
     std::size_t depth_;
