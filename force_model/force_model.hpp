@@ -9,6 +9,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -142,6 +143,24 @@ struct StockDeleter { void operator()(Stock*) const; };
 using StockPtr = std::unique_ptr<Stock, StockDeleter>;
 StockPtr make_stock(const StockBox& box, double grid_mm);
 StockPtr copy_stock(const Stock& s);
+
+// A rotation, as a row-major 3x3 matrix.
+struct Rotation3 {
+    std::array<double, 9> m{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    bool is_identity() const { return m == Rotation3{}.m; }
+};
+// The same box held for a tool tilted by a fixed rotation (docs/five_axis.md, "Fixed tilt"): the
+// rays run along the tool's axis, on a grid in the tool's frame (p_grid = grid_from_stock p_stock)
+// that covers the turned box; each ray holds the box's chord along it. The engine, walking the
+// tool's motion in that frame (tip at grid_from_stock p_stock), cuts it as it cuts a three-axis
+// stock. std::invalid_argument for a bad box or grid, or more than kMaxStockRays rays.
+StockPtr make_turned_stock(const StockBox& box, const Rotation3& grid_from_stock, double grid_mm);
+// The box make_turned_stock's grid covers, in grid coordinates (whole cells in x and y).
+StockBox turned_stock_box(const StockBox& box, const Rotation3& grid_from_stock, double grid_mm);
+// The rotation from stock coordinates into the stock's grid: the identity for make_stock's.
+Rotation3 stock_grid_frame(const Stock& s);
+// The box of a stock in stock coordinates (a turned stock's grid covers it turned).
+StockBox stock_box(const Stock& s);
 // One binary, versioned format, in memory (the service keeps stocks in its database) or in a file
 // (written to PATH.tmp, then renamed). `source` names the bytes in errors, as a file's path does.
 std::string save_stock_bytes(const Stock& s);
@@ -154,7 +173,8 @@ double stock_volume_mm3(const Stock& s);
 // a grid of at most max_cells cells, each the highest top of the k x k rays it covers (so material
 // is never shown removed where it remains). Row-major (j * nx + i), cell (i, j) spans
 // x0 + i cell .. x0 + (i + 1) cell; NaN where no ray of the cell has material left. Holes and
-// overhangs below the top are not represented.
+// overhangs below the top are not represented. Always in stock coordinates: a turned stock's
+// field takes, per cell, the highest upper end of a ray's material that falls in it.
 struct StockHeightField {
     StockBox box;
     double x0_mm = 0, y0_mm = 0, cell_mm = 0;

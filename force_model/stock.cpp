@@ -21,8 +21,14 @@ namespace {
 
 constexpr char kMagic[8] = {'C', 'U', 'T', 'L', 'S', 'T', 'K', '\0'};
 // Version 2 adds the sub-cell walls (sparse, after the rays); version 3 a second list with each
-// ray's lower wall. Version 1 files load without walls, version 2 files without lower walls.
-constexpr std::uint32_t kVersion = 3;
+// ray's lower wall; version 4 the grid's frame after the header (Frame). Version 1 files load
+// without walls, version 2 files without lower walls, versions 1 to 3 in stock coordinates.
+constexpr std::uint32_t kVersion = 4;
+
+struct Frame {
+    double grid_from_stock[9];
+    double source_min[3], source_max[3];
+};
 
 struct WallEntry {
     std::uint64_t ray;
@@ -66,6 +72,7 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
         if (!(box.max_mm[k] > box.min_mm[k])) throw std::invalid_argument("make_stock: box max must exceed min");
     StockPtr s(new Stock());
     s->box = box;
+    s->source_box = box;
     s->grid.cell_mm = grid_mm;
     s->grid.x0_mm = box.min_mm[0];
     s->grid.y0_mm = box.min_mm[1];
@@ -80,6 +87,76 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     s->walls = ZeroPages(rays * kernels::kWallSlots * kernels::kWallFloats * sizeof(float));   // no walls
     return s;
 }
+
+StockBox turned_stock_box(const StockBox& box, const Rotation3& grid_from_stock, double grid_mm) {
+    const auto& G = grid_from_stock.m;
+    StockBox grid_box;
+    for (int a = 0; a < 3; ++a) grid_box.min_mm[a] = 1e300, grid_box.max_mm[a] = -1e300;
+    for (int c = 0; c < 8; ++c) {
+        const double p[3] = {(c & 1) ? box.max_mm[0] : box.min_mm[0], (c & 2) ? box.max_mm[1] : box.min_mm[1],
+                             (c & 4) ? box.max_mm[2] : box.min_mm[2]};
+        for (int a = 0; a < 3; ++a) {
+            const double q = G[3 * a] * p[0] + G[3 * a + 1] * p[1] + G[3 * a + 2] * p[2];
+            grid_box.min_mm[a] = std::min(grid_box.min_mm[a], q);
+            grid_box.max_mm[a] = std::max(grid_box.max_mm[a], q);
+        }
+    }
+    // Whole cells, outward, so every corner lies on the grid.
+    if (grid_mm > 0)
+        for (int a = 0; a < 2; ++a)
+            grid_box.max_mm[a] = grid_box.min_mm[a] +
+                                 std::max(1.0, std::ceil((grid_box.max_mm[a] - grid_box.min_mm[a]) / grid_mm - 1e-9)) * grid_mm;
+    return grid_box;
+}
+
+StockPtr make_turned_stock(const StockBox& box, const Rotation3& grid_from_stock, double grid_mm) {
+    if (!(grid_mm > 0)) throw std::invalid_argument("make_turned_stock: grid_mm must be > 0");
+    for (int k = 0; k < 3; ++k)
+        if (!(box.max_mm[k] > box.min_mm[k])) throw std::invalid_argument("make_turned_stock: box max must exceed min");
+    const auto& G = grid_from_stock.m;
+    // A rotation: orthonormal rows, determinant +1 (a mirror would turn the cutter's hand).
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+            const double dot = G[3 * a] * G[3 * b] + G[3 * a + 1] * G[3 * b + 1] + G[3 * a + 2] * G[3 * b + 2];
+            if (!(std::abs(dot - (a == b ? 1.0 : 0.0)) < 1e-9))
+                throw std::invalid_argument("make_turned_stock: grid_from_stock is not a rotation");
+        }
+    const double det = G[0] * (G[4] * G[8] - G[5] * G[7]) - G[1] * (G[3] * G[8] - G[5] * G[6]) +
+                       G[2] * (G[3] * G[7] - G[4] * G[6]);
+    if (!(det > 0)) throw std::invalid_argument("make_turned_stock: grid_from_stock is a reflection");
+    const StockBox grid_box = turned_stock_box(box, grid_from_stock, grid_mm);
+    if (stock_cells(grid_box, grid_mm) > kMaxStockRays)
+        throw std::invalid_argument("make_turned_stock: grid too fine for the turned box (over 4e8 rays)");
+    StockPtr s = make_stock(grid_box, grid_mm);
+    s->source_box = box;
+    s->grid_from_stock = grid_from_stock;
+    // Each ray (grid x, y; along grid z) in stock coordinates is o + t d, o = G^T (x, y, 0) and
+    // d = G^T e_z; it crosses the box where all three slabs hold.
+    const double d[3] = {G[6], G[7], G[8]};
+    const kernels::DexelView v = s->view();
+    for (int j = 0; j < s->grid.ny; ++j)
+        for (int i = 0; i < s->grid.nx; ++i) {
+            const double x = s->grid.x0_mm + (i + 0.5) * grid_mm, y = s->grid.y0_mm + (j + 0.5) * grid_mm;
+            const double o[3] = {G[0] * x + G[3] * y, G[1] * x + G[4] * y, G[2] * x + G[5] * y};
+            double t0 = -1e300, t1 = 1e300;
+            for (int a = 0; a < 3 && t0 < t1; ++a) {
+                if (std::abs(d[a]) < 1e-15) {
+                    if (o[a] < box.min_mm[a] || o[a] > box.max_mm[a]) t1 = t0;
+                    continue;
+                }
+                double lo = (box.min_mm[a] - o[a]) / d[a], hi = (box.max_mm[a] - o[a]) / d[a];
+                if (lo > hi) std::swap(lo, hi);
+                t0 = std::max(t0, lo), t1 = std::min(t1, hi);
+            }
+            kernels::Ray ray = kernels::kNoMaterial;
+            if (t1 - t0 > kernels::kSliverMm) ray[0] = float(t0), ray[kernels::kDexelIntervals] = float(t1);
+            v.store(std::size_t(j) * std::size_t(s->grid.nx) + std::size_t(i), ray);
+        }
+    return s;
+}
+
+Rotation3 stock_grid_frame(const Stock& s) { return s.grid_from_stock; }
+StockBox stock_box(const Stock& s) { return s.source_box; }
 
 StockPtr copy_stock(const Stock& s) { return StockPtr(new Stock(s)); }
 
@@ -110,6 +187,11 @@ bool write_stock(const Stock& s, std::ostream& out) {
     // The format holds plain (decoded) rays, so it does not depend on the in-memory encoding.
     out.write(reinterpret_cast<const char*>(&h), sizeof h);
     std::uint64_t sum = fnv1a(&h, sizeof h);
+    Frame f{};
+    std::copy(s.grid_from_stock.m.begin(), s.grid_from_stock.m.end(), f.grid_from_stock);
+    for (int k = 0; k < 3; ++k) f.source_min[k] = s.source_box.min_mm[k], f.source_max[k] = s.source_box.max_mm[k];
+    out.write(reinterpret_cast<const char*>(&f), sizeof f);
+    sum = fnv1a(&f, sizeof f, sum);
     for (std::size_t r = 0; r < s.rays(); ++r) {
         const kernels::Ray ray = s.ray(r);
         out.write(reinterpret_cast<const char*>(ray.data()), sizeof ray);
@@ -153,10 +235,21 @@ StockPtr read_stock(std::istream& in, const std::string& source) {
         s->box.min_mm[k] = h.box_min[k];
         s->box.max_mm[k] = h.box_max[k];
     }
+    s->source_box = s->box;
+    std::uint64_t sum = fnv1a(&h, sizeof h);
+    if (h.version >= 4) {
+        Frame f{};
+        in.read(reinterpret_cast<char*>(&f), sizeof f);
+        if (!in) throw std::runtime_error(source + ": stock file is truncated (frame)");
+        sum = fnv1a(&f, sizeof f, sum);
+        std::copy(std::begin(f.grid_from_stock), std::end(f.grid_from_stock), s->grid_from_stock.m.begin());
+        for (int k = 0; k < 3; ++k) s->source_box.min_mm[k] = f.source_min[k], s->source_box.max_mm[k] = f.source_max[k];
+        for (double v : s->grid_from_stock.m)
+            if (!std::isfinite(v)) throw std::runtime_error(source + ": stock file header is corrupt (frame)");
+    }
     s->codec = kernels::RayCodec::for_column(float(h.box_min[2]), float(h.box_max[2]));
     s->storage = ZeroPages(s->rays() * kernels::kDexelFloats * sizeof(float));
     s->walls = ZeroPages(s->rays() * kernels::kWallSlots * kernels::kWallFloats * sizeof(float));
-    std::uint64_t sum = fnv1a(&h, sizeof h);
     const kernels::Ray full = s->codec.decode(kernels::Ray{}.data());
     std::vector<kernels::Ray> row(std::size_t(h.nx));
     for (std::size_t r = 0; r < s->rays() && in; r += row.size()) {

@@ -43,7 +43,11 @@ bool clear_zero_pages(void* mapping, std::size_t len, bool machine_has_swap);
 
 class Stock {
 public:
+    // The box the grid covers, in grid coordinates: for a turned stock (make_turned_stock) the
+    // box around the turned stock box, which source_box keeps in stock coordinates.
     StockBox box;
+    StockBox source_box;
+    Rotation3 grid_from_stock;   // identity: the grid is in stock coordinates
     kernels::GridInfo grid;
     kernels::RayCodec codec;   // base column: the box's full height
     ZeroPages storage;         // encoded rays, kDexelFloats floats each, row-major (j * nx + i)

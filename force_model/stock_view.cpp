@@ -7,8 +7,60 @@
 
 namespace cutload::force_model {
 
+namespace {
+
+// A turned stock's rays run along the tool's axis, not +Z: every end of a material interval is a
+// point of the material, turned back into stock coordinates and put in the field's cell under it,
+// the highest one kept. The top between such points is not interpolated; cells are made wide
+// enough that every one under material holds an end.
+StockHeightField turned_height_field(const Stock& s, std::size_t max_cells) {
+    const StockBox& b = s.source_box;
+    const double g = s.grid.cell_mm;
+    const double sx = std::max(1.0, std::ceil((b.max_mm[0] - b.min_mm[0]) / g)),
+                 sy = std::max(1.0, std::ceil((b.max_mm[1] - b.min_mm[1]) / g));
+    // Seen from above, the ends of neighbouring rays lie up to a pitch / cos(lean) apart: a cell
+    // at least that wide holds one.
+    const double cos_lean = std::max(0.1, std::abs(s.grid_from_stock.m[8]));
+    int k = std::max({1, int(std::ceil(std::sqrt(sx * sy / double(max_cells)))), int(std::ceil(1 / cos_lean - 1e-9))});
+    while (std::size_t(std::ceil(sx / k)) * std::size_t(std::ceil(sy / k)) > max_cells) ++k;
+    StockHeightField f;
+    f.box = b;
+    f.nx = int(std::ceil(sx / k));
+    f.ny = int(std::ceil(sy / k));
+    f.cell_mm = g * k;
+    f.x0_mm = b.min_mm[0];
+    f.y0_mm = b.min_mm[1];
+    f.rays_per_cell = k;
+    f.top_mm.assign(std::size_t(f.nx) * std::size_t(f.ny), std::numeric_limits<float>::quiet_NaN());
+    const auto& G = s.grid_from_stock.m;
+    const auto put = [&](double x, double y, double z) {
+        // p_stock = G^T p_grid
+        const double px = G[0] * x + G[3] * y + G[6] * z, py = G[1] * x + G[4] * y + G[7] * z,
+                     pz = G[2] * x + G[5] * y + G[8] * z;
+        const int i = int(std::floor((px - f.x0_mm) / f.cell_mm)), j = int(std::floor((py - f.y0_mm) / f.cell_mm));
+        if (i < 0 || j < 0 || i >= f.nx || j >= f.ny) return;
+        float& cell = f.top_mm[std::size_t(j) * std::size_t(f.nx) + std::size_t(i)];
+        if (std::isnan(cell) || pz > cell) cell = float(pz);
+    };
+    for (int j = 0; j < s.grid.ny; ++j)
+        for (int i = 0; i < s.grid.nx; ++i) {
+            const kernels::Ray ray = s.ray(i, j);
+            const double x = s.grid.x0_mm + (i + 0.5) * g, y = s.grid.y0_mm + (j + 0.5) * g;
+            for (int m = 0; m < kernels::kDexelIntervals; ++m) {
+                const float lo = ray[m], hi = ray[kernels::kDexelIntervals + m];
+                if (!(hi > lo)) continue;
+                put(x, y, lo);
+                put(x, y, hi);
+            }
+        }
+    return f;
+}
+
+}  // namespace
+
 StockHeightField stock_height_field(const Stock& s, std::size_t max_cells) {
     if (max_cells == 0) throw std::invalid_argument("stock_height_field: max_cells must be > 0");
+    if (!s.grid_from_stock.is_identity()) return turned_height_field(s, max_cells);
     // Blocks of k x k rays: the smallest k that fits the field into max_cells.
     const double rays = double(s.grid.nx) * double(s.grid.ny);
     int k = std::max(1, int(std::ceil(std::sqrt(rays / double(max_cells)))));
