@@ -9,6 +9,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <optional>
 
 namespace cutload::app {
@@ -33,6 +35,73 @@ std::string unknown_tool_warning(const force_model::PredictStats& stats, const m
                                : "");
 }
 
+// What of the tools can reach the stock: the widest cutter or holder of the spec.
+ToolReach tool_reach(const force_model::RunSpec& spec) {
+    ToolReach reach;
+    reach.stock_box = spec.stock;
+    for (int k = 0; k < 3; ++k) reach.offset_mm[std::size_t(k)] = spec.offset_mm[k];
+    const auto widest = [](const force_model::ToolSpec& t) {
+        return std::max(t.diameter_mm, t.holder.diameter_mm) / 2 + std::tan(t.taper_deg * std::numbers::pi / 180) * t.flute_length_mm;
+    };
+    reach.radius_mm = widest(spec.tool);
+    for (const force_model::NumberedTool& t : spec.tools) reach.radius_mm = std::max(reach.radius_mm, widest(t.tool));
+    return reach;
+}
+
+Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock) {
+    Eigen::Matrix3d r;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) r(j, i) = grid_from_stock.m[std::size_t(3 * i + j)];
+    return r;
+}
+
+// Frames within kFixedOrientationToleranceRad of each other are one (a log's quantised rotary
+// axes put a second run at the same tilt microradians off).
+double frame_angle_rad(const force_model::Rotation3& a, const force_model::Rotation3& b) {
+    const double c = ((tool_to_workpiece(a).transpose() * tool_to_workpiece(b)).trace() - 1) / 2;
+    return std::acos(std::clamp(c, -1.0, 1.0));
+}
+bool same_frame(const force_model::Rotation3& a, const force_model::Rotation3& b) {
+    return frame_angle_rad(a, b) <= kFixedOrientationToleranceRad;
+}
+
+std::string frame_mismatch(const force_model::Rotation3& base, const ToolFrame& frame) {
+    const Eigen::Matrix3d b = tool_to_workpiece(base);
+    const double base_lean_deg = std::atan2(std::hypot(b(0, 2), b(1, 2)), b(2, 2)) * 180 / std::numbers::pi;
+    return fmt::format("the base stock was cut with the tool leaning {:.4g} deg from the stock's +Z and this run's tool "
+                       "leans {:.4g} deg ({:.4g} deg apart): a stock is kept in the frame of the tool that cut it, so a "
+                       "run can start from it only at the same orientation (docs/five_axis.md, \"Fixed tilt\")",
+                       base_lean_deg, frame.lean_deg, frame_angle_rad(base, frame.grid_from_stock()) * 180 / std::numbers::pi);
+}
+
+// The spec as the engine sees a fixed tilt: the offset turned into the tool's frame (the motion is
+// turned there by workpiece_motion), the stock box the turned grid's (for the work estimate).
+void turn_spec(force_model::RunSpec& spec, const force_model::Rotation3& g) {
+    double o[3];
+    for (int r = 0; r < 3; ++r)
+        o[r] = g.m[std::size_t(3 * r)] * spec.offset_mm[0] + g.m[std::size_t(3 * r + 1)] * spec.offset_mm[1] +
+               g.m[std::size_t(3 * r + 2)] * spec.offset_mm[2];
+    for (int r = 0; r < 3; ++r) spec.offset_mm[r] = o[r];
+    spec.stock = force_model::turned_stock_box(spec.stock, g, spec.resolution.grid_mm);
+}
+
+// Forces from the tool's frame into stock axes (torque, bending and engagement are the tool's own).
+void turn_forces(std::span<force_model::ForceSample> rows, const Eigen::Matrix3d& tool_to_stock) {
+    for (force_model::ForceSample& s : rows) {
+        const Eigen::Vector3d f = tool_to_stock * Eigen::Vector3d(s.fx_N, s.fy_N, s.fz_N);
+        s.fx_N = float(f.x()), s.fy_N = float(f.y()), s.fz_N = float(f.z());
+    }
+}
+
+void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& tool_to_stock) {
+    for (std::size_t i = 0; i < m.size(); ++i) {
+        const Eigen::Vector3d p = tool_to_stock * Eigen::Vector3d(m.x_mm[i], m.y_mm[i], m.z_mm[i]);
+        const Eigen::Vector3d v = tool_to_stock * Eigen::Vector3d(m.vx_mm_s[i], m.vy_mm_s[i], m.vz_mm_s[i]);
+        m.x_mm[i] = p.x(), m.y_mm[i] = p.y(), m.z_mm[i] = p.z();
+        m.vx_mm_s[i] = v.x(), m.vy_mm_s[i] = v.y(), m.vz_mm_s[i] = v.z();
+    }
+}
+
 RunResult predict_steps(const RunInput& in, const Control& control) {
     Tracker track(control);
     RunResult r;
@@ -50,25 +119,40 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     std::array<double, 3> axes_start_deg{};
     for (std::size_t k = 0; k < 3; ++k)
         if (r.motion.has_rotary(int(k))) axes_start_deg[k] = r.motion.rot_deg[k].front();
+    force_model::RunSpec spec = in.spec;   // in the tool's frame for a fixed tilt
+    ToolFrame frame;
     if (in.machine) {
         if (in.commanded_from_log)
             throw InputError("machine", "a machine definition cannot be combined with the log's commanded path yet: "
                                         "predict the log alone, or with its NC program");
         try {
             motion_io::MotionModel axes = std::move(r.motion);
-            r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm);
+            frame = tool_frame(axes, *in.machine, in.tool_length_mm, tool_reach(in.spec));
+            if (frame.tilted) {
+                // A base stock cut at (about) this tilt keeps its frame, so the two runs share a grid.
+                if (in.base_stock && same_frame(force_model::stock_grid_frame(*in.base_stock), frame.grid_from_stock()))
+                    frame.tool_to_workpiece = tool_to_workpiece(force_model::stock_grid_frame(*in.base_stock));
+                turn_spec(spec, frame.grid_from_stock());
+            }
+            r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm, frame);
             // The machine axes stay for the rows' machine-axis forces (MachineAxesForces says why
             // they are taken at each row's time).
             machine_axes.emplace(std::move(axes), in.machine);
         } catch (const WorkpieceMotionError& e) {
             throw InputError("machine", e.what());
         }
+        for (int k = 0; k < 3; ++k) r.tool_axis[std::size_t(k)] = frame.tool_to_workpiece(k, 2);
+        r.tool_lean_deg = frame.lean_deg;
     } else if (!r.ingest.rotary_axes.empty()) {
         r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
                                          "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
                                          r.ingest.rotary_axes));
     }
 
+    if (frame.tilted && (in.program || in.commanded_from_log))
+        throw InputError("machine", fmt::format("the tool leans {:.4g} deg from the stock's +Z: a tilted tool's run cannot "
+                                                "be compared with its commanded path yet (predict the log alone)",
+                                                frame.lean_deg));
     // Before predicting: a log without the program's block names takes them by mapping.
     if (in.program) {
         track.begin(Phase::Program, 0, 0);
@@ -95,14 +179,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.program = &program;
         commanded.options.step_s = r.motion.step_s;
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
-        r.work = estimate_work(r.ingest, in.spec, commanded, in.rows_out.has_value());
+        r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
         check_work(r.work, in.limits);
         track.begin(Phase::Mapping, 0, 0);
         r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
-        r.work = estimate_work(r.ingest, in.spec, commanded, in.rows_out.has_value());
+        r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
         check_work(r.work, in.limits);
     }
     motion_io::MotionModel logged_commanded;
@@ -134,7 +218,13 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         po.device = choice.device;
         r.device_note = choice.note;
     }
-    po.base_stock = in.base_stock;
+    // The stock lies in the engine's frame: a base stock must have been cut in it.
+    const force_model::Rotation3 grid_frame = frame.tilted ? frame.grid_from_stock() : force_model::Rotation3{};
+    if (in.base_stock && !same_frame(force_model::stock_grid_frame(*in.base_stock), grid_frame))
+        throw InputError("base_stock", frame_mismatch(force_model::stock_grid_frame(*in.base_stock), frame));
+    force_model::StockPtr turned;
+    if (frame.tilted && !in.base_stock) turned = force_model::make_turned_stock(in.spec.stock, grid_frame, spec.resolution.grid_mm);
+    po.base_stock = in.base_stock ? in.base_stock : turned.get();
     po.keep_final_stock = in.keep_final_stock;
     po.cancel = control.cancel;
     // The job's rows together: the commanded prediction gets what the actual one left.
@@ -146,6 +236,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (in.rows_out) {
         if (in.rows_out->begin) in.rows_out->begin(r.motion.block_names, r.work.force_rows);
         pipe.emplace([&](std::span<force_model::ForceSample> rows) {
+            if (frame.tilted) turn_forces(rows, frame.tool_to_workpiece);
             if (machine_axes) machine_axes->apply(rows);
             in.rows_out->rows(rows);
         });
@@ -162,8 +253,12 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             if (pipe) pipe->post([&machine_axes, begin, end, first_row] { machine_axes->begin_session(begin, end, first_row); });
             else machine_axes->begin_session(begin, end, first_row);
         };
-    r.prediction = force_model::predict(r.motion, in.spec, po);
+    r.prediction = force_model::predict(r.motion, spec, po);
     if (pipe) pipe->finish();
+    if (frame.tilted) {
+        turn_forces(r.prediction.samples, frame.tool_to_workpiece);
+        turn_motion(r.motion, frame.tool_to_workpiece);   // the caller sees the motion in stock axes
+    }
     if (machine_axes) machine_axes->apply(r.prediction.samples);
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
     po.session_begins = nullptr;

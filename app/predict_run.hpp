@@ -13,6 +13,7 @@
 #include "force_model/program_compare.hpp"
 #include "motion_io/motion_io.hpp"
 
+#include <array>
 #include <cstddef>
 #include <functional>
 #include <memory>
@@ -95,6 +96,11 @@ struct RunResult {
     std::size_t commanded_samples = 0;           // commanded_from_log: samples of the commanded motion
     WorkEstimate work;                           // the work estimated before predicting
     std::size_t rows = 0;                        // rows of the actual prediction (also those sent to rows_out)
+    // With a machine: the tool's axis where it cuts, in stock coordinates (unit, tip to spindle),
+    // and its lean from +Z. A tool leaning more than kFixedOrientationToleranceRad was predicted
+    // in its own frame (a fixed tilt, docs/five_axis.md); motion and forces come back in stock axes.
+    std::array<double, 3> tool_axis{0, 0, 1};
+    double tool_lean_deg = 0;
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path

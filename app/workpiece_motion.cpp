@@ -78,16 +78,111 @@ double tilt_from_z_rad(const machine::ToolPose& pose) {
     return std::atan2(std::hypot(axis.x(), axis.y()), axis.z());
 }
 
-// Angle of the tool frame's x about the workpiece's +Z (the tool axis is vertical), in degrees.
-double frame_turn_deg(const machine::ToolPose& pose) {
-    const Eigen::Matrix3d& R = pose.tool_to_workpiece.R;
+// Angle of the tool frame's x about the cutting frame's z (the tool axis), in degrees.
+double frame_turn_deg(const machine::ToolPose& pose, const Eigen::Matrix3d& cutting) {
+    const Eigen::Matrix3d R = cutting.transpose() * pose.tool_to_workpiece.R;
     return std::atan2(R(1, 0), R(0, 0)) * 180.0 / std::numbers::pi;
+}
+
+double rotation_angle_rad(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+    const double c = ((a.transpose() * b).trace() - 1) / 2;
+    return std::acos(std::clamp(c, -1.0, 1.0));
+}
+
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+
+// Whether the segment from the tip up `axis` for `length_mm` passes within the reach's radius
+// (plus the margin) of the stock box: the segment against the box grown by that much on every
+// side (a little more than the rounded box: it errs toward "can reach").
+bool can_reach(const Eigen::Vector3d& tip_workpiece_mm, const Eigen::Vector3d& axis, double length_mm,
+               const ToolReach& reach) {
+    const double grow = reach.radius_mm + kReachMarginMm;
+    double t0 = 0, t1 = 1;
+    for (int k = 0; k < 3; ++k) {
+        const double p = tip_workpiece_mm[k] + reach.offset_mm[std::size_t(k)], d = axis[k] * length_mm;
+        const double lo = reach.stock_box.min_mm[k] - grow, hi = reach.stock_box.max_mm[k] + grow;
+        if (std::abs(d) < 1e-12) {
+            if (p < lo || p > hi) return false;
+            continue;
+        }
+        double a = (lo - p) / d, b = (hi - p) / d;
+        if (a > b) std::swap(a, b);
+        t0 = std::max(t0, a), t1 = std::min(t1, b);
+        if (t0 > t1) return false;
+    }
+    return true;
 }
 
 }  // namespace
 
+force_model::Rotation3 ToolFrame::grid_from_stock() const {
+    force_model::Rotation3 g;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) g.m[std::size_t(3 * r + c)] = tool_to_workpiece(c, r);
+    return g;
+}
+
+ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
+                     const ToolReach& reach) {
+    const std::vector<AxisSource> sources = axis_sources(axes, machine);
+    const std::size_t n = axes.size();
+    if (n == 0) throw WorkpieceMotionError("the tool's orientation of an empty motion model");
+    // The tool spans the tool length from its tip; a length of 0 (no tool length given) still
+    // covers the cutter and holder by the radius.
+    const double length_mm = std::max(tool_length_mm, reach.radius_mm);
+    const auto pose_at = [&](std::size_t i) {
+        machine::AxisPositions q;
+        for (std::size_t k = 0; k < sources.size(); ++k) q.value[k] = (*sources[k].position)[i];
+        return machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
+    };
+    ToolFrame f;
+    f.checked = true;
+    std::size_t first = n;
+    for (std::size_t i = 0; i < n && first == n; ++i) {
+        const machine::ToolPose p = pose_at(i);
+        if (can_reach(p.tip_mm(), p.axis(), length_mm, reach)) first = i;
+    }
+    const std::size_t ref = first == n ? 0 : first;
+    const machine::ToolPose ref_pose = pose_at(ref);
+    f.t_s = axes.t_s[ref];
+    f.lean_deg = tilt_from_z_rad(ref_pose) * kDegPerRad;
+    f.tilted = tilt_from_z_rad(ref_pose) > kFixedOrientationToleranceRad;
+    if (f.tilted) f.tool_to_workpiece = ref_pose.tool_to_workpiece.R;
+    const Eigen::Vector3d cutting_axis = f.tool_to_workpiece.col(2);
+    // How far a sample is from the cutting orientation: a vertical tool may turn about its axis.
+    const auto off_rad = [&](const machine::ToolPose& p) {
+        return f.tilted ? rotation_angle_rad(f.tool_to_workpiece, p.tool_to_workpiece.R) : tilt_from_z_rad(p);
+    };
+    std::size_t bad = n;
+    double bad_off = 0, most_off = 0, most_t = 0;
+    for (std::size_t i = first; i < n; ++i) {
+        const machine::ToolPose p = pose_at(i);
+        const double off = off_rad(p);
+        if (!(off > kFixedOrientationToleranceRad)) continue;
+        if (!can_reach(p.tip_mm(), p.axis(), length_mm, reach) && !can_reach(p.tip_mm(), cutting_axis, length_mm, reach))
+            continue;
+        if (bad == n) bad = i, bad_off = off;
+        if (off > most_off) most_off = off, most_t = axes.t_s[i];
+    }
+    if (bad < n) {
+        // The first sample past the tolerance may be microradians where a turn begins: the message
+        // also says how far it goes.
+        const std::string from = f.tilted ? fmt::format("turns {:.4g} deg from the orientation it cuts at from t = {:.4f} "
+                                                        "s (leaning {:.4g} deg from the stock's +Z)",
+                                                        bad_off * kDegPerRad, f.t_s, f.lean_deg)
+                                          : fmt::format("leans {:.4g} deg from the stock's +Z", bad_off * kDegPerRad);
+        throw WorkpieceMotionError(fmt::format(
+            "at t = {:.4f} s, where the tool can reach the stock, the tool axis {} (at most {:.4g} deg, at t = "
+            "{:.4f} s): a tilted tool is predicted at one fixed orientation wherever it can reach the stock (3+2 "
+            "work); a tool that turns there needs the multi-direction stock, which is not built yet "
+            "(docs/five_axis.md, section 3)",
+            axes.t_s[bad], from, most_off * kDegPerRad, most_t));
+    }
+    return f;
+}
+
 motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
-                                        double tool_length_mm) {
+                                        double tool_length_mm, const ToolFrame& frame) {
     const std::vector<AxisSource> sources = axis_sources(axes, machine);
     const std::size_t n = axes.size();
     for (const AxisSource& s : sources)
@@ -112,8 +207,9 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
         // The commanded orientation must be vertical; the machine's errors may lean it by their
         // microradians, which the vertical-tool engine then leaves out (their tip offset is kept).
         const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
-        const double tilt_rad = tilt_from_z_rad(machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal));
-        if (!(tilt_rad <= kVerticalToleranceRad)) {
+        const machine::ToolPose nominal = machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
+        const double tilt_rad = tilt_from_z_rad(nominal);
+        if (!frame.checked && !(tilt_rad <= kVerticalToleranceRad)) {
             // The first lean past the tolerance may be a few microradians where a tilt begins: say
             // how far the log goes too, so the message shows what the program does.
             double most_rad = tilt_rad, most_t_s = axes.t_s[i];
@@ -129,20 +225,24 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
                 "section 3)",
                 axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi, most_rad * 180.0 / std::numbers::pi, most_t_s));
         }
-        if (const double error_tilt_rad = tilt_from_z_rad(pose); !(error_tilt_rad <= kErrorTiltLimitRad))
+        const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
+        if (!(error_tilt_rad <= kErrorTiltLimitRad))
             throw WorkpieceMotionError(fmt::format(
-                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from the stock's +Z, more "
-                "than the {:.4g} deg a vertical tool may lean (check the errors' units: micrometres per metre)",
+                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from its commanded axis, "
+                "more than the {:.4g} deg a tool may lean by them (check the errors' units: micrometres per metre)",
                 axes.t_s[i], error_tilt_rad * 180.0 / std::numbers::pi, kErrorTiltLimitRad * 180.0 / std::numbers::pi));
         const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
         const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
-        const Eigen::Vector3d tip = pose.tip_mm(), v = (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);
+        // In the tool's frame for a fixed tilt (the identity otherwise).
+        const Eigen::Matrix3d& cutting = frame.tool_to_workpiece;
+        const Eigen::Vector3d tip = cutting.transpose() * pose.tip_mm(),
+                              v = cutting.transpose() * (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);
         out.x_mm[i] = tip.x(), out.y_mm[i] = tip.y(), out.z_mm[i] = tip.z();
         out.vx_mm_s[i] = v.x(), out.vy_mm_s[i] = v.y(), out.vz_mm_s[i] = v.z();
 
         // The cutter's angle against the part: the spindle's, less the tool frame's own turn since
         // the first sample (unwrapped), so a machine at rest reads as a three-axis one.
-        const double turn = frame_turn_deg(pose);
+        const double turn = frame_turn_deg(pose, cutting);
         if (i == 0) {
             home_turn_deg = last_turn_deg = unwrapped_turn_deg = turn;
         } else {
@@ -151,7 +251,8 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
         }
         out.spindle_angle_deg[i] = axes.spindle_angle_deg[i] - (unwrapped_turn_deg - home_turn_deg);
         // A stopped spindle stays stopped (the engine flags it in material), whatever the table does.
-        const double turn_rate_deg_s = std::remainder(frame_turn_deg(hi) - frame_turn_deg(lo), 360.0) / (2 * h_s);
+        const double turn_rate_deg_s =
+            std::remainder(frame_turn_deg(hi, cutting) - frame_turn_deg(lo, cutting), 360.0) / (2 * h_s);
         if (std::abs(axes.spindle_rpm[i]) >= 1) out.spindle_rpm[i] = axes.spindle_rpm[i] - turn_rate_deg_s / 6.0;
     }
     return out;

@@ -12,10 +12,11 @@
 // at 10 000 rpm shows 10 005 rpm against the part, or 9 995, by its sense). The engine then walks
 // this motion as it walks a three-axis one.
 //
-// What the engine cannot take yet is refused, never approximated: a commanded tool axis tilted
-// away from the stock's +Z (that needs the multi-direction stock, docs/five_axis.md section 3).
-// The few microradians the machine's errors lean it are left out of the engagement; the tip's
-// displacement by the errors is kept.
+// What the engine cannot take yet is refused, never approximated: a tool that turns away from the
+// orientation it cuts at while it can reach the stock (that needs the multi-direction stock,
+// docs/five_axis.md section 3); one fixed tilt is taken (tool_frame() below). The few microradians
+// the machine's errors lean the tool are left out of the engagement; the tip's displacement by
+// the errors is kept.
 #pragma once
 
 #include "force_model/force_model.hpp"
@@ -23,6 +24,7 @@
 #include "motion_io/motion_io.hpp"
 #include "motion_io/nc_program.hpp"
 
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <span>
@@ -45,12 +47,55 @@ inline constexpr double kVerticalToleranceRad = 1e-9;
 // microradians; 1 mrad is a definition in the wrong units).
 inline constexpr double kErrorTiltLimitRad = 1e-3;
 
+// ---- Fixed tilt (docs/five_axis.md, "Fixed tilt: 3+2 machining") ----------------------------------
+// A tool that leans from the stock's +Z is predicted when it keeps one orientation wherever it can
+// reach the stock: indexed (3+2) work. The engine then runs in the tool's frame, where the tool is
+// vertical and the stock a turned box (force_model::make_turned_stock). Between cuts the tool may
+// turn (an index move, the home position at the log's start) where neither it, nor a tool at the
+// cutting orientation at its tip, can reach the stock box.
+
+// Turning by less than this counts as one orientation: 0.1 mm from the tip it moves the tool by
+// 10 nm, and an encoder's 0.001 deg quantisation is 1.7e-5 rad.
+inline constexpr double kFixedOrientationToleranceRad = 1e-4;
+// The tool can reach the stock when the segment from its tip up its axis for the tool length
+// (gauge point to tip: cutter, shank and holder) passes within the widest radius plus this of the
+// stock box. Generous: a sample apart the tool moves a fraction of it at any feed.
+inline constexpr double kReachMarginMm = 1.0;
+
+struct ToolReach {
+    force_model::StockBox stock_box;     // stock coordinates
+    std::array<double, 3> offset_mm{};   // workpiece to stock (the run spec's setup.offset_mm)
+    double radius_mm = 0;                // the widest of cutters and holders
+};
+
+struct ToolFrame {
+    bool checked = false;   // made by tool_frame(): the orientations were checked against the stock
+    bool tilted = false;    // the tool leans where it cuts: the engine runs in its frame
+    Eigen::Matrix3d tool_to_workpiece = Eigen::Matrix3d::Identity();   // the cutting orientation
+    double lean_deg = 0;    // its axis from the stock's +Z
+    double t_s = 0;         // the first sample where the tool can reach the stock (else the log's first)
+    // The engine's frame: p_engine = grid_from_stock() p_stock (the transpose of tool_to_workpiece).
+    force_model::Rotation3 grid_from_stock() const;
+};
+
+// The orientation the tool cuts at: its nominal pose at the first sample where it can reach the
+// stock. A tool standing vertical there may turn about its axis while it cuts (a C table under a
+// vertical spindle); a tilted one must keep its whole orientation. Throws WorkpieceMotionError,
+// naming the time and the angles, when the tool turns where it can reach the stock (simultaneous
+// five-axis work needs the multi-direction stock, docs/five_axis.md section 3), and as
+// workpiece_motion() does for a log the machine does not fit.
+ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
+                     const ToolReach& reach);
+
 // `axes`: the repaired log in machine axes (motion_io::ingest). `tool_length_mm`: gauge point to
 // tip along the spindle axis. Each rotary axis of the machine needs its channel in the log
 // (Axis::channel, "a", "b" or "c"); a rotary channel the machine lacks is left out (the caller
-// warns). Blocks, tools, sessions and spindle speeds carry over.
+// warns). Blocks, tools, sessions and spindle speeds carry over. With a frame from tool_frame()
+// the orientations are taken as checked there, and for a tilted one the positions and velocities
+// come in the tool's frame (grid_from_stock() applied; the run spec's offset must be turned the
+// same way); without, any lean from the stock's +Z is refused.
 motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
-                                        double tool_length_mm);
+                                        double tool_length_mm, const ToolFrame& frame = {});
 
 // The engine's forces turned into the machine's (bed) axes: F_M = R_bed^T F_W, with R_bed the
 // rotation of bed_to_workpiece (docs/five_axis.md, section 4), filled into each row's

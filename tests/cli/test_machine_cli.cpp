@@ -128,7 +128,8 @@ TEST_CASE("predict --machine: FORCES.csv carries the forces in machine axes too,
     CHECK(bytes.find("\"fz_machine_N\"") != std::string::npos);
 }
 
-TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted tool is refused in one line",
+TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turning while tilted near the stock is "
+          "refused in one line",
           "[cli][five_axis]") {
     const fs::path dir = clitest::scratch("machine_cli");
     const std::string spec = clitest::source("data/demo_run.json");
@@ -151,14 +152,37 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted too
     CHECK_THAT(level.output, !Catch::Contains("no machine definition"));
     CHECK(fs::file_size(dir / "forces.csv") > 0);
 
+    // Tilted 15 deg with the C table turning, far from the demo stock: the tool never reaches it,
+    // so the turn does not matter and nothing is cut.
+    const clitest::Result far = predict("tilted.csv", " --machine " + machine);
+    INFO(far.output);
+    CHECK(far.exit_code == 0);
+    CHECK_THAT(far.output, Catch::Contains(" 0 cutting"));
     const std::string forces_before = [&] {
         std::ifstream in(dir / "forces.csv", std::ios::binary);
         return std::string(std::istreambuf_iterator<char>(in), {});
     }();
-    const clitest::Result tilted = predict("tilted.csv", " --machine " + machine);
+    // The same log on a stock around the tool: a tilted tool turning where it can cut.
+    std::string near_spec = [&] {
+        std::ifstream in(spec, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    }();
+    const auto replace = [&](const std::string& from, const std::string& to) {
+        const std::size_t at = near_spec.find(from);
+        REQUIRE(at != std::string::npos);
+        near_spec.replace(at, from.size(), to);
+    };
+    replace(R"("min": [0, 0, 0], "max": [105, 90, 30])", R"("min": [-400, -400, -600], "max": [0, 0, -200])");
+    replace(R"("offset_mm": [-200, 300, 350])", R"("offset_mm": [0, 0, 0])");
+    replace(R"("grid_mm": 0.1)", R"("grid_mm": 2)");
+    std::ofstream(dir / "near.json") << near_spec;
+    const clitest::Result tilted = clitest::run("predict " + (dir / "tilted.csv").string() + " --spec " +
+                                                (dir / "near.json").string() + " --device cpu -q --out " +
+                                                (dir / "forces.csv").string() + " --machine " + machine);
     INFO(tilted.output);
     CHECK(tilted.exit_code != 0);
-    CHECK_THAT(tilted.output, Catch::Contains("leans 15 deg") && Catch::Contains("multi-direction stock"));
+    CHECK_THAT(tilted.output, Catch::Contains("the tool axis turns") && Catch::Contains("leaning 15 deg") &&
+                                  Catch::Contains("multi-direction stock"));
     CHECK(std::count(tilted.output.begin(), tilted.output.end(), '\n') == 1);
     // Refused before any row: the earlier FORCES.csv is untouched and no temporary file is left.
     {
@@ -167,7 +191,7 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tilted too
     }
     std::size_t files = 0;
     for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++files;
-    CHECK(files == 3);   // level.csv, tilted.csv, forces.csv
+    CHECK(files == 4);   // level.csv, tilted.csv, near.json, forces.csv
 
     const clitest::Result bad = predict("level.csv", " --machine " + spec);
     INFO(bad.output);

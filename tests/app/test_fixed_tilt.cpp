@@ -1,0 +1,436 @@
+// A tilted ball-end mill at a fixed orientation (3+2 work, docs/five_axis.md "Fixed tilt"): a
+// straight cut along the part's +X into a flat top face, with the tool's axis leaning by a lead
+// angle (toward +X) and a tilt angle (sideways), run on the bundled AC table-table machine as a
+// dry-run log (app::synthesize_path_dry_run) and predicted by `predict_run` as the CLI does.
+//
+// The reference is a numerical integration written here from the formulas, not from the engine:
+// the ball-end edge of Lee and Altintas (1996) with a constant-lead helix, psi = z tan(beta) / R,
+// placed by the tool's pose in the part's frame; an edge point cuts where it lies below the top
+// face and on the leading side of the tool, h = f . n > h_min (for a convex tool fed in a straight
+// line the leading side is exactly the surface against uncut material), and the linear edge-force
+// law acts along the edge's tangential, inward-normal and axial directions (cutter contract in
+// kernels/engine_kernels.hpp: flute j at alpha = pi/2 - theta - 2 pi j / N + spin psi, M03
+// clockwise seen from the spindle). The engine instead turns the stock into the tool's frame,
+// removes swept volumes from dexel rays and weights elements by the material on them.
+#include "app/inputs.hpp"
+#include "app/path_dry_run.hpp"
+#include "app/predict_run.hpp"
+#include "app/workpiece_motion.hpp"
+#include "app_fixtures.hpp"
+#include "machine/kinematics.hpp"
+
+#include <catch2/catch.hpp>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <numbers>
+#include <sstream>
+#include <vector>
+
+using namespace cutload;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kRadius_mm = 5, kHelix_deg = 30, kFluteLength_mm = 20;
+constexpr int kFlutes = 2;
+constexpr double kRpm = 8000, kFeedPerTooth_mm = 0.08;
+constexpr double kDepth_mm = 2;              // tip below the top face
+constexpr double kToolLength_mm = 120;
+constexpr double kMinChip_mm = 5e-4;
+// The top face at z = -580 in workpiece coordinates (stock z 0 with the offset below); the cut
+// runs at y = -275 from x = -358 (8 mm before the stock) to -330.
+constexpr double kTopZ_mm = -580, kY_mm = -275, kX0_mm = -358, kX1_mm = -330;
+// Coefficients of test_coefficients() in tests/force_model/reference.hpp: every term non-zero.
+constexpr double kKtc = 700, kKrc = 210, kKac = 120, kKte = 20, kKre = 28, kKae = 2;
+
+const char* kSpec = R"json({
+  "tool": {"shape": "ball", "diameter_mm": 10, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 5,
+           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
+  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
+               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
+  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
+  "setup": {"offset_mm": [350, 275, 580]},
+  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.1}
+})json";
+
+// The tool's axis (tip to spindle) for a lead angle about the part's y (leaning toward +X, the
+// feed) and a tilt angle about the feed direction (leaning toward -Y).
+Eigen::Vector3d tool_axis(double lead_deg, double tilt_deg) {
+    const double l = lead_deg * kPi / 180, t = tilt_deg * kPi / 180;
+    return {std::sin(l), -std::cos(l) * std::sin(t), std::cos(l) * std::cos(t)};
+}
+
+struct Forces {
+    double x = 0, y = 0, z = 0;
+};
+
+// The reference: forces on the tool in workpiece axes at spindle angle theta (steady state), for
+// the tool frame R (columns: the tool's x, y, z in workpiece axes) and the tip's depth below the
+// top face. Midpoint rule over `steps` pieces of the ball's quarter arc and of the flank.
+Forces reference_forces(const Eigen::Matrix3d& R, double theta_rad, int steps = 1500) {
+    const Eigen::Vector3d f_tool = R.transpose() * Eigen::Vector3d(kFeedPerTooth_mm, 0, 0);   // per tooth
+    const double lag_per_mm = std::tan(kHelix_deg * kPi / 180) / kRadius_mm;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    // One edge element: radius r, height z above the tip, outward normal (nr, nz) in the (r, z)
+    // half-plane, length db along the edge.
+    const auto element = [&](double r, double z, double nr, double nz, double db) {
+        for (int j = 0; j < kFlutes; ++j) {
+            const double alpha = kPi / 2 - theta_rad - 2 * kPi * j / kFlutes + z * lag_per_mm;
+            const double ca = std::cos(alpha), sa = std::sin(alpha);
+            const Eigen::Vector3d n(nr * ca, nr * sa, nz);
+            const double h = f_tool.dot(n);
+            // Trailing side (h <= 0): the material there is gone; chips thinner than the minimum rub
+            // and carry no force (the model's minimum chip thickness, docs/force_model.md).
+            if (!(h > kMinChip_mm)) continue;
+            const Eigen::Vector3d p_tool(r * ca, r * sa, z);
+            const double z_w = kTopZ_mm - kDepth_mm + (R * p_tool).z();
+            if (!(z_w < kTopZ_mm)) continue;   // above the top face
+            const double Ft = (kKtc * h + kKte) * db, Fr = (kKrc * h + kKre) * db, Fa = (kKac * h + kKae) * db;
+            const Eigen::Vector3d t(-sa, ca, 0);                  // against the cutting speed (M03)
+            const Eigen::Vector3d a(-nz * ca, -nz * sa, nr);      // along the edge in the (r, z) plane
+            sum += Ft * t - Fr * n + Fa * a;
+        }
+    };
+    const double dk = (kPi / 2) / steps;
+    for (int i = 0; i < steps; ++i) {
+        const double k = (i + 0.5) * dk;   // from the tip (k = 0) to the equator
+        element(kRadius_mm * std::sin(k), kRadius_mm * (1 - std::cos(k)), std::sin(k), -std::cos(k), kRadius_mm * dk);
+    }
+    const double dz = (kFluteLength_mm - kRadius_mm) / steps;
+    for (int i = 0; i < steps; ++i) element(kRadius_mm, kRadius_mm + (i + 0.5) * dz, 1, 0, dz);
+    const Eigen::Vector3d w = R * sum;
+    return {w.x(), w.y(), w.z()};
+}
+
+// The cut's dry-run log through the AC machine, written to `dir`; the tool frame the machine
+// holds it in, from forward kinematics at the log's first axes.
+struct TiltLog {
+    std::string path;
+    app::PathDryRun run;
+    Eigen::Matrix3d R;
+};
+
+TiltLog tilted_log(const std::filesystem::path& dir, double lead_deg, double tilt_deg, const machine::Machine& m) {
+    app::PathDryRunSpec s;
+    const Eigen::Vector3d axis = tool_axis(lead_deg, tilt_deg);
+    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
+    s.path = [axis, feed_mm_s](double u) {
+        app::PathPose p;
+        p.tip_mm = {kX0_mm + feed_mm_s * u, kY_mm, kTopZ_mm - kDepth_mm};
+        p.axis = {axis.x(), axis.y(), axis.z()};
+        return p;
+    };
+    s.duration_s = (kX1_mm - kX0_mm) / feed_mm_s;
+    s.tool_length_mm = kToolLength_mm;
+    s.start_axes = {{'A', 0}, {'C', 180}};
+    s.spindle_rpm = kRpm;
+    s.idle_before_s = 0.3;
+    s.idle_after_s = 0.2;
+    s.seed = 20261128;
+    TiltLog log;
+    std::ostringstream csv;
+    log.run = app::synthesize_path_dry_run(s, m, csv);
+    log.path = (dir / fmt::format("tilt_{}_{}.csv", lead_deg, tilt_deg)).string();
+    apptest::write_text(log.path, csv.str());
+    // The pose at the path's start, where the log stands still before the cut.
+    const motion_io::MotionModel axes = motion_io::ingest(log.path, motion_io::ReadOptions{});
+    machine::AxisPositions q;
+    for (std::size_t k = 0; k < m.chain.size(); ++k) {
+        const machine::Axis& a = m.chain[k];
+        q.value[k] = !a.rotary() ? (a.name == 'X' ? axes.x_mm[0] : a.name == 'Y' ? axes.y_mm[0] : axes.z_mm[0])
+                                 : axes.rot_deg[std::size_t(std::tolower(a.name) - 'a')][0];
+    }
+    log.R = machine::forward(m, q, kToolLength_mm, machine::ErrorMode::Nominal).tool_to_workpiece.R;
+    return log;
+}
+
+struct Comparison {
+    double mean_error = 0;   // |mean engine - mean reference| / |mean reference|
+    double trace_rms = 0;    // RMS of the force-vector difference / peak reference resultant
+    double offset_deg = 0;   // fitted phase offset of the reference against the rows' spindle angle
+    double mean_N = 0;
+    std::size_t rows = 0;
+};
+
+// The rows of the steady window (the tool 12 to 20 mm into the stock) against the reference at
+// each row's spindle angle plus an offset fitted on a 0.25 deg grid (the spindle angle's zero is
+// the log's, not a published one).
+Comparison compare(const std::vector<force_model::ForceSample>& rows, const TiltLog& log) {
+    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
+    const double t0 = log.run.path_start_s + log.run.lag_s + 20 / feed_mm_s,
+                 t1 = log.run.path_start_s + log.run.lag_s + 26 / feed_mm_s;
+    // The reference is periodic in the tooth period: tabulate it on a fine grid.
+    constexpr int kTable = 4 * 360;
+    std::vector<Forces> table(kTable);
+    for (int k = 0; k < kTable; ++k) table[std::size_t(k)] = reference_forces(log.R, 2 * kPi * k / kTable);
+    const auto ref_at = [&](double deg) {
+        const double u = std::fmod(std::fmod(deg, 360.0) + 360.0, 360.0) / 360.0 * kTable;
+        const int k0 = int(u) % kTable, k1 = (k0 + 1) % kTable;
+        const double w = u - std::floor(u);
+        const Forces& a = table[std::size_t(k0)];
+        const Forces& b = table[std::size_t(k1)];
+        return Forces{a.x + w * (b.x - a.x), a.y + w * (b.y - a.y), a.z + w * (b.z - a.z)};
+    };
+    std::vector<const force_model::ForceSample*> window;
+    for (const auto& r : rows)
+        if (r.t_s >= t0 && r.t_s <= t1) window.push_back(&r);
+    Comparison c;
+    c.rows = window.size();
+    if (window.empty()) return c;
+    double best = 1e300;
+    for (int o = 0; o < 4 * 360; ++o) {
+        const double off = o * 0.25;
+        double sq = 0;
+        for (const auto* r : window) {
+            const Forces f = ref_at(r->spindle_angle_deg + off);
+            sq += std::pow(r->fx_N - f.x, 2) + std::pow(r->fy_N - f.y, 2) + std::pow(r->fz_N - f.z, 2);
+        }
+        if (sq < best) best = sq, c.offset_deg = off;
+    }
+    Forces me, mr;
+    double peak = 0;
+    for (const auto* r : window) {
+        const Forces f = ref_at(r->spindle_angle_deg + c.offset_deg);
+        me.x += r->fx_N, me.y += r->fy_N, me.z += r->fz_N;
+        mr.x += f.x, mr.y += f.y, mr.z += f.z;
+        peak = std::max(peak, std::sqrt(f.x * f.x + f.y * f.y + f.z * f.z));
+    }
+    const double n = double(window.size());
+    if (std::getenv("CUTLOAD_TILT_VERBOSE"))
+        fmt::print("engine mean ({:.2f}, {:.2f}, {:.2f}) N, reference ({:.2f}, {:.2f}, {:.2f}) N\n", me.x / n, me.y / n,
+                   me.z / n, mr.x / n, mr.y / n, mr.z / n);
+    const double diff = std::sqrt(std::pow(me.x - mr.x, 2) + std::pow(me.y - mr.y, 2) + std::pow(me.z - mr.z, 2)) / n;
+    c.mean_N = std::sqrt(mr.x * mr.x + mr.y * mr.y + mr.z * mr.z) / n;
+    c.mean_error = diff / c.mean_N;
+    c.trace_rms = std::sqrt(best / n) / peak;
+    return c;
+}
+
+std::vector<force_model::Device> devices() {
+    std::vector<force_model::Device> d{force_model::Device::Cpu};
+    try {
+        force_model::opencl_device_name();
+        d.push_back(force_model::Device::OpenCL);
+    } catch (const std::exception& e) {
+        WARN("no OpenCL device (" << e.what() << "): the OpenCL run is skipped");
+    }
+    return d;
+}
+
+}  // namespace
+
+TEST_CASE("fixed tilt: a ball-end mill leaning 0 to 30 deg matches the numerical integration of the ball-end model",
+          "[five_axis][fixed_tilt][physics]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt");
+    const auto [lead_deg, tilt_deg] = GENERATE(std::pair{0.0, 0.0}, std::pair{30.0, 0.0}, std::pair{0.0, 30.0},
+                                               std::pair{15.0, 20.0}, std::pair{-20.0, -10.0});
+    INFO("lead " << lead_deg << " deg, tilt " << tilt_deg << " deg");
+    const TiltLog log = tilted_log(dir, lead_deg, tilt_deg, *machine);
+    // The machine holds the tool at the asked axis.
+    CHECK((log.R.col(2) - tool_axis(lead_deg, tilt_deg)).norm() < 1e-4);
+
+    std::vector<std::vector<force_model::ForceSample>> by_device;
+    for (const force_model::Device d : devices()) {
+        app::RunInput in;
+        in.log_path = log.path;
+        in.read = app::read_options(app::LogFormat{});
+        in.spec = force_model::parse_run_spec_text(kSpec, "fixed_tilt.json");
+        in.machine = machine;
+        in.tool_length_mm = kToolLength_mm;
+        in.device = d;
+        const app::RunResult r = app::predict_run(in);
+        CHECK(r.tool_lean_deg == Approx(std::acos(tool_axis(lead_deg, tilt_deg).z()) * 180 / kPi).margin(1e-3));
+        // The motion comes back in the part's axes: the tip on the path's line.
+        const std::size_t mid = r.motion.size() / 2;
+        CHECK(r.motion.y_mm[mid] == Approx(kY_mm).margin(0.01));
+        CHECK(r.motion.z_mm[mid] == Approx(kTopZ_mm - kDepth_mm).margin(0.01));
+        const Comparison c = compare(r.prediction.samples, log);
+        INFO("mean " << c.mean_N << " N, mean error " << c.mean_error * 100 << " %, trace RMS " << c.trace_rms * 100
+                     << " % of peak, offset " << c.offset_deg << " deg, rows " << c.rows);
+        REQUIRE(c.rows > 5000);
+        CHECK(c.mean_N > 50);
+        // Issue 15 asks for the traces within 3 %; measured: mean 0.01 to 0.22 %, trace RMS 0.46 to
+        // 0.75 % of the peak (the grid's 0.1 mm cells against the turned top face), so the test
+        // holds the engine to tighter bounds than that.
+        CHECK(c.mean_error < 0.01);
+        CHECK(c.trace_rms < 0.015);
+        by_device.push_back(r.prediction.samples);
+    }
+    if (by_device.size() == 2) {
+        // OpenCL against the scalar twins (as tests/force_model/test_engine_predict.cpp compares
+        // them): the RMS of the rows' force difference within 0.5 % of the RMS force.
+        const auto& a = by_device[0];
+        const auto& b = by_device[1];
+        REQUIRE(a.size() == b.size());
+        double diff = 0, norm = 0;
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            diff += std::pow(a[i].fx_N - b[i].fx_N, 2) + std::pow(a[i].fy_N - b[i].fy_N, 2) + std::pow(a[i].fz_N - b[i].fz_N, 2);
+            norm += std::pow(a[i].fx_N, 2) + std::pow(a[i].fy_N, 2) + std::pow(a[i].fz_N, 2);
+        }
+        REQUIRE(norm > 0);
+        INFO("OpenCL against the twins: RMS difference " << std::sqrt(diff / norm) * 100 << " % of the RMS force");
+        CHECK(std::sqrt(diff / norm) < 0.005);
+    }
+}
+
+namespace {
+
+// Machine axes sample by sample (1 ms) from a function of time: x, y, z in mm, A and C in deg.
+struct Axes {
+    double x, y, z, a, c;
+};
+template <class F>
+motion_io::MotionModel axes_log(double duration_s, F at) {
+    motion_io::MotionModel m;
+    m.step_s = 0.001;
+    m.block_names = {"N10"};
+    const auto n = std::size_t(std::lround(duration_s / m.step_s)) + 1;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double t = double(i) * m.step_s;
+        const Axes p = at(t), q = at(t + 1e-4), o = at(t - 1e-4);
+        m.t_s.push_back(t);
+        m.x_mm.push_back(p.x), m.y_mm.push_back(p.y), m.z_mm.push_back(p.z);
+        m.vx_mm_s.push_back((q.x - o.x) / 2e-4), m.vy_mm_s.push_back((q.y - o.y) / 2e-4), m.vz_mm_s.push_back((q.z - o.z) / 2e-4);
+        m.spindle_rpm.push_back(8000);
+        m.spindle_angle_deg.push_back(48000 * t);
+        m.block.push_back(0);
+        m.rot_deg[0].push_back(p.a), m.rot_vel_deg_s[0].push_back((q.a - o.a) / 2e-4);
+        m.rot_deg[2].push_back(p.c), m.rot_vel_deg_s[2].push_back((q.c - o.c) / 2e-4);
+    }
+    m.session_start = {0};
+    return m;
+}
+
+Eigen::Vector3d tip_at(const machine::Machine& m, const Axes& p) {
+    const machine::AxisPositions q = machine::positions(m, {{'X', p.x}, {'Y', p.y}, {'Z', p.z}, {'A', p.a}, {'C', p.c}});
+    return machine::forward(m, q, kToolLength_mm, machine::ErrorMode::Nominal).tip_mm();
+}
+
+}  // namespace
+
+TEST_CASE("fixed tilt: the tool may index in the air, turning where it can reach the stock is refused, naming when and "
+          "how far",
+          "[five_axis][fixed_tilt][errors]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    // Home at A = 0 high above the table, A indexes to -20 deg in the air over 0.2 s, then Z comes
+    // down 150 mm and X feeds; with `c_turn_deg`, C turns by that much while X feeds.
+    const auto log = [&](double c_turn_deg) {
+        return axes_log(1.0, [c_turn_deg](double t) {
+            const double a = -20 * std::clamp((t - 0.1) / 0.2, 0.0, 1.0);
+            const double down = 150 * std::clamp((t - 0.35) / 0.15, 0.0, 1.0);
+            const double feed = std::clamp(t - 0.5, 0.0, 0.5);
+            return Axes{-330 + 20 * feed, -275, -150 - down, a, c_turn_deg * feed / 0.5};
+        });
+    };
+    // A stock box around where the tip feeds (stock = workpiece coordinates here), 5 mm deep.
+    const Eigen::Vector3d cut0 = tip_at(*machine, {-330, -275, -300, -20, 0}), cut1 = tip_at(*machine, {-320, -275, -300, -20, 0});
+    app::ToolReach reach;
+    for (int k = 0; k < 3; ++k) {
+        reach.stock_box.min_mm[k] = std::min(cut0[k], cut1[k]) - 10;
+        reach.stock_box.max_mm[k] = std::max(cut0[k], cut1[k]) + 10;
+    }
+    reach.stock_box.max_mm[2] = std::max(cut0.z(), cut1.z()) + 5;
+    reach.radius_mm = 10;
+    // Where the tool stands at home it is far above the box: the index is in the air.
+    const Eigen::Vector3d home = tip_at(*machine, {-330, -275, -150, 0, 0});
+    REQUIRE(home.z() > reach.stock_box.max_mm[2] + kToolLength_mm);
+
+    const app::ToolFrame f = app::tool_frame(log(0), *machine, kToolLength_mm, reach);
+    CHECK(f.tilted);
+    CHECK(f.lean_deg == Approx(20).margin(1e-9));
+    CHECK(f.t_s > 0.35);   // the first sample that can reach the box is on the way down
+    CHECK(f.t_s < 0.5);
+    // The motion in the tool's frame: the feed along the part's turned X, at the log's 20 mm/s.
+    const motion_io::MotionModel w = app::workpiece_motion(log(0), *machine, kToolLength_mm, f);
+    const std::size_t i = 750;
+    CHECK(std::hypot(w.vx_mm_s[i], w.vy_mm_s[i], w.vz_mm_s[i]) == Approx(20).epsilon(1e-6));
+    const Eigen::Vector3d tip_tool = f.tool_to_workpiece.transpose() * tip_at(*machine, {-330 + 20 * 0.25, -275, -300, -20, 0});
+    CHECK(w.x_mm[i] == Approx(tip_tool.x()).margin(1e-6));
+    CHECK(w.y_mm[i] == Approx(tip_tool.y()).margin(1e-6));
+    CHECK(w.z_mm[i] == Approx(tip_tool.z()).margin(1e-6));
+
+    // C turning 2 deg while it feeds: simultaneous five-axis work, refused.
+    try {
+        app::tool_frame(log(2), *machine, kToolLength_mm, reach);
+        FAIL("a tilted tool turning in the stock was taken");
+    } catch (const app::WorkpieceMotionError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("the tool axis turns") && Catch::Contains("leaning 20 deg") &&
+                                 Catch::Contains("(at most 2 deg, at t = 1.0000 s)") &&
+                                 Catch::Contains("multi-direction stock"));
+    }
+    // The same turn far from the stock is no matter.
+    app::ToolReach far = reach;
+    for (int k = 0; k < 3; ++k) far.stock_box.min_mm[k] += 1000, far.stock_box.max_mm[k] += 1000;
+    CHECK_NOTHROW(app::tool_frame(log(2), *machine, kToolLength_mm, far));
+}
+
+TEST_CASE("fixed tilt: a run starts from a tilted run's stock at the same tilt, and is refused another stock",
+          "[five_axis][fixed_tilt][stock]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt_base");
+    const TiltLog log = tilted_log(dir, 20, 10, *machine);
+    app::RunInput in;
+    in.log_path = log.path;
+    in.read = app::read_options(app::LogFormat{});
+    in.spec = force_model::parse_run_spec_text(kSpec, "fixed_tilt.json");
+    in.machine = machine;
+    in.tool_length_mm = kToolLength_mm;
+    const app::RunResult first = app::predict_run(in);
+    REQUIRE(first.prediction.final_stock);
+    double first_mm3 = 0;
+    for (const auto& b : first.prediction.blocks) first_mm3 += b.removed_mm3;
+    CHECK(first_mm3 > 100);
+    // The stock keeps its frame through the bytes the service stores.
+    const auto stored = force_model::load_stock_bytes(force_model::save_stock_bytes(*first.prediction.final_stock), "run 1");
+    CHECK(force_model::stock_grid_frame(*stored).m == force_model::stock_grid_frame(*first.prediction.final_stock).m);
+
+    // The same cut again on what the first left: nothing left to cut along the way (where the first
+    // run stopped in the material, the tool comes to rest against what it left there).
+    in.base_stock = stored.get();
+    const app::RunResult again = app::predict_run(in);
+    double again_mm3 = 0;
+    for (const auto& b : again.prediction.blocks) again_mm3 += b.removed_mm3;
+    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
+    const double t0 = log.run.path_start_s + log.run.lag_s + 10 / feed_mm_s, t1 = log.run.path_start_s + log.run.lag_s + 24 / feed_mm_s;
+    struct Load {
+        double mean_N = 0, peak_N = 0;
+    };
+    const auto load_in = [&](const std::vector<force_model::ForceSample>& rows) {
+        Load l;
+        std::size_t n = 0;
+        for (const auto& r : rows)
+            if (r.t_s >= t0 && r.t_s <= t1) {
+                const double f = std::hypot(r.fx_N, r.fy_N, r.fz_N);
+                l.mean_N += f, l.peak_N = std::max(l.peak_N, f), ++n;
+            }
+        l.mean_N /= double(std::max<std::size_t>(n, 1));
+        return l;
+    };
+    const Load l1 = load_in(first.prediction.samples), l2 = load_in(again.prediction.samples);
+    INFO("again: " << again_mm3 << " mm3; mean " << l2.mean_N << " N, peak " << l2.peak_N << " N against " << l1.mean_N
+                   << " N, " << l1.peak_N << " N");
+    CHECK(again_mm3 < 0.01 * first_mm3);
+    REQUIRE(l1.mean_N > 100);
+    // What is left are slivers where the ball's surface lies on the rays' samples of its own sweep:
+    // the sub-cell walls that bring a flat end mill's re-cut under 1 % (tests/force_model/
+    // test_engine_recut.cpp) model cylindrical flanks only, not a ball's curved groove. Measured
+    // here: mean 4.5 %, peak 9.6 % of the first cut; the same cut with the tool vertical leaves
+    // 4.5 % and 24 %, so the tilt adds nothing to it.
+    CHECK(l2.mean_N < 0.06 * l1.mean_N);
+    CHECK(l2.peak_N < 0.15 * l1.peak_N);
+
+    // A stock in stock axes (a vertical tool's) cannot carry a tilted run, nor the other way round.
+    const auto plain = force_model::make_stock(in.spec.stock, in.spec.resolution.grid_mm);
+    in.base_stock = plain.get();
+    try {
+        app::predict_run(in);
+        FAIL("a tilted run started from a stock in stock axes");
+    } catch (const app::InputError& e) {
+        CHECK(e.key() == "base_stock");
+        CHECK_THAT(e.what(), Catch::Contains("leaning 0 deg") && Catch::Contains("leans 22.") &&
+                                 Catch::Contains("same orientation"));
+    }
+}
