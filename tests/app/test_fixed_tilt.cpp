@@ -434,3 +434,128 @@ TEST_CASE("fixed tilt: a run starts from a tilted run's stock at the same tilt, 
                                  Catch::Contains("same orientation"));
     }
 }
+
+namespace {
+
+// A full-immersion slot, 2 mm deep, with a flat D8 end mill: along +X into the top face with the
+// tool vertical, along +X into the -Y face with the tool horizontal (A turned -90 deg on the AC
+// machine), and along +Y into the +X face (A -90 deg, C 90 deg). The same cut turned, so in the
+// tool's frame the forces must be the same, and all must be Altintas's closed-form slot averages
+// (issue 15's invariance: a cut through the AC chain with the table turned and A tilted gives the
+// three-axis forces, turned).
+const char* kSlotSpec = R"json({
+  "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
+           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
+  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
+               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
+  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
+  "setup": {"offset_mm": [350, 275, 580]},
+  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.1}
+})json";
+constexpr double kSlotDepth_mm = 2, kSlotDiameter_mm = 8, kSlotFeed_mm = 0.05;
+
+// Altintas (2012, ch. 2): over a full slot (immersion 0 to pi), with h = c sin(phi) and the
+// tool-force convention Fx = -Ft cos - Fr sin, Fy = Ft sin - Fr cos, Fz = Fa (feed along +x),
+// the integrals over phi are -Krc c pi/2 - 2 Kre, Ktc c pi/2 + 2 Kte and 2 Kac c + pi Kae; the
+// average multiplies them by N a / (2 pi).
+Eigen::Vector3d slot_average_N() {
+    const double c = kSlotFeed_mm, a = kSlotDepth_mm, k = kFlutes * a / (2 * kPi);
+    return {k * (-kKrc * c * kPi / 2 - 2 * kKre), k * (kKtc * c * kPi / 2 + 2 * kKte), k * (2 * kKac * c + kPi * kKae)};
+}
+
+}  // namespace
+
+TEST_CASE("fixed tilt: a slot cut by a horizontal tool in a side face is the vertical tool's slot turned, and the closed "
+          "form",
+          "[five_axis][fixed_tilt][physics]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt_slot");
+    // The slot's start (8 mm before the stock), feed direction and the tool's axis in workpiece
+    // coordinates (the stock box spans x -350..-310, y -290..-260, z -600..-580 there).
+    struct Slot {
+        const char* name;
+        Eigen::Vector3d start, feed, axis;
+        double a_deg, c_deg;   // where the machine's inverse kinematics starts
+    };
+    const Slot slot = GENERATE(Slot{"vertical tool, top face", {kX0_mm, kY_mm, kTopZ_mm - kSlotDepth_mm}, {1, 0, 0}, {0, 0, 1}, 0, 0},
+                               Slot{"horizontal tool, -Y face", {kX0_mm, -290 + kSlotDepth_mm, -590}, {1, 0, 0}, {0, -1, 0}, -90, 0},
+                               Slot{"horizontal tool, +X face (C turned)", {-310 - kSlotDepth_mm, -298, -590}, {0, 1, 0}, {1, 0, 0},
+                                    -90, 90});
+    const bool horizontal = slot.axis.z() < 0.5;
+    INFO(slot.name);
+    const double feed_mm_s = kSlotFeed_mm * kFlutes * kRpm / 60;
+    app::PathDryRunSpec s;
+    s.path = [&](double u) {
+        app::PathPose p;
+        const Eigen::Vector3d tip = slot.start + feed_mm_s * u * slot.feed;
+        p.tip_mm = {tip.x(), tip.y(), tip.z()};
+        p.axis = {slot.axis.x(), slot.axis.y(), slot.axis.z()};
+        return p;
+    };
+    s.duration_s = (kX1_mm - kX0_mm) / feed_mm_s;
+    s.tool_length_mm = kToolLength_mm;
+    s.start_axes = {{'A', slot.a_deg}, {'C', slot.c_deg}};
+    s.spindle_rpm = kRpm;
+    s.idle_before_s = 0.3;
+    s.idle_after_s = 0.2;
+    s.seed = 20261129;
+    std::ostringstream csv;
+    const app::PathDryRun run = app::synthesize_path_dry_run(s, *machine, csv);
+    const std::string path = (dir / "slot.csv").string();
+    apptest::write_text(path, csv.str());
+
+    for (const force_model::Device d : devices()) {
+        app::RunInput in;
+        in.log_path = path;
+        in.read = app::read_options(app::LogFormat{});
+        in.spec = force_model::parse_run_spec_text(kSlotSpec, "slot.json");
+        in.machine = machine;
+        in.tool_length_mm = kToolLength_mm;
+        in.device = d;
+        const app::RunResult r = app::predict_run(in);
+        CHECK(r.tool_lean_deg == Approx(horizontal ? 90 : 0).margin(1e-6));
+        // The tool's frame: its axis and the feed's direction in it (the tool's x and y are the
+        // machine's, so they are read from the result, not assumed).
+        const Eigen::Vector3d z_t(r.tool_axis[0], r.tool_axis[1], r.tool_axis[2]);
+        const Eigen::Vector3d x_t = slot.feed;   // the feed is across the axis in every set-up
+        const Eigen::Vector3d y_t = z_t.cross(x_t);
+        // Over the tip 12 to 18 mm into the stock, a whole number of tooth periods.
+        const double t0 = run.path_start_s + run.lag_s + 20 / feed_mm_s;
+        const double tooth_s = 60 / (kRpm * kFlutes), t1 = t0 + std::floor(6 / feed_mm_s / tooth_s + 0.5) * tooth_s;
+        const double steady_mm = (t1 - t0) * feed_mm_s;
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        double removed_mm3 = 0;
+        std::size_t n = 0;
+        double last_angle = 0;
+        for (const auto& row : r.prediction.samples) {
+            if (row.t_s < t0 || row.t_s > t1) continue;
+            // Rows come every 2 deg of spindle angle, plus one per motion sample: weight each by the
+            // angle it covers so the extra rows do not bias the mean.
+            const double w = n == 0 ? 0 : row.spindle_angle_deg - last_angle;
+            last_angle = row.spindle_angle_deg;
+            const Eigen::Vector3d f(row.fx_N, row.fy_N, row.fz_N);
+            mean += w * Eigen::Vector3d(f.dot(x_t), f.dot(y_t), f.dot(z_t));
+            removed_mm3 += row.removed_mm3;
+            ++n;
+        }
+        REQUIRE(n > 1000);
+        double covered_deg = 0;
+        {
+            double first = -1;
+            for (const auto& row : r.prediction.samples)
+                if (row.t_s >= t0 && row.t_s <= t1) {
+                    if (first < 0) first = row.spindle_angle_deg;
+                    covered_deg = row.spindle_angle_deg - first;
+                }
+        }
+        mean /= covered_deg;
+        const Eigen::Vector3d expected = slot_average_N();
+        INFO((d == force_model::Device::Cpu ? "cpu" : "opencl") << ": tool frame mean (" << mean.x() << ", " << mean.y()
+             << ", " << mean.z() << ") N, closed form (" << expected.x() << ", " << expected.y() << ", " << expected.z()
+             << ") N; removed " << removed_mm3 / steady_mm << " mm3/mm");
+        CHECK((mean - expected).norm() < 0.01 * expected.norm());
+        // The slot's section, D x depth, per mm of path (the rows' removed volume lags the tool
+        // by the stock lag, so over steady path it is as much slot).
+        CHECK(removed_mm3 / steady_mm == Approx(kSlotDiameter_mm * kSlotDepth_mm).epsilon(0.005));
+    }
+}
