@@ -143,6 +143,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         }
         for (int k = 0; k < 3; ++k) r.tool_axis[std::size_t(k)] = frame.tool_to_workpiece(k, 2);
         r.tool_lean_deg = frame.lean_deg;
+        r.fixed_tilt = frame.tilted;
     } else if (!r.ingest.rotary_axes.empty()) {
         r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
                                          "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",

@@ -101,6 +101,7 @@ struct RunResult {
     // in its own frame (a fixed tilt, docs/five_axis.md); motion and forces come back in stock axes.
     std::array<double, 3> tool_axis{0, 0, 1};
     double tool_lean_deg = 0;
+    bool fixed_tilt = false;
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path

@@ -281,7 +281,7 @@ namespace {
 int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion, const force_model::Prediction& p,
               const std::string* stock_bytes, const ProgramResult* program, bool limit_alerts,
               std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel,
-              ForceSeriesSpool* forces = nullptr) {
+              ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr) {
     db::Transaction tx(s);
     // Cancelled or deleted while computing: nothing to store.
     const auto status = s.runs().status(run_id);
@@ -306,6 +306,7 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
                                 forces ? forces->rows() : p.samples.size());
     summary["alerts"] = alerts;
     if (live) summary["live"] = *live;
+    if (kinematics) summary["kinematics"] = *kinematics;
     std::vector<std::string> names = p.block_names.empty() ? motion.block_names : p.block_names;
     if (program) {
         // The commanded series names its blocks in the run's list, so one block_names serves both.
@@ -340,8 +341,13 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
 
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces) {
-    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel, forces);
+                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces, const json* kinematics) {
+    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel, forces,
+                     kinematics);
+}
+
+json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt) {
+    return {{"tool_axis", tool_axis}, {"tool_lean_deg", tool_lean_deg}, {"fixed_tilt", fixed_tilt}};
 }
 
 namespace {

@@ -7,6 +7,7 @@
 #include "db/alerts.hpp"
 #include "series.hpp"
 
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <span>
@@ -50,10 +51,16 @@ private:
 // (a cancel while storing leaves nothing half-written).
 // `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
 // `forces`: the forces series built while predicting (p.samples is then empty), else built from p.
+// `kinematics`: for a run with a machine definition, what the summary says of the tool's
+// orientation (kinematics_summary), else null.
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
                  bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr,
-                 ForceSeriesSpool* forces = nullptr);
+                 ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr);
+
+// A run's summary.kinematics: the tool's axis where it cuts (stock axes), its lean from +Z in
+// degrees, and whether the engine ran in the tool's frame (a fixed tilt, docs/five_axis.md 2.5).
+json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt);
 
 // A live run's close (live_runs.cpp): the same rows as store_result, but its alerts were raised
 // block by block while it ran (`alerts_raised` of them, none now), `live` goes into the summary

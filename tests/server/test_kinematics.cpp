@@ -2,10 +2,14 @@
 // kinematics (docs/api.md, "Five-axis machines") is predicted as `cutload predict --machine`
 // predicts it. The bundled five-axis demo cuts a ring groove by turning the C table; its volume
 // has a closed form, pi (41^2 - 32^2) x 2 mm (tool centre on R35 then R38, D6, 2 mm deep).
+// Eigen (through the machine's headers) before httplib: <resolv.h> defines _res, a name Eigen uses.
+#include "app/path_dry_run.hpp"
+#include "app/predict_run.hpp"
 #include "harness.hpp"
 #include "server/jobs.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <numbers>
 #include <sstream>
@@ -70,6 +74,10 @@ TEST_CASE("kinematics: the five-axis demo uploaded with its machine cuts the rin
     CHECK(fs::exists(ts.data_dir() / "uploads" / std::to_string(id) / "kinematics.json"));
     const double groove_mm3 = std::numbers::pi * (41.0 * 41.0 - 32.0 * 32.0) * 2;
     CHECK(run["summary"]["removed_mm3"].get<double>() == Approx(groove_mm3).epsilon(0.01));
+    // The tool stood vertical to the part: the engine ran in stock axes.
+    CHECK(run["summary"]["kinematics"]["fixed_tilt"] == false);
+    CHECK(run["summary"]["kinematics"]["tool_lean_deg"].get<double>() == Approx(0).margin(1e-9));
+    CHECK(run["summary"]["kinematics"]["tool_axis"] == json::array({0.0, 0.0, 1.0}));
 
     // Without the machine the rotary columns are left out: the tool stands while the table turns
     // under it, and only the plunges cut.
@@ -78,6 +86,79 @@ TEST_CASE("kinematics: the five-axis demo uploaded with its machine cuts the rin
     json three_axis = wait_finished(c, body(plain)["id"].get<std::int64_t>(), 120);
     REQUIRE(three_axis["state"] == "done");
     CHECK(three_axis["summary"]["removed_mm3"].get<double>() < 0.2 * groove_mm3);
+    CHECK(!three_axis["summary"].contains("kinematics"));
+}
+
+TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says so, and its stock is seen from above in "
+          "stock axes") {
+    // A D8 flat end mill leaning 30 deg toward the feed (+X), 2 mm into a 40 x 30 x 20 block's top
+    // face, logged through the AC machine (docs/five_axis.md, section 2.5).
+    const auto machine_def = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
+    cutload::app::PathDryRunSpec p;
+    const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, lean = 30 * std::numbers::pi / 180;
+    p.path = [=](double u) {
+        cutload::app::PathPose pose;
+        pose.tip_mm = {-358 + feed_mm_s * u, -275, -582};
+        pose.axis = {std::sin(lean), 0, std::cos(lean)};
+        return pose;
+    };
+    p.duration_s = 28 / feed_mm_s;
+    p.tool_length_mm = 120;
+    p.start_axes = {{'A', 0}, {'C', 0}};
+    p.spindle_rpm = 8000;
+    std::ostringstream log;
+    cutload::app::synthesize_path_dry_run(p, *machine_def, log);
+    const std::string spec = R"json({
+  "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
+           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
+  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
+               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
+  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
+  "setup": {"offset_mm": [350, 275, 580]},
+  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.2}
+})json";
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    auto r = c.Post("/api/v1/runs", httplib::MultipartFormDataItems{
+                                        {"log", log.str(), "tilted.csv", "text/csv"},
+                                        {"spec", spec, "", "application/json"},
+                                        {"kinematics", slurp(kData / "machines" / "ac_table_table.json"), "ac.json", "application/json"},
+                                        {"tool_length_mm", "120", "", ""}});
+    REQUIRE(r->status == 202);
+    const auto id = body(r)["id"].get<std::int64_t>();
+    json run = wait_finished(c, id, 120);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    const json& k = run["summary"]["kinematics"];
+    CHECK(k["fixed_tilt"] == true);
+    CHECK(k["tool_lean_deg"].get<double>() == Approx(30).margin(1e-3));
+    CHECK(k["tool_axis"][0].get<double>() == Approx(0.5).margin(1e-4));
+    // A flat end mill leaning 30 deg along the feed, its tip 2 mm below the face: the section it
+    // leaves is D x 2 mm whatever the lean (the flank, not the tip, reaches above), over the
+    // 20 mm it runs in the block, plus the entry's share.
+    CHECK(run["summary"]["removed_mm3"].get<double>() > 8 * 2 * 18);
+
+    // The stock seen from above, in stock axes: the block's top at z = 0 away from the cut, lower
+    // where it ran (y within 4 mm of the path's line, x past the entry), nothing above the top.
+    auto v = c.Get("/api/v1/runs/" + std::to_string(id) + "/stock?max_cells=40000");
+    REQUIRE(v->status == 200);
+    const json f = body(v);
+    CHECK(f["x0_mm"] == 0.0);
+    CHECK(f["y0_mm"] == -15.0);
+    const double cell = f["cell_mm"].get<double>();
+    const int nx = f["nx"].get<int>();
+    std::size_t cut = 0, top = 0;
+    for (int j = 0; j < f["ny"].get<int>(); ++j)
+        for (int i = 0; i < nx; ++i) {
+            const json& t = f["top_mm"][std::size_t(j * nx + i)];
+            if (t.is_null()) continue;
+            const double z = t.get<double>(), x = (i + 0.5) * cell, y = -15 + (j + 0.5) * cell;
+            CHECK(z <= 1e-3);
+            if (x > 2 && x < 18 && std::abs(y) < 3) cut += z < -1.9;
+            if (std::abs(y) > 6 && std::abs(y) < 14 && x > 1 && x < 39) top += z > -0.2;
+        }
+    CHECK(cut > 100);
+    CHECK(top > 1000);
 }
 
 TEST_CASE("kinematics: with its NC program in the machine's axes the run also predicts and compares the commanded motion") {

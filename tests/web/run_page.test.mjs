@@ -534,3 +534,23 @@ test('words: all form errors at once in plain words, a decimal comma hint, requi
     await page.context().close();
   }
 });
+
+test('a five-axis run names its machine file, tool length and how the tool stood', { skip: !dataFile('demo3_dryrun.csv') }, async () => {
+  const fd = new FormData();
+  fd.append('log', new Blob([fs.readFileSync(dataFile('demo3_dryrun.csv'))]), 'demo3_dryrun.csv');
+  fd.append('spec', fs.readFileSync(dataFile('demo3_run.json'), 'utf8'));
+  fd.append('kinematics', new Blob([fs.readFileSync(dataFile('machines/ac_table_table.json'))]), 'ac_table_table.json');
+  fd.append('tool_length_mm', '0');
+  const { id } = await server.api('POST', 'runs', fd);
+  const run = await waitDone(id);
+  assert.equal(run.state, 'done', run.error);
+  assert.equal(run.summary.kinematics.fixed_tilt, false);
+  const { page, errors } = await runPage(1400, id);
+  const meta = page.locator('dl.meta');
+  assert.match(await meta.innerText(), /Kinematics\s+ac_table_table\.json, tool length 0 mm; tool vertical to the stock/);
+  await page.goto(`${server.url}/#/runs/${demo.id}`);
+  await page.locator('#block-table tbody tr').first().waitFor({ timeout: 60000 });
+  assert.match(await page.locator('dl.meta').innerText(), /Kinematics\s+–/);
+  assert.deepEqual(errors, []);
+  await page.context().close();
+});

@@ -22,6 +22,17 @@ const MIN_BLOCK_SPAN_S = 1e-3;
 const PATH_POINTS = 6000;
 const STOCK_CELLS = 40000;
 
+// The five-axis machine the log's axes went through, and how the tool stood against the part.
+function kinematicsText(run) {
+  const k = run.inputs?.kinematics;
+  if (!k) return '–';
+  const o = run.summary?.kinematics;
+  const stand = !o ? '' : o.fixed_tilt
+    ? `; tool tilted ${num(o.tool_lean_deg)}° from the stock's +Z, axis (${o.tool_axis.map((v) => num(v)).join(', ')}), fixed while it cuts (3+2)`
+    : '; tool vertical to the stock';
+  return `${k.filename}${k.errors ? ' with geometric errors' : ''}, tool length ${num(k.tool_length_mm)} mm${stand}`;
+}
+
 function meta(run, lib) {
   const spec = run.inputs?.spec || {};
   const material = run.material_id ? lib.byId('materials', run.material_id)?.name : spec.material?.name;
@@ -31,6 +42,7 @@ function meta(run, lib) {
     ['Program', run.program || '–'],
     ['NC program', run.inputs?.nc_program ? `${run.inputs.nc_program.filename} (${num(run.inputs.nc_program.bytes / 1024)} KiB)` : '–'],
     ['Machine', machine],
+    ['Kinematics', kinematicsText(run)],
     ['Tool', toolLabel(run, lib)],
     ['Material', material || '–'],
     ['Base run', run.base_run ? h('a', { href: `#/runs/${run.base_run}` }, `#${run.base_run}`) : '–'],
