@@ -24,6 +24,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <optional>
 #include <numbers>
 #include <sstream>
 #include <vector>
@@ -557,5 +558,73 @@ TEST_CASE("fixed tilt: a slot cut by a horizontal tool in a side face is the ver
         // The slot's section, D x depth, per mm of path (the rows' removed volume lags the tool
         // by the stock lag, so over steady path it is as much slot).
         CHECK(removed_mm3 / steady_mm == Approx(kSlotDiameter_mm * kSlotDepth_mm).epsilon(0.005));
+    }
+}
+
+TEST_CASE("fixed tilt: the holder of a horizontal tool is checked against the side face it cuts: clear, near miss, contact",
+          "[five_axis][fixed_tilt][holder]") {
+    // A flat D8 end mill with 35 mm of flutes, its holder (D20) 40 mm from the tip, slots along +X
+    // into the block's -Y face with A turned -90 deg, `depth` mm deep along the tool's axis
+    // (through the 30 mm block beyond 30). The holder's face then stands 40 - depth mm off the face
+    // it cut into, parallel to it: that is the clearance (document 004's shell, 10 mm here).
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt_holder");
+    const double depth_mm = GENERATE(2.0, 33.0, 42.0);
+    INFO("depth " << depth_mm << " mm");
+    const double feed_mm_s = kSlotFeed_mm * kFlutes * kRpm / 60;
+    app::PathDryRunSpec s;
+    s.path = [&](double u) {
+        app::PathPose p;
+        p.tip_mm = {kX0_mm + feed_mm_s * u, -290 + depth_mm, -590};
+        p.axis = {0, -1, 0};
+        return p;
+    };
+    s.duration_s = 16 / feed_mm_s;   // 8 mm into the block
+    s.tool_length_mm = kToolLength_mm;
+    s.start_axes = {{'A', -90}, {'C', 0}};
+    s.spindle_rpm = kRpm;
+    s.idle_before_s = 0.2;
+    s.idle_after_s = 0.1;
+    std::ostringstream csv;
+    app::synthesize_path_dry_run(s, *machine, csv);
+    const std::string path = (dir / "holder.csv").string();
+    apptest::write_text(path, csv.str());
+    std::string spec = kSlotSpec;
+    const auto replace = [&](const std::string& from, const std::string& to) {
+        const std::size_t at = spec.find(from);
+        REQUIRE(at != std::string::npos);
+        spec.replace(at, from.size(), to);
+    };
+    replace(R"("flute_length_mm": 20, "stickout_mm": 30)", R"("flute_length_mm": 35, "stickout_mm": 40)");
+    replace(R"("resolution")", R"("limits": {"holder_clearance_mm": 10}, "resolution")");
+    for (const force_model::Device d : devices()) {
+        app::RunInput in;
+        in.log_path = path;
+        in.read = app::read_options(app::LogFormat{});
+        in.spec = force_model::parse_run_spec_text(spec, "holder.json");
+        in.machine = machine;
+        in.tool_length_mm = kToolLength_mm;
+        in.device = d;
+        const app::RunResult r = app::predict_run(in);
+        REQUIRE(r.fixed_tilt);
+        std::optional<double> near_mm;
+        bool contact = false;
+        for (const auto& b : r.prediction.blocks)
+            for (const auto& f : b.flags) {
+                if (f.flag == "holder_near_miss") near_mm = std::min(near_mm.value_or(1e9), f.value);
+                contact = contact || f.flag == "holder_contact";
+            }
+        INFO((d == force_model::Device::Cpu ? "cpu" : "opencl") << ": near miss " << near_mm.value_or(-1) << " mm, contact "
+                                                                << contact);
+        if (depth_mm < 30 - 10) {
+            CHECK(!near_mm);
+            CHECK(!contact);
+        } else if (depth_mm < 40) {
+            CHECK(!contact);
+            REQUIRE(near_mm);
+            CHECK(*near_mm == Approx(40 - depth_mm).margin(0.15));
+        } else {
+            CHECK(contact);
+        }
     }
 }
