@@ -43,8 +43,13 @@ ToolReach tool_reach(const force_model::RunSpec& spec) {
     const auto widest = [](const force_model::ToolSpec& t) {
         return std::max(t.diameter_mm, t.holder.diameter_mm) / 2 + std::tan(t.taper_deg * std::numbers::pi / 180) * t.flute_length_mm;
     };
+    const auto longest = [](const force_model::ToolSpec& t) { return t.stickout_mm + t.holder.length_mm; };
     reach.radius_mm = widest(spec.tool);
-    for (const force_model::NumberedTool& t : spec.tools) reach.radius_mm = std::max(reach.radius_mm, widest(t.tool));
+    reach.length_mm = longest(spec.tool);
+    for (const force_model::NumberedTool& t : spec.tools) {
+        reach.radius_mm = std::max(reach.radius_mm, widest(t.tool));
+        reach.length_mm = std::max(reach.length_mm, longest(t.tool));
+    }
     return reach;
 }
 
@@ -99,6 +104,20 @@ void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& tool_to_stock
         const Eigen::Vector3d v = tool_to_stock * Eigen::Vector3d(m.vx_mm_s[i], m.vy_mm_s[i], m.vz_mm_s[i]);
         m.x_mm[i] = p.x(), m.y_mm[i] = p.y(), m.z_mm[i] = p.z();
         m.vx_mm_s[i] = v.x(), m.vy_mm_s[i] = v.y(), m.vz_mm_s[i] = v.z();
+    }
+}
+
+// check_work, saying so when the stock's cells are the box turned into a tilted tool's frame (its
+// grid covers the turned box, more cells than the box).
+void check_work_in(const WorkEstimate& work, const WorkLimits& limits, const ToolFrame& frame) {
+    try {
+        check_work(work, limits);
+    } catch (const TooMuchWork& e) {
+        if (!frame.tilted || e.key() != "stock_cells") throw;
+        const std::string why = std::string(e.what()).substr(e.key().size() + 2);   // what() is "key: why"
+        throw TooMuchWork(e.key(), fmt::format("{} (the box turned into the frame of the tool leaning {:.4g} deg, whose "
+                                               "grid covers it turned)",
+                                               why, frame.lean_deg));
     }
 }
 
@@ -181,14 +200,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.options.step_s = r.motion.step_s;
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
         r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
-        check_work(r.work, in.limits);
+        check_work_in(r.work, in.limits, frame);
         track.begin(Phase::Mapping, 0, 0);
         r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
         r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
-        check_work(r.work, in.limits);
+        check_work_in(r.work, in.limits, frame);
     }
     motion_io::MotionModel logged_commanded;
     if (in.commanded_from_log) {
@@ -223,9 +242,19 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     const force_model::Rotation3 grid_frame = frame.tilted ? frame.grid_from_stock() : force_model::Rotation3{};
     if (in.base_stock && !same_frame(force_model::stock_grid_frame(*in.base_stock), grid_frame))
         throw InputError("base_stock", frame_mismatch(force_model::stock_grid_frame(*in.base_stock), frame));
+    // A turned stock is made for this run and handed over (not copied: it is written whole, unlike
+    // a fresh box's zero pages, and the work estimate counts one stock).
     force_model::StockPtr turned;
-    if (frame.tilted && !in.base_stock) turned = force_model::make_turned_stock(in.spec.stock, grid_frame, spec.resolution.grid_mm);
-    po.base_stock = in.base_stock ? in.base_stock : turned.get();
+    if (frame.tilted && !in.base_stock) {
+        try {
+            turned = force_model::make_turned_stock(in.spec.stock, grid_frame, spec.resolution.grid_mm);
+        } catch (const std::invalid_argument& e) {
+            throw InputError("stock", fmt::format("the stock box turned into the frame of the tool leaning {:.4g} deg: {}",
+                                                  frame.lean_deg, e.what()));
+        }
+        po.own_stock = &turned;
+    }
+    po.base_stock = in.base_stock;
     po.keep_final_stock = in.keep_final_stock;
     po.cancel = control.cancel;
     // The job's rows together: the commanded prediction gets what the actual one left.
@@ -261,6 +290,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         turn_motion(r.motion, frame.tool_to_workpiece);   // the caller sees the motion in stock axes
     }
     if (machine_axes) machine_axes->apply(r.prediction.samples);
+    po.own_stock = nullptr;
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
     po.session_begins = nullptr;
     r.rows = rows_out + r.prediction.samples.size();

@@ -127,9 +127,9 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
     const std::vector<AxisSource> sources = axis_sources(axes, machine);
     const std::size_t n = axes.size();
     if (n == 0) throw WorkpieceMotionError("the tool's orientation of an empty motion model");
-    // The tool spans the tool length from its tip; a length of 0 (no tool length given) still
-    // covers the cutter and holder by the radius.
-    const double length_mm = std::max(tool_length_mm, reach.radius_mm);
+    // The tool spans the tool length from its tip, and at least the cutter and holder the spec
+    // describes (a tool length of 0 is the service's default).
+    const double length_mm = std::max({tool_length_mm, reach.length_mm, reach.radius_mm});
     const auto pose_at = [&](std::size_t i) {
         machine::AxisPositions q;
         for (std::size_t k = 0; k < sources.size(); ++k) q.value[k] = (*sources[k].position)[i];
@@ -142,9 +142,13 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
         const machine::ToolPose p = pose_at(i);
         if (can_reach(p.tip_mm(), p.axis(), length_mm, reach)) first = i;
     }
-    const std::size_t ref = first == n ? 0 : first;
-    const machine::ToolPose ref_pose = pose_at(ref);
-    f.t_s = axes.t_s[ref];
+    // A tool that never reaches the stock cuts nothing at any orientation: the stock's own frame.
+    if (first == n) {
+        f.t_s = axes.t_s[0];
+        return f;
+    }
+    const machine::ToolPose ref_pose = pose_at(first);
+    f.t_s = axes.t_s[first];
     f.lean_deg = tilt_from_z_rad(ref_pose) * kDegPerRad;
     f.tilted = tilt_from_z_rad(ref_pose) > kFixedOrientationToleranceRad;
     if (f.tilted) f.tool_to_workpiece = ref_pose.tool_to_workpiece.R;
@@ -155,7 +159,9 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
     };
     std::size_t bad = n;
     double bad_off = 0, most_off = 0, most_t = 0;
-    for (std::size_t i = first; i < n; ++i) {
+    // From the log's start: the engine puts the tool at the cutting orientation at every sample, so
+    // an approach or index before the first cut must keep that tool clear of the stock too.
+    for (std::size_t i = 0; i < n; ++i) {
         const machine::ToolPose p = pose_at(i);
         const double off = off_rad(p);
         if (!(off > kFixedOrientationToleranceRad)) continue;
@@ -199,6 +205,7 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
     constexpr double h_s = 1e-4;
     machine::AxisPositions q, q_lo, q_hi;
     double home_turn_deg = 0, last_turn_deg = 0, unwrapped_turn_deg = 0;
+    bool turn_known = false;
     for (std::size_t i = 0; i < n; ++i) {
         for (std::size_t k = 0; k < sources.size(); ++k) {
             const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
@@ -240,19 +247,26 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
         out.x_mm[i] = tip.x(), out.y_mm[i] = tip.y(), out.z_mm[i] = tip.z();
         out.vx_mm_s[i] = v.x(), out.vy_mm_s[i] = v.y(), out.vz_mm_s[i] = v.z();
 
-        // The cutter's angle against the part: the spindle's, less the tool frame's own turn since
-        // the first sample (unwrapped), so a machine at rest reads as a three-axis one.
-        const double turn = frame_turn_deg(pose, cutting);
-        if (i == 0) {
-            home_turn_deg = last_turn_deg = unwrapped_turn_deg = turn;
-        } else {
-            unwrapped_turn_deg += std::remainder(turn - last_turn_deg, 360.0);
-            last_turn_deg = turn;
+        // The cutter's angle against the part: the spindle's, less the tool frame's own turn about
+        // the cutting axis since the first sample on that axis (unwrapped), so a machine at rest
+        // reads as a three-axis one. A turn about the cutting axis is only defined while the tool
+        // stands on it: samples off it (an index in the air, which tool_frame has checked) leave the
+        // angle and speed as logged, and the count resumes where the tool is back.
+        const bool on_axis = (cutting.col(2) - nominal.axis()).norm() <= kFixedOrientationToleranceRad;
+        double turn_rate_deg_s = 0;
+        if (on_axis) {
+            const double turn = frame_turn_deg(pose, cutting);
+            if (!turn_known) {
+                home_turn_deg = last_turn_deg = unwrapped_turn_deg = turn;
+                turn_known = true;
+            } else {
+                unwrapped_turn_deg += std::remainder(turn - last_turn_deg, 360.0);
+                last_turn_deg = turn;
+            }
+            turn_rate_deg_s = std::remainder(frame_turn_deg(hi, cutting) - frame_turn_deg(lo, cutting), 360.0) / (2 * h_s);
         }
         out.spindle_angle_deg[i] = axes.spindle_angle_deg[i] - (unwrapped_turn_deg - home_turn_deg);
         // A stopped spindle stays stopped (the engine flags it in material), whatever the table does.
-        const double turn_rate_deg_s =
-            std::remainder(frame_turn_deg(hi, cutting) - frame_turn_deg(lo, cutting), 360.0) / (2 * h_s);
         if (std::abs(axes.spindle_rpm[i]) >= 1) out.spindle_rpm[i] = axes.spindle_rpm[i] - turn_rate_deg_s / 6.0;
     }
     return out;

@@ -66,6 +66,7 @@ struct ToolReach {
     force_model::StockBox stock_box;     // stock coordinates
     std::array<double, 3> offset_mm{};   // workpiece to stock (the run spec's setup.offset_mm)
     double radius_mm = 0;                // the widest of cutters and holders
+    double length_mm = 0;                // the longest tip to holder top (stickout + holder length)
 };
 
 struct ToolFrame {
@@ -79,7 +80,7 @@ struct ToolFrame {
 };
 
 // The orientation the tool cuts at: its nominal pose at the first sample where it can reach the
-// stock. A tool standing vertical there may turn about its axis while it cuts (a C table under a
+// stock (a tool that never can is taken as vertical: nothing is cut). A tool standing vertical there may turn about its axis while it cuts (a C table under a
 // vertical spindle); a tilted one must keep its whole orientation. Throws WorkpieceMotionError,
 // naming the time and the angles, when the tool turns where it can reach the stock (simultaneous
 // five-axis work needs the multi-direction stock, docs/five_axis.md section 3), and as

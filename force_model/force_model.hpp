@@ -260,6 +260,9 @@ struct Prediction {
 struct PredictOptions {
     Device device = Device::OpenCL;
     const Stock* base_stock = nullptr;                    // start from this stock instead of the box
+    // Or start from this one, taken over rather than copied (a stock made for this run alone, such
+    // as a turned stock); it comes back, cut, as Prediction::final_stock. Wins over base_stock.
+    StockPtr* own_stock = nullptr;
     std::function<void(double fraction)> progress;        // 0..1, called from the calling thread
     const std::atomic<bool>* cancel = nullptr;            // set to stop early (throws Cancelled)
     // Most rows the prediction may hold (0: unchecked): checked as rows are written, so a run

@@ -9,19 +9,21 @@ namespace cutload::force_model {
 
 namespace {
 
-// A turned stock's rays run along the tool's axis, not +Z: every end of a material interval is a
-// point of the material, turned back into stock coordinates and put in the field's cell under it,
-// the highest one kept. The top between such points is not interpolated; cells are made wide
-// enough that every one under material holds an end.
+// A turned stock's rays run along the tool's axis, not +Z. Each ray's material is walked in steps
+// of at most half a field cell seen from above, every point turned back into stock coordinates and
+// put in the field's cell under it, the highest one kept: rays that lie flat (a horizontal tool)
+// cross many cells, rays along +Z hit one. The top between rays is not interpolated.
 StockHeightField turned_height_field(const Stock& s, std::size_t max_cells) {
     const StockBox& b = s.source_box;
     const double g = s.grid.cell_mm;
     const double sx = std::max(1.0, std::ceil((b.max_mm[0] - b.min_mm[0]) / g)),
                  sy = std::max(1.0, std::ceil((b.max_mm[1] - b.min_mm[1]) / g));
-    // Seen from above, the ends of neighbouring rays lie up to a pitch / cos(lean) apart: a cell
-    // at least that wide holds one.
-    const double cos_lean = std::max(0.1, std::abs(s.grid_from_stock.m[8]));
-    int k = std::max({1, int(std::ceil(std::sqrt(sx * sy / double(max_cells)))), int(std::ceil(1 / cos_lean - 1e-9))});
+    // Where the rays are steep, a face across them is sampled at their ends, a pitch / |cos(lean)|
+    // apart: a cell that wide holds one. Where they lie flatter than about 78 deg from +Z the walk
+    // finds the top within a pitch in any cell.
+    const double cos_lean = std::abs(s.grid_from_stock.m[8]);
+    int k = std::max({1, int(std::ceil(std::sqrt(sx * sy / double(max_cells)))),
+                      cos_lean > 0.2 ? int(std::ceil(1 / cos_lean - 1e-9)) : 1});
     while (std::size_t(std::ceil(sx / k)) * std::size_t(std::ceil(sy / k)) > max_cells) ++k;
     StockHeightField f;
     f.box = b;
@@ -33,6 +35,7 @@ StockHeightField turned_height_field(const Stock& s, std::size_t max_cells) {
     f.rays_per_cell = k;
     f.top_mm.assign(std::size_t(f.nx) * std::size_t(f.ny), std::numeric_limits<float>::quiet_NaN());
     const auto& G = s.grid_from_stock.m;
+    const double across = std::hypot(G[6], G[7]);   // a ray's run seen from above, per mm along it
     const auto put = [&](double x, double y, double z) {
         // p_stock = G^T p_grid
         const double px = G[0] * x + G[3] * y + G[6] * z, py = G[1] * x + G[4] * y + G[7] * z,
@@ -47,10 +50,10 @@ StockHeightField turned_height_field(const Stock& s, std::size_t max_cells) {
             const kernels::Ray ray = s.ray(i, j);
             const double x = s.grid.x0_mm + (i + 0.5) * g, y = s.grid.y0_mm + (j + 0.5) * g;
             for (int m = 0; m < kernels::kDexelIntervals; ++m) {
-                const float lo = ray[m], hi = ray[kernels::kDexelIntervals + m];
+                const double lo = ray[m], hi = ray[kernels::kDexelIntervals + m];
                 if (!(hi > lo)) continue;
-                put(x, y, lo);
-                put(x, y, hi);
+                const int steps = std::max(1, int(std::ceil((hi - lo) * across / (0.5 * f.cell_mm))));
+                for (int q = 0; q <= steps; ++q) put(x, y, lo + (hi - lo) * q / steps);
             }
         }
     return f;

@@ -20,8 +20,10 @@ EngineSetup::EngineSetup(const RunSpec& spec, const ToolPlan& plan, const Predic
                          const EngineSettings& settings)
     : tools(tool_tables(plan, spec.resolution.axial_step_mm)),
       law(cutting_law(spec.material, settings.min_chip_mm)),
-      fresh_stock(opt.base_stock == nullptr),
-      stock(fresh_stock ? make_stock(spec.stock, spec.resolution.grid_mm) : copy_stock(*opt.base_stock)),
+      fresh_stock(opt.base_stock == nullptr && !(opt.own_stock && *opt.own_stock)),
+      stock(opt.own_stock && *opt.own_stock ? std::move(*opt.own_stock)
+            : fresh_stock                   ? make_stock(spec.stock, spec.resolution.grid_mm)
+                                            : copy_stock(*opt.base_stock)),
       backend(opt.device == Device::OpenCL ? make_opencl_backend(*stock, tools, fresh_stock) : make_cpu_backend(*stock, tools)) {}
 
 }  // namespace cutload::force_model

@@ -19,7 +19,8 @@ namespace cutload::force_model {
 
 class EngineSetup {
 public:
-    // The stock is opt.base_stock's copy, else a fresh box; the backend is opt.device's.
+    // The stock is opt.own_stock taken over, else opt.base_stock's copy, else a fresh box; the
+    // backend is opt.device's.
     EngineSetup(const RunSpec& spec, const ToolPlan& plan, const PredictOptions& opt, const EngineSettings& settings);
     // The backend holds references to the tools and the stock: the set-up stays where it is built.
     EngineSetup(const EngineSetup&) = delete;

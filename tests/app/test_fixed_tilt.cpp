@@ -252,6 +252,10 @@ TEST_CASE("fixed tilt: a ball-end mill leaning 0 to 30 deg matches the numerical
         INFO("mean " << c.mean_N << " N, mean error " << c.mean_error * 100 << " %, trace RMS " << c.trace_rms * 100
                      << " % of peak, offset " << c.offset_deg << " deg, rows " << c.rows);
         REQUIRE(c.rows > 5000);
+        // The spindle angle's zero is as the cutter contract says (flute 0 on the tool's +Y at 0):
+        // the fitted phase is a whole tooth pitch (180 deg for two flutes) within the angle step.
+        const double off = std::fmod(c.offset_deg, 180.0);
+        CHECK(std::min(off, 180 - off) <= 2.0);
         CHECK(c.mean_N > 50);
         // Issue 15 asks for the traces within 3 %; measured: mean 0.01 to 0.22 %, trace RMS 0.46 to
         // 0.75 % of the peak (the grid's 0.1 mm cells against the turned top face), so the test
@@ -316,18 +320,19 @@ TEST_CASE("fixed tilt: the tool may index in the air, turning where it can reach
           "how far",
           "[five_axis][fixed_tilt][errors]") {
     const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
-    // Home at A = 0 high above the table, A indexes to -20 deg in the air over 0.2 s, then Z comes
-    // down 150 mm and X feeds; with `c_turn_deg`, C turns by that much while X feeds.
+    // Home at A = C = 0 high above the table, A indexes to -20 deg and C to 90 deg in the air over
+    // 0.2 s, then Z comes down 150 mm and X feeds; with `c_turn_deg`, C turns by that much more
+    // while X feeds.
     const auto log = [&](double c_turn_deg) {
         return axes_log(1.0, [c_turn_deg](double t) {
-            const double a = -20 * std::clamp((t - 0.1) / 0.2, 0.0, 1.0);
+            const double index = std::clamp((t - 0.1) / 0.2, 0.0, 1.0);
             const double down = 150 * std::clamp((t - 0.35) / 0.15, 0.0, 1.0);
             const double feed = std::clamp(t - 0.5, 0.0, 0.5);
-            return Axes{-330 + 20 * feed, -275, -150 - down, a, c_turn_deg * feed / 0.5};
+            return Axes{-330 + 20 * feed, -275, -150 - down, -20 * index, 90 * index + c_turn_deg * feed / 0.5};
         });
     };
     // A stock box around where the tip feeds (stock = workpiece coordinates here), 5 mm deep.
-    const Eigen::Vector3d cut0 = tip_at(*machine, {-330, -275, -300, -20, 0}), cut1 = tip_at(*machine, {-320, -275, -300, -20, 0});
+    const Eigen::Vector3d cut0 = tip_at(*machine, {-330, -275, -300, -20, 90}), cut1 = tip_at(*machine, {-320, -275, -300, -20, 90});
     app::ToolReach reach;
     for (int k = 0; k < 3; ++k) {
         reach.stock_box.min_mm[k] = std::min(cut0[k], cut1[k]) - 10;
@@ -345,13 +350,22 @@ TEST_CASE("fixed tilt: the tool may index in the air, turning where it can reach
     CHECK(f.t_s > 0.35);   // the first sample that can reach the box is on the way down
     CHECK(f.t_s < 0.5);
     // The motion in the tool's frame: the feed along the part's turned X, at the log's 20 mm/s.
-    const motion_io::MotionModel w = app::workpiece_motion(log(0), *machine, kToolLength_mm, f);
+    const motion_io::MotionModel axes = log(0);
+    const motion_io::MotionModel w = app::workpiece_motion(axes, *machine, kToolLength_mm, f);
     const std::size_t i = 750;
     CHECK(std::hypot(w.vx_mm_s[i], w.vy_mm_s[i], w.vz_mm_s[i]) == Approx(20).epsilon(1e-6));
-    const Eigen::Vector3d tip_tool = f.tool_to_workpiece.transpose() * tip_at(*machine, {-330 + 20 * 0.25, -275, -300, -20, 0});
+    const Eigen::Vector3d tip_tool = f.tool_to_workpiece.transpose() * tip_at(*machine, {-330 + 20 * 0.25, -275, -300, -20, 90});
     CHECK(w.x_mm[i] == Approx(tip_tool.x()).margin(1e-6));
     CHECK(w.y_mm[i] == Approx(tip_tool.y()).margin(1e-6));
     CHECK(w.z_mm[i] == Approx(tip_tool.z()).margin(1e-6));
+    // Where the tool stands at the cutting orientation, the cutter's angle against the part is the
+    // spindle's (the tool's frame is the cutting frame): the index's turn, about no fixed axis,
+    // does not shift it, nor the speed.
+    for (std::size_t k = 350; k < w.size(); k += 50) {
+        INFO("t = " << w.t_s[k]);
+        CHECK(w.spindle_angle_deg[k] == Approx(axes.spindle_angle_deg[k]).margin(1e-9));
+        CHECK(w.spindle_rpm[k] == Approx(8000).margin(1e-9));
+    }
 
     // C turning 2 deg while it feeds: simultaneous five-axis work, refused.
     try {
@@ -433,6 +447,17 @@ TEST_CASE("fixed tilt: a run starts from a tilted run's stock at the same tilt, 
         CHECK(e.key() == "base_stock");
         CHECK_THAT(e.what(), Catch::Contains("leaning 0 deg") && Catch::Contains("leans 22.") &&
                                  Catch::Contains("same orientation"));
+    }
+    // And the tilted run's stock under a run with the tool vertical.
+    const TiltLog vertical = tilted_log(dir, 0, 0, *machine);
+    in.log_path = vertical.path;
+    in.base_stock = stored.get();
+    try {
+        app::predict_run(in);
+        FAIL("a vertical run started from a tilted run's stock");
+    } catch (const app::InputError& e) {
+        CHECK(e.key() == "base_stock");
+        CHECK_THAT(e.what(), Catch::Contains("leaning 22.") && Catch::Contains("leans 0 deg"));
     }
 }
 

@@ -92,9 +92,18 @@ TEST_CASE("turned stock: save and load keep the frame, the view from above is in
     }
     REQUIRE(back->rays() == s->rays());
     for (std::size_t r = 0; r < s->rays(); ++r) REQUIRE(back->ray(r) == s->ray(r));
+}
 
-    // Seen from above in stock axes: the box's top face at z = -10, over the box's own x-y extent;
-    // no cell higher than the top (the field never shows material that is not there).
+TEST_CASE("turned stock: seen from above in stock axes, the box's top face at any lean, a horizontal tool's included",
+          "[stock][fixed_tilt]") {
+    const force_model::StockBox b = box();
+    const auto [lean, turn] = GENERATE(std::pair{25.0, 30.0}, std::pair{60.0, -20.0}, std::pair{90.0, 0.0},
+                                       std::pair{90.0, 90.0}, std::pair{120.0, 45.0});
+    INFO("lean " << lean << " deg, turn " << turn << " deg");
+    const double pitch_mm = 0.25;
+    const auto s = force_model::make_turned_stock(b, frame(lean, turn), pitch_mm);
+    // The box's top face at z = -10 over its own x-y extent; no cell higher than the top (the field
+    // never shows material that is not there), none lower than a ray pitch under it inside.
     const force_model::StockHeightField f = force_model::stock_height_field(*s, 200 * 200);
     CHECK(f.x0_mm == b.min_mm[0]);
     CHECK(f.y0_mm == b.min_mm[1]);
@@ -106,8 +115,7 @@ TEST_CASE("turned stock: save and load keep the frame, the view from above is in
             const double x = f.x0_mm + (i + 0.5) * f.cell_mm, y = f.y0_mm + (j + 0.5) * f.cell_mm;
             if (x < b.min_mm[0] + 1 || x > b.max_mm[0] - 1 || y < b.min_mm[1] + 1 || y > b.max_mm[1] - 1) continue;
             ++inner;
-            // The highest ray end in a cell lies within a ray pitch's rise of the top face.
-            if (!std::isnan(top) && top >= b.max_mm[2] - 0.25 * std::tan(25 * std::numbers::pi / 180) - 1e-3) ++near_top;
+            if (!std::isnan(top) && top >= b.max_mm[2] - pitch_mm - 1e-3) ++near_top;
         }
     REQUIRE(inner > 1000);
     CHECK(near_top == inner);

@@ -133,10 +133,13 @@ TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says s
     CHECK(k["fixed_tilt"] == true);
     CHECK(k["tool_lean_deg"].get<double>() == Approx(30).margin(1e-3));
     CHECK(k["tool_axis"][0].get<double>() == Approx(0.5).margin(1e-4));
-    // A flat end mill leaning 30 deg along the feed, its tip 2 mm below the face: the section it
-    // leaves is D x 2 mm whatever the lean (the flank, not the tip, reaches above), over the
-    // 20 mm it runs in the block, plus the entry's share.
-    CHECK(run["summary"]["removed_mm3"].get<double>() > 8 * 2 * 18);
+    // A flat end mill leaning 30 deg along the feed, its tip 2 mm below the face: seen along the
+    // feed its end disc is a half ellipse of semi-axes 4 and 4 sin 30 = 2 mm below the tip, so the
+    // groove's section is 8 x 2 + pi 4 x 2 / 2 = 28.57 mm^2 (a vertical tool's would be 16), over
+    // the 20 mm the tip runs past the entry face, give or take the ends' shapes.
+    const double section_mm2 = 8 * 2 + std::numbers::pi * 4 * 2 / 2;
+    CHECK(run["summary"]["removed_mm3"].get<double>() > section_mm2 * 18);
+    CHECK(run["summary"]["removed_mm3"].get<double>() < section_mm2 * 24);
 
     // The stock seen from above, in stock axes: the block's top at z = 0 away from the cut, lower
     // where it ran (y within 4 mm of the path's line, x past the entry), nothing above the top.
