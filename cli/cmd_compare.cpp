@@ -1,4 +1,5 @@
-// cutload compare --predicted FORCES.csv --measured FILE [--axes MATRIX] [--offset-s S] [--json] ...
+// cutload compare --predicted FORCES.csv --measured FILE [--frame workpiece|machine] [--axes MATRIX]
+// [--offset-s S] [--json] ...
 // Aligns a dynamometer record with a prediction and prints error metrics per axis, overall and per
 // NC block (docs/compare_calibrate.md).
 #include "commands.hpp"
@@ -15,7 +16,8 @@ namespace cutload::cli {
 namespace {
 
 struct CompareArgs {
-    std::string predicted, measured, axes, measured_on = "workpiece", average = "none", report_csv, trace_csv, zero;
+    std::string predicted, measured, axes, measured_on = "workpiece", frame = "workpiece", average = "none", report_csv,
+        trace_csv, zero;
     std::optional<double> offset_s, t_start_s, t_end_s;
     double cutoff_Hz = 1000;
     int flutes = 0;
@@ -70,6 +72,7 @@ void run_compare(const CompareArgs& a) {
         app::CompareSettings settings;
         if (!a.axes.empty()) settings.axes = force_model::parse_axis_matrix(a.axes);
         settings.measured_on_workpiece = a.measured_on == "workpiece";
+        settings.frame = a.frame == "machine" ? app::ForceFrame::Machine : app::ForceFrame::Workpiece;
         if (!a.zero.empty()) settings.zero_dyn_N = force_model::parse_force_vector(a.zero);
         force_model::CompareOptions& opt = settings.options;
         opt.offset_s = a.offset_s;
@@ -88,12 +91,17 @@ void run_compare(const CompareArgs& a) {
         if (a.json) {
             nlohmann::json j = force_model::to_json(c);
             j["measured"] = {{"file", m.source}, {"format", m.format}, {"rate_Hz", m.rate_Hz}, {"samples", m.size()}};
-            j["predicted"] = {{"file", a.predicted}, {"rows", predicted.samples.size()}};
+            j["predicted"] = {{"file", a.predicted},
+                              {"rows", predicted.samples.size()},
+                              {"frame", app::force_frame_name(settings.frame)}};
             std::printf("%s\n", j.dump(2).c_str());
             return;
         }
         std::printf("measured: %s (%s, %.6g Hz, %zu samples, %.4f to %.4f s)\n", m.source.c_str(), m.format.c_str(),
                     m.rate_Hz, m.size(), m.t_s(0), m.t_s(m.size() - 1));
+        // Said only when it is not the default, so the workpiece frame's report reads as before.
+        if (settings.frame == app::ForceFrame::Machine)
+            std::printf("frame: machine axes (predicted fx_machine_N, fy_machine_N, fz_machine_N)\n");
         if (c.offset_found)
             std::printf("offset: %+.6f s (cross-correlation, score %.4f): prediction time = measured time + offset\n",
                         c.offset_s, c.alignment_score);
@@ -123,8 +131,16 @@ void add_compare(CLI::App& app) {
     cmd->add_option("--measured", a->measured, "Dynamometer record: DynoWare CSV export or plain CSV t,fx,fy,fz")
         ->required()
         ->check(CLI::ExistingFile);
+    cmd->add_option("--frame", a->frame,
+                    "Axes the dynamometer measures in: workpiece (it turns with the part, as on a rotary table; "
+                    "compared with fx_N, fy_N, fz_N) or machine (fixed to the bed; compared with fx_machine_N, "
+                    "fy_machine_N, fz_machine_N of a prediction made with --machine). Without a machine, fx_N, "
+                    "fy_N, fz_N are in machine axes too: keep workpiece")
+        ->check(CLI::IsMember({"workpiece", "machine"}))
+        ->capture_default_str();
     cmd->add_option("--axes", a->axes,
-                    "Dynamometer-to-machine axis matrix, nine comma-separated numbers, row-major (default identity)");
+                    "Dynamometer-to-frame axis matrix (to --frame's axes), nine comma-separated numbers, row-major "
+                    "(default identity)");
     cmd->add_option("--measured-on", a->measured_on,
                     "What the dynamometer carries: workpiece (its force is minus the tool's) or tool")
         ->check(CLI::IsMember({"workpiece", "tool"}))

@@ -276,7 +276,9 @@ const char* averaging_name(Averaging a) {
 }
 
 PredictedTrace predicted_trace(const Prediction& p) {
-    PredictedTrace t{p.samples, p.block_names};
+    PredictedTrace t;
+    t.samples = p.samples;
+    t.block_names = p.block_names;
     std::stable_sort(t.samples.begin(), t.samples.end(), [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
     return t;
 }
@@ -312,8 +314,19 @@ PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
         };
         const std::size_t ct = column("t_s"), ca = column("spindle_angle_deg"), cb = column("block");
         const std::size_t cf[3] = {column("fx_N"), column("fy_N"), column("fz_N")};
-        const std::size_t need = std::max({ct, ca, cb, cf[0], cf[1], cf[2]});
+        std::size_t need = std::max({ct, ca, cb, cf[0], cf[1], cf[2]});
         PredictedTrace t;
+        t.source = shown;
+        // The machine-axis triplet only counts whole: a file with part of it is read as one without.
+        std::size_t cm[3] = {0, 0, 0};
+        t.machine_axes = true;
+        for (int k = 0; k < 3; ++k) {
+            const char* name = k == 0 ? "fx_machine_N" : k == 1 ? "fy_machine_N" : "fz_machine_N";
+            const auto it = std::find(header.begin(), header.end(), name);
+            t.machine_axes = t.machine_axes && it != header.end();
+            if (it != header.end()) cm[k] = static_cast<std::size_t>(it - header.begin());
+        }
+        if (t.machine_axes) need = std::max({need, cm[0], cm[1], cm[2]});
         std::map<std::string, std::int32_t, std::less<>> blocks;
         while (csv.next()) {
             if (csv.size() <= need)
@@ -342,6 +355,11 @@ PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
             s.fx_N = force(cf[0]);
             s.fy_N = force(cf[1]);
             s.fz_N = force(cf[2]);
+            if (t.machine_axes) {
+                s.fx_machine_N = force(cm[0]);
+                s.fy_machine_N = force(cm[1]);
+                s.fz_machine_N = force(cm[2]);
+            }
             if (const std::string_view name = csv[cb]; !name.empty()) {
                 auto it = blocks.find(name);
                 if (it == blocks.end()) {

@@ -1,8 +1,11 @@
 // Prediction against measurement: time alignment by cross-correlation, zero-phase low-pass,
 // per-tooth / per-revolution averaging and error metrics per axis, overall and per NC block.
 //
-// Both traces are compared on the measurement's sampling grid, as forces on the tool in machine axes.
-// Offsets follow one convention everywhere: prediction time = measured time + offset_s.
+// Both traces are compared on the measurement's sampling grid, as forces on the tool in the axes of
+// the prediction's fx_N, fy_N, fz_N: workpiece (stock) axes as predicted, which are the machine
+// axes on a three-axis machine (app::CompareSettings::frame picks the machine-axis columns of a
+// five-axis run instead). Offsets follow one convention everywhere: prediction time = measured
+// time + offset_s.
 #pragma once
 
 #include "force_model/force_model.hpp"
@@ -23,11 +26,19 @@ namespace cutload::force_model {
 struct PredictedTrace {
     std::vector<ForceSample> samples;   // sorted by time
     std::vector<std::string> block_names;
+    // The file it was read from, as messages show it (textio::printable); empty for a prediction
+    // in memory.
+    std::string source;
+    // True when the file held fx_machine_N, fy_machine_N and fz_machine_N (predicted with a
+    // machine definition), read into ForceSample::fx_machine_N ...; false for a prediction in
+    // memory, whose machine-axis forces only the application knows to be filled.
+    bool machine_axes = false;
 };
 
 PredictedTrace predicted_trace(const Prediction& p);
 // Reads FORCES.csv as written by write_forces_csv (columns t_s, spindle_angle_deg, block, fx_N, fy_N,
-// fz_N at least); throws MeasurementError naming line and column.
+// fz_N at least, and fx_machine_N, fy_machine_N, fz_machine_N where all three are there); throws
+// MeasurementError naming line and column.
 PredictedTrace read_forces_csv(const std::string& path);
 PredictedTrace read_forces_csv(std::istream& in, const std::string& source);
 // Reads FORCES.bin (docs/formats.md): every column it knows, so the rows equal FORCES.csv's read
@@ -58,7 +69,7 @@ struct CompareOptions {
     // stands out from the noise (drift_significant), the zero is a least-squares line through them
     // (the amplifier's drift), else their mean.
     bool remove_zero = true;
-    // The zero offset at the record's first sample (tool / machine axes), instead of the one found;
+    // The zero offset at the record's first sample (tool, compared axes), instead of the one found;
     // the drift is still taken from the air samples where they allow.
     std::optional<std::array<double, 3>> zero_N;
 };
@@ -85,7 +96,7 @@ struct Comparison {
     double rate_Hz = 0, cutoff_Hz = 0;
     Averaging averaging = Averaging::None;
     bool zero_removed = false;
-    // The zero offset removed (tool / machine axes) at zero.t_s: the mean time of the air samples, or
+    // The zero offset removed (tool, compared axes) at zero.t_s: the mean time of the air samples, or
     // the record's first sample when given; zero.at(t) over time (prediction time), with its source
     // and drift.
     double zero_N[3] = {0, 0, 0};
@@ -98,7 +109,8 @@ struct Comparison {
     std::vector<std::int32_t> block;
 };
 
-// The measurement must already be in tool / machine axes (map_to_tool_machine_axes).
+// The measurement must already be mapped to force on the tool in the prediction's axes
+// (map_to_tool_machine_axes, whose name dates from three-axis machines).
 // Throws MeasurementError when the window or the overlap is empty.
 Comparison compare(const PredictedTrace& predicted, const Measurement& measured, const CompareOptions& opt);
 

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -239,6 +240,9 @@ public:
         read_header();
         PredictedTrace t;
         t.block_names = block_names_;
+        t.source = source_;
+        // As FORCES.csv's reader: the machine-axis triplet only counts whole.
+        t.machine_axes = has_column(kBaseColumns) && has_column(kBaseColumns + 1) && has_column(kBaseColumns + 2);
         std::vector<char> bytes;
         while (true) {
             const std::uint64_t chunk_at = offset_;
@@ -380,6 +384,10 @@ private:
             kColumns[*known].set(rows[i], static_cast<double>(q) / kPow10[std::size_t(decimals)]);
         }
         if (p != end) fail(at, fmt::format("column {}: {} bytes left after its {} rows", column_name(c), end - p, n));
+    }
+
+    bool has_column(std::size_t known) const {
+        return std::any_of(columns_.begin(), columns_.end(), [known](const auto& c) { return c.first == known; });
     }
 
     std::string column_name(std::size_t c) const {
