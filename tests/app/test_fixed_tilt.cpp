@@ -46,15 +46,18 @@ constexpr double kTopZ_mm = -580, kY_mm = -275, kX0_mm = -358, kX1_mm = -330;
 // Coefficients of test_coefficients() in tests/force_model/reference.hpp: every term non-zero.
 constexpr double kKtc = 700, kKrc = 210, kKac = 120, kKte = 20, kKre = 28, kKae = 2;
 
-const char* kSpec = R"json({
-  "tool": {"shape": "ball", "diameter_mm": 10, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 5,
-           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
+// The block and the cut's material (test_coefficients()), with `tool_json` as the tool.
+std::string spec_with_tool(const std::string& tool_json) {
+    return R"json({"tool": )json" + tool_json + R"json(,
   "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
                "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
   "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
   "setup": {"offset_mm": [350, 275, 580]},
   "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.1}
 })json";
+}
+const std::string kSpec = spec_with_tool(R"json({"shape": "ball", "diameter_mm": 10, "flutes": 2, "helix_deg": 30,
+  "corner_radius_mm": 5, "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}})json");
 
 // The tool's axis (tip to spindle) for a lead angle about the part's y (leaning toward +X, the
 // feed) and a tilt angle about the feed direction (leaning toward -Y).
@@ -66,6 +69,21 @@ Eigen::Vector3d tool_axis(double lead_deg, double tilt_deg) {
 struct Forces {
     double x = 0, y = 0, z = 0;
 };
+
+// The log predicted through the AC machine with the 120 mm tool length, as `cutload predict
+// --machine` reads it.
+app::RunInput machine_input(const std::string& log_path, const std::string& spec_json,
+                            std::shared_ptr<const machine::Machine> machine,
+                            force_model::Device device = force_model::Device::Cpu) {
+    app::RunInput in;
+    in.log_path = log_path;
+    in.read = app::read_options(app::LogFormat{});
+    in.spec = force_model::parse_run_spec_text(spec_json, "fixed_tilt.json");
+    in.machine = std::move(machine);
+    in.tool_length_mm = kToolLength_mm;
+    in.device = device;
+    return in;
+}
 
 // The reference: forces on the tool in workpiece axes at spindle angle theta (steady state), for
 // the tool frame R (columns: the tool's x, y, z in workpiece axes) and the tip's depth below the
@@ -235,13 +253,7 @@ TEST_CASE("fixed tilt: a ball-end mill leaning 0 to 30 deg matches the numerical
 
     std::vector<std::vector<force_model::ForceSample>> by_device;
     for (const force_model::Device d : devices()) {
-        app::RunInput in;
-        in.log_path = log.path;
-        in.read = app::read_options(app::LogFormat{});
-        in.spec = force_model::parse_run_spec_text(kSpec, "fixed_tilt.json");
-        in.machine = machine;
-        in.tool_length_mm = kToolLength_mm;
-        in.device = d;
+        app::RunInput in = machine_input(log.path, kSpec, machine, d);
         const app::RunResult r = app::predict_run(in);
         CHECK(r.tool_lean_deg == Approx(std::acos(tool_axis(lead_deg, tilt_deg).z()) * 180 / kPi).margin(1e-3));
         // The motion comes back in the part's axes: the tip on the path's line.
@@ -387,12 +399,7 @@ TEST_CASE("fixed tilt: a run starts from a tilted run's stock at the same tilt, 
     const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
     apptest::Scratch dir("fixed_tilt_base");
     const TiltLog log = tilted_log(dir, 20, 10, *machine);
-    app::RunInput in;
-    in.log_path = log.path;
-    in.read = app::read_options(app::LogFormat{});
-    in.spec = force_model::parse_run_spec_text(kSpec, "fixed_tilt.json");
-    in.machine = machine;
-    in.tool_length_mm = kToolLength_mm;
+    app::RunInput in = machine_input(log.path, kSpec, machine);
     const app::RunResult first = app::predict_run(in);
     REQUIRE(first.prediction.final_stock);
     double first_mm3 = 0;
@@ -469,15 +476,8 @@ namespace {
 // tool's frame the forces must be the same, and all must be Altintas's closed-form slot averages
 // (issue 15's invariance: a cut through the AC chain with the table turned and A tilted gives the
 // three-axis forces, turned).
-const char* kSlotSpec = R"json({
-  "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
-           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
-  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
-               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
-  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
-  "setup": {"offset_mm": [350, 275, 580]},
-  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.1}
-})json";
+const std::string kSlotSpec = spec_with_tool(R"json({"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30,
+  "corner_radius_mm": 0, "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}})json");
 constexpr double kSlotDepth_mm = 2, kSlotDiameter_mm = 8, kSlotFeed_mm = 0.05;
 
 // Altintas (2012, ch. 2): over a full slot (immersion 0 to pi), with h = c sin(phi) and the
@@ -531,13 +531,7 @@ TEST_CASE("fixed tilt: a slot cut by a horizontal tool in a side face is the ver
     apptest::write_text(path, csv.str());
 
     for (const force_model::Device d : devices()) {
-        app::RunInput in;
-        in.log_path = path;
-        in.read = app::read_options(app::LogFormat{});
-        in.spec = force_model::parse_run_spec_text(kSlotSpec, "slot.json");
-        in.machine = machine;
-        in.tool_length_mm = kToolLength_mm;
-        in.device = d;
+        app::RunInput in = machine_input(path, kSlotSpec, machine, d);
         const app::RunResult r = app::predict_run(in);
         CHECK(r.tool_lean_deg == Approx(horizontal ? 90 : 0).margin(1e-6));
         // The tool's frame: its axis and the feed's direction in it (the tool's x and y are the
@@ -623,13 +617,7 @@ TEST_CASE("fixed tilt: the holder of a horizontal tool is checked against the si
     replace(R"("flute_length_mm": 20, "stickout_mm": 30)", R"("flute_length_mm": 35, "stickout_mm": 40)");
     replace(R"("resolution")", R"("limits": {"holder_clearance_mm": 10}, "resolution")");
     for (const force_model::Device d : devices()) {
-        app::RunInput in;
-        in.log_path = path;
-        in.read = app::read_options(app::LogFormat{});
-        in.spec = force_model::parse_run_spec_text(spec, "holder.json");
-        in.machine = machine;
-        in.tool_length_mm = kToolLength_mm;
-        in.device = d;
+        app::RunInput in = machine_input(path, spec, machine, d);
         const app::RunResult r = app::predict_run(in);
         REQUIRE(r.fixed_tilt);
         std::optional<double> near_mm;
