@@ -53,26 +53,17 @@ ToolReach tool_reach(const force_model::RunSpec& spec) {
     return reach;
 }
 
-Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock) {
-    Eigen::Matrix3d r;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) r(j, i) = grid_from_stock.m[std::size_t(3 * i + j)];
-    return r;
-}
-
 // Frames within kFixedOrientationToleranceRad of each other are one (a log's quantised rotary
 // axes put a second run at the same tilt microradians off).
 double frame_angle_rad(const force_model::Rotation3& a, const force_model::Rotation3& b) {
-    const double c = ((tool_to_workpiece(a).transpose() * tool_to_workpiece(b)).trace() - 1) / 2;
-    return std::acos(std::clamp(c, -1.0, 1.0));
+    return orientation_angle_rad(tool_to_workpiece(a), tool_to_workpiece(b));
 }
 bool same_frame(const force_model::Rotation3& a, const force_model::Rotation3& b) {
     return frame_angle_rad(a, b) <= kFixedOrientationToleranceRad;
 }
 
 std::string frame_mismatch(const force_model::Rotation3& base, const ToolFrame& frame) {
-    const Eigen::Matrix3d b = tool_to_workpiece(base);
-    const double base_lean_deg = std::atan2(std::hypot(b(0, 2), b(1, 2)), b(2, 2)) * 180 / std::numbers::pi;
+    const double base_lean_deg = lean_from_z_rad(tool_to_workpiece(base).col(2)) * 180 / std::numbers::pi;
     return fmt::format("the base stock was cut with the tool leaning {:.4g} deg from the stock's +Z and this run's tool "
                        "leans {:.4g} deg ({:.4g} deg apart): a stock is kept in the frame of the tool that cut it, so a "
                        "run can start from it only at the same orientation (docs/five_axis.md, \"Fixed tilt\")",
@@ -82,10 +73,7 @@ std::string frame_mismatch(const force_model::Rotation3& base, const ToolFrame& 
 // The spec as the engine sees a fixed tilt: the offset turned into the tool's frame (the motion is
 // turned there by workpiece_motion), the stock box the turned grid's (for the work estimate).
 void turn_spec(force_model::RunSpec& spec, const force_model::Rotation3& g) {
-    double o[3];
-    for (int r = 0; r < 3; ++r)
-        o[r] = g.m[std::size_t(3 * r)] * spec.offset_mm[0] + g.m[std::size_t(3 * r + 1)] * spec.offset_mm[1] +
-               g.m[std::size_t(3 * r + 2)] * spec.offset_mm[2];
+    const Eigen::Vector3d o = tool_to_workpiece(g).transpose() * Eigen::Vector3d(spec.offset_mm[0], spec.offset_mm[1], spec.offset_mm[2]);
     for (int r = 0; r < 3; ++r) spec.offset_mm[r] = o[r];
     spec.stock = force_model::turned_stock_box(spec.stock, g, spec.resolution.grid_mm);
 }

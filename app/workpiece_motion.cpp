@@ -73,20 +73,12 @@ std::vector<AxisSource> axis_sources(const motion_io::MotionModel& m, const mach
     return out;
 }
 
-double tilt_from_z_rad(const machine::ToolPose& pose) {
-    const Eigen::Vector3d axis = pose.axis();
-    return std::atan2(std::hypot(axis.x(), axis.y()), axis.z());
-}
+double tilt_from_z_rad(const machine::ToolPose& pose) { return lean_from_z_rad(pose.axis()); }
 
 // Angle of the tool frame's x about the cutting frame's z (the tool axis), in degrees.
 double frame_turn_deg(const machine::ToolPose& pose, const Eigen::Matrix3d& cutting) {
     const Eigen::Matrix3d R = cutting.transpose() * pose.tool_to_workpiece.R;
     return std::atan2(R(1, 0), R(0, 0)) * 180.0 / std::numbers::pi;
-}
-
-double rotation_angle_rad(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
-    const double c = ((a.transpose() * b).trace() - 1) / 2;
-    return std::acos(std::clamp(c, -1.0, 1.0));
 }
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
@@ -114,6 +106,21 @@ bool can_reach(const Eigen::Vector3d& tip_workpiece_mm, const Eigen::Vector3d& a
 }
 
 }  // namespace
+
+double lean_from_z_rad(const Eigen::Vector3d& axis) { return std::atan2(std::hypot(axis.x(), axis.y()), axis.z()); }
+
+double orientation_angle_rad(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+    const double c = ((a.transpose() * b).trace() - 1) / 2;
+    return std::acos(std::clamp(c, -1.0, 1.0));
+}
+
+Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock) {
+    // Row-major G = R^T: G(r, c) = R(c, r).
+    Eigen::Matrix3d R;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) R(c, r) = grid_from_stock.m[std::size_t(3 * r + c)];
+    return R;
+}
 
 force_model::Rotation3 ToolFrame::grid_from_stock() const {
     force_model::Rotation3 g;
@@ -155,7 +162,7 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
     const Eigen::Vector3d cutting_axis = f.tool_to_workpiece.col(2);
     // How far a sample is from the cutting orientation: a vertical tool may turn about its axis.
     const auto off_rad = [&](const machine::ToolPose& p) {
-        return f.tilted ? rotation_angle_rad(f.tool_to_workpiece, p.tool_to_workpiece.R) : tilt_from_z_rad(p);
+        return f.tilted ? orientation_angle_rad(f.tool_to_workpiece, p.tool_to_workpiece.R) : tilt_from_z_rad(p);
     };
     std::size_t bad = n;
     double bad_off = 0, most_off = 0, most_t = 0;

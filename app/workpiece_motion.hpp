@@ -79,6 +79,13 @@ struct ToolFrame {
     force_model::Rotation3 grid_from_stock() const;
 };
 
+// An axis's lean from the stock's +Z; the angle of the rotation between two orientations; the
+// orientation (tool to workpiece) a stock's grid frame holds (force_model::stock_grid_frame is
+// its transpose, ToolFrame::grid_from_stock the way back).
+double lean_from_z_rad(const Eigen::Vector3d& axis);
+double orientation_angle_rad(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
+Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock);
+
 // The orientation the tool cuts at: its nominal pose at the first sample where it can reach the
 // stock (a tool that never can is taken as vertical: nothing is cut). A tool standing vertical there may turn about its axis while it cuts (a C table under a
 // vertical spindle); a tilted one must keep its whole orientation. Throws WorkpieceMotionError,
