@@ -88,6 +88,19 @@ StockPtr make_stock(const StockBox& box, double grid_mm) {
     return s;
 }
 
+// A rotation: orthonormal rows, determinant +1 (a mirror would turn the cutter's hand).
+bool is_rotation(const Rotation3& r) {
+    const auto& G = r.m;
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+            const double dot = G[3 * a] * G[3 * b] + G[3 * a + 1] * G[3 * b + 1] + G[3 * a + 2] * G[3 * b + 2];
+            if (!(std::abs(dot - (a == b ? 1.0 : 0.0)) < 1e-9)) return false;
+        }
+    const double det = G[0] * (G[4] * G[8] - G[5] * G[7]) - G[1] * (G[3] * G[8] - G[5] * G[6]) +
+                       G[2] * (G[3] * G[7] - G[4] * G[6]);
+    return det > 0;
+}
+
 StockBox turned_stock_box(const StockBox& box, const Rotation3& grid_from_stock, double grid_mm) {
     const auto& G = grid_from_stock.m;
     StockBox grid_box;
@@ -114,16 +127,7 @@ StockPtr make_turned_stock(const StockBox& box, const Rotation3& grid_from_stock
     for (int k = 0; k < 3; ++k)
         if (!(box.max_mm[k] > box.min_mm[k])) throw std::invalid_argument("make_turned_stock: box max must exceed min");
     const auto& G = grid_from_stock.m;
-    // A rotation: orthonormal rows, determinant +1 (a mirror would turn the cutter's hand).
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-            const double dot = G[3 * a] * G[3 * b] + G[3 * a + 1] * G[3 * b + 1] + G[3 * a + 2] * G[3 * b + 2];
-            if (!(std::abs(dot - (a == b ? 1.0 : 0.0)) < 1e-9))
-                throw std::invalid_argument("make_turned_stock: grid_from_stock is not a rotation");
-        }
-    const double det = G[0] * (G[4] * G[8] - G[5] * G[7]) - G[1] * (G[3] * G[8] - G[5] * G[6]) +
-                       G[2] * (G[3] * G[7] - G[4] * G[6]);
-    if (!(det > 0)) throw std::invalid_argument("make_turned_stock: grid_from_stock is a reflection");
+    if (!is_rotation(grid_from_stock)) throw std::invalid_argument("make_turned_stock: grid_from_stock is not a rotation");
     const StockBox grid_box = turned_stock_box(box, grid_from_stock, grid_mm);
     if (stock_cells(grid_box, grid_mm) > kMaxStockRays)
         throw std::invalid_argument("make_turned_stock: grid too fine for the turned box (over 4e8 rays)");
@@ -244,8 +248,8 @@ StockPtr read_stock(std::istream& in, const std::string& source) {
         sum = fnv1a(&f, sizeof f, sum);
         std::copy(std::begin(f.grid_from_stock), std::end(f.grid_from_stock), s->grid_from_stock.m.begin());
         for (int k = 0; k < 3; ++k) s->source_box.min_mm[k] = f.source_min[k], s->source_box.max_mm[k] = f.source_max[k];
-        for (double v : s->grid_from_stock.m)
-            if (!std::isfinite(v)) throw std::runtime_error(source + ": stock file header is corrupt (frame)");
+        if (!is_rotation(s->grid_from_stock))
+            throw std::runtime_error(source + ": stock file header is corrupt (its frame is not a rotation)");
     }
     s->codec = kernels::RayCodec::for_column(float(h.box_min[2]), float(h.box_max[2]));
     s->storage = ZeroPages(s->rays() * kernels::kDexelFloats * sizeof(float));

@@ -7,6 +7,8 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <numbers>
 
 using namespace cutload;
@@ -92,6 +94,20 @@ TEST_CASE("turned stock: save and load keep the frame, the view from above is in
     }
     REQUIRE(back->rays() == s->rays());
     for (std::size_t r = 0; r < s->rays(); ++r) REQUIRE(back->ray(r) == s->ray(r));
+
+    // A frame that is not a rotation (a scaled or mirrored grid) is refused even under a good
+    // checksum: the format (docs/formats.md) puts the frame at byte 96 and FNV-1a 64 of every
+    // byte before it at the end.
+    for (const double bad : {2.0, -1.0, std::nan("")}) {
+        std::string bytes = force_model::save_stock_bytes(*s);
+        std::memcpy(bytes.data() + 96, &bad, sizeof bad);
+        std::uint64_t h = 1469598103934665603ull;
+        for (std::size_t k = 0; k + 8 < bytes.size(); ++k) h = (h ^ static_cast<unsigned char>(bytes[k])) * 1099511628211ull;
+        std::memcpy(bytes.data() + bytes.size() - 8, &h, sizeof h);
+        INFO("frame[0] = " << bad);
+        CHECK_THROWS_WITH(force_model::load_stock_bytes(bytes, "run 7's stock"),
+                          Catch::StartsWith("run 7's stock: ") && Catch::Contains("frame is not a rotation"));
+    }
 }
 
 TEST_CASE("turned stock: seen from above in stock axes, the box's top face at any lean, a horizontal tool's included",
