@@ -34,11 +34,12 @@ struct WorkLimits {
 // A held row (the commanded prediction's; the actual one's are streamed) peaks in the engine, at
 // the moment its row vectors double past their reserve: the rows twice (the old buffer and the
 // new one it is copied to) and the 24 B the engine keeps beside each (force_model's RowExtra),
-// 2 x 80 + 24 = 184 B. Measured with `cutload serve` (one worker, CPU path, SQLite) on the demo
+// 2 x 96 + 24 = 216 B (the row was 80 B before it carried the tool axis). Measured with `cutload serve` (one worker, CPU path, SQLite) on the demo
 // and its program at 0.2 and 0.1 deg (4.20e6 and 8.41e6 commanded rows, each just past a
 // doubling, at 2^22 and 2^23 rows): peak RSS less 184 B for each row at the doubling leaves 73.1
 // and 74.0 MB, the same fixed cost both times; below the reserve a row costs 137.5 B (0.5 to 0.25
-// deg: the rows and the series built from them while the run is stored). Taken from the struct's
+// deg: the rows and the series built from them while the run is stored); those figures are of
+// 80 B rows, and the doubling's share scales with the row's size. Taken from the struct's
 // size, so a ForceSample that grows again is followed here.
 inline constexpr double kJobBytesPerForceRow = 2.0 * sizeof(force_model::ForceSample) + 24;
 inline constexpr double kJobBytesPerMotionSample = 200;

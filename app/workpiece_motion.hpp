@@ -107,7 +107,8 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
 
 // The engine's forces turned into the machine's (bed) axes: F_M = R_bed^T F_W, with R_bed the
 // rotation of bed_to_workpiece (docs/five_axis.md, section 4), filled into each row's
-// fx_machine_N, fy_machine_N, fz_machine_N.
+// fx_machine_N, fy_machine_N, fz_machine_N; and the tool's axis in workpiece axes at the row's
+// time (forward kinematics with the machine's errors) into tool_axis_x, tool_axis_y, tool_axis_z.
 //
 // Why here and not in the engine: the engine cuts in workpiece (stock) axes and must not know the
 // machine (the layering keeps force_model off machine/); the application has both. Why at the

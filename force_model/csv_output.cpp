@@ -39,7 +39,7 @@ public:
         buf_.reserve(1 << 20);
         buf_ += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
                 "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact";
-        buf_ += machine_axes_ ? ",fx_machine_N,fy_machine_N,fz_machine_N\n" : "\n";
+        buf_ += machine_axes_ ? ",fx_machine_N,fy_machine_N,fz_machine_N,tool_axis_x,tool_axis_y,tool_axis_z\n" : "\n";
     }
 
     void set_block_names(const std::vector<std::string>& block_names) override {
@@ -81,6 +81,9 @@ public:
                 num(s.fx_machine_N, 3);
                 num(s.fy_machine_N, 3);
                 num(s.fz_machine_N, 3);
+                num(s.tool_axis_x, 6);
+                num(s.tool_axis_y, 6);
+                num(s.tool_axis_z, 6);
                 buf_.back() = '\n';
             } else {
                 buf_ += s.holder_contact ? "1\n" : "0\n";

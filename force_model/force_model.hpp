@@ -211,6 +211,11 @@ struct ForceSample {
     // section 4): filled by the application, which knows the machine (app::MachineAxesForces);
     // the engine leaves them 0. Written only with ForcesColumns::machine_axes.
     float fx_machine_N = 0, fy_machine_N = 0, fz_machine_N = 0;
+    // The tool's axis at the row's time: a unit vector from the tip toward the spindle, in
+    // workpiece (stock) axes. With a machine definition the application fills it from the
+    // machine's pose at that time (it turns with the rotary axes, in the air too); the engine
+    // leaves +Z, the axis of a three-axis cut. Written only with ForcesColumns::machine_axes.
+    float tool_axis_x = 0, tool_axis_y = 0, tool_axis_z = 1;
 };
 
 struct FlagHit {
@@ -316,8 +321,9 @@ Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, co
 // Optional columns of FORCES.csv and FORCES.bin (docs/formats.md). Without any, the files are
 // exactly as before these options existed.
 struct ForcesColumns {
-    // fx_machine_N, fy_machine_N, fz_machine_N after the others (ForceSample::fx_machine_N ...):
-    // for a run with a machine definition.
+    // fx_machine_N, fy_machine_N, fz_machine_N and tool_axis_x, tool_axis_y, tool_axis_z after
+    // the others (ForceSample::fx_machine_N ..., ForceSample::tool_axis_x ...): for a run with a
+    // machine definition.
     bool machine_axes = false;
 };
 

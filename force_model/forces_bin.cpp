@@ -52,10 +52,10 @@ struct Column {
             [](ForceSample& s, double v) { s.field = static_cast<float>(v); }                     \
     }
 
-// The first kBaseColumns are always written; the machine-axis forces only with
+// The first kBaseColumns are always written; the machine-axis forces and the tool axis only with
 // ForcesColumns::machine_axes (a run with a machine definition).
 constexpr std::size_t kBaseColumns = 15;
-const std::array<Column, 18> kColumns{{
+const std::array<Column, 21> kColumns{{
     {"t_s", 6, [](const ForceSample& s) { return s.t_s; }, [](ForceSample& s, double v) { s.t_s = v; }},
     {"spindle_angle_deg", 3, [](const ForceSample& s) { return s.spindle_angle_deg; },
      [](ForceSample& s, double v) { s.spindle_angle_deg = v; }},
@@ -78,6 +78,9 @@ const std::array<Column, 18> kColumns{{
     CUTLOAD_FLOAT_COLUMN(fx_machine_N, 3),
     CUTLOAD_FLOAT_COLUMN(fy_machine_N, 3),
     CUTLOAD_FLOAT_COLUMN(fz_machine_N, 3),
+    CUTLOAD_FLOAT_COLUMN(tool_axis_x, 6),
+    CUTLOAD_FLOAT_COLUMN(tool_axis_y, 6),
+    CUTLOAD_FLOAT_COLUMN(tool_axis_z, 6),
 }};
 #undef CUTLOAD_FLOAT_COLUMN
 

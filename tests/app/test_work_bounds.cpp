@@ -69,8 +69,8 @@ TEST_CASE("work bounds: a uniform log's rows, cells and memory are the hand-comp
     CHECK(force_model::stock_bytes_per_cell() == 64);   // 8 floats of intervals, 2 walls of 4 floats
     // A held row at its peak: the rows twice while their vector doubles, and the engine's 24 B
     // beside each (work_bounds.hpp; measured: docs/api.md, "Work limits").
-    CHECK(sizeof(force_model::ForceSample) == 80);
-    CHECK(app::kJobBytesPerForceRow == 184);
+    CHECK(sizeof(force_model::ForceSample) == 96);
+    CHECK(app::kJobBytesPerForceRow == 216);
     CHECK(w.memory_mb == Approx(bytes / 1048576.0).epsilon(1e-3));
 
     // The same log ingested: the extent the engine walks is the one inspect reported.

@@ -131,8 +131,13 @@ TEST_CASE("FORCES.bin holds every column to FORCES.csv's digits in a fifth of it
 TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES.csv's digits", "[calib][forces_bin]") {
     Scratch scratch;
     Prediction p = made_up_run(70000);   // two chunks
-    for (ForceSample& s : p.samples)     // the table turned 90 deg: (Fx, Fy, Fz) -> (Fy, -Fx, Fz)
+    for (std::size_t i = 0; i < p.samples.size(); ++i) {   // the table turned 90 deg: (Fx, Fy, Fz) -> (Fy, -Fx, Fz)
+        ForceSample& s = p.samples[i];
         s.fx_machine_N = s.fy_N, s.fy_machine_N = -s.fx_N, s.fz_machine_N = s.fz_N;
+        // and a head nodding up to 0.3 rad about Y
+        const double lean_rad = 0.3 * std::sin(static_cast<double>(i) * 1e-4);
+        s.tool_axis_x = static_cast<float>(std::sin(lean_rad)), s.tool_axis_y = 0, s.tool_axis_z = static_cast<float>(std::cos(lean_rad));
+    }
     const std::string plain = scratch.path("plain.bin"), turned = scratch.path("turned.bin"), csv = scratch.path("turned.csv");
     write_forces_file(p, plain);
     ForcesColumns columns;
@@ -142,7 +147,9 @@ TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES
     const std::string header = slurp(turned).substr(16, 2000);
     CHECK(header.find(R"({"decimals":3,"name":"fz_machine_N"})") != std::string::npos);
     CHECK(slurp(plain).find("machine") == std::string::npos);   // without the option: as before
-    CHECK(slurp(csv).substr(0, slurp(csv).find('\n')).ends_with(",holder_contact,fx_machine_N,fy_machine_N,fz_machine_N"));
+    CHECK(slurp(csv).substr(0, slurp(csv).find('\n'))
+              .ends_with(",holder_contact,fx_machine_N,fy_machine_N,fz_machine_N,tool_axis_x,tool_axis_y,tool_axis_z"));
+    CHECK(header.find(R"({"decimals":6,"name":"tool_axis_z"})") != std::string::npos);
 
     const PredictedTrace back = read_predicted_forces(turned);
     REQUIRE(back.samples.size() == p.samples.size());
@@ -152,7 +159,9 @@ TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES
         mismatches += b.fx_machine_N != static_cast<float>(printed(o.fx_machine_N, 3)) ||
                       b.fy_machine_N != static_cast<float>(printed(o.fy_machine_N, 3)) ||
                       b.fz_machine_N != static_cast<float>(printed(o.fz_machine_N, 3)) ||
-                      b.fx_N != static_cast<float>(printed(o.fx_N, 3));
+                      b.fx_N != static_cast<float>(printed(o.fx_N, 3)) ||
+                      b.tool_axis_x != static_cast<float>(printed(o.tool_axis_x, 6)) ||
+                      b.tool_axis_z != static_cast<float>(printed(o.tool_axis_z, 6));
     }
     CHECK(mismatches == 0);
     // A machine-axis force beyond +-1e6 N is refused like a workpiece one.

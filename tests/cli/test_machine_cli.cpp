@@ -98,16 +98,24 @@ TEST_CASE("predict --machine: FORCES.csv carries the forces in machine axes too,
                     turned = read_forces(dir / "turned.csv");
     // Without --machine the columns are as they always were.
     CHECK(fmt::format("{}", fmt::join(plain.header, ",")) == base);
-    CHECK(fmt::format("{}", fmt::join(turned.header, ",")) == base + ",fx_machine_N,fy_machine_N,fz_machine_N");
+    CHECK(fmt::format("{}", fmt::join(turned.header, ",")) ==
+          base + ",fx_machine_N,fy_machine_N,fz_machine_N,tool_axis_x,tool_axis_y,tool_axis_z");
 
     // At rest (C = 0) machine axes are workpiece axes: the same digits.
     REQUIRE(rest.rows.size() > 1000);
     for (const auto& r : rest.rows) {
-        REQUIRE(r.size() == 18);
+        REQUIRE(r.size() == 21);
         REQUIRE(r[15] == r[4]);
         REQUIRE(r[16] == r[5]);
         REQUIRE(r[17] == r[6]);
     }
+    // A C table turns about the tool's own axis: it stands on the part's +Z in every row.
+    for (const ForcesCsv* f : {&rest, &turned})
+        for (const auto& r : f->rows) {
+            REQUIRE(std::stod(r[f->col("tool_axis_x")]) == Approx(0).margin(1e-6));
+            REQUIRE(std::stod(r[f->col("tool_axis_y")]) == Approx(0).margin(1e-6));
+            REQUIRE(std::stod(r[f->col("tool_axis_z")]) == 1);
+        }
     // Turned 90 deg: (Fx, Fy, Fz) in workpiece axes are (Fy, -Fx, Fz) in machine axes
     // (tests/app/test_workpiece_motion.cpp derives the sense).
     const std::size_t fx = turned.col("fx_N"), fy = turned.col("fy_N"), fz = turned.col("fz_N"),
