@@ -123,7 +123,8 @@ void add_predict(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--machine", a->machine,
                     "Machine definition (JSON, docs/machines.md): the log's x, y, z and a, b, c are its axes, turned "
-                    "into the tool's motion against the part (five-axis; the tool must stay vertical to the stock); a "
+                    "into the tool's motion against the part (five-axis: wherever it can reach the stock the tool stands at "
+                    "one orientation, vertical or tilted, docs/five_axis.md); a "
                     "--program is then read in its axes (A/B/C words, docs/nc_program.md)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--machine-errors", a->machine_errors, "Geometric errors of the --machine (JSON, docs/machines.md)")
