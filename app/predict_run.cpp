@@ -78,22 +78,6 @@ void turn_spec(force_model::RunSpec& spec, const force_model::Rotation3& g) {
     spec.stock = force_model::turned_stock_box(spec.stock, g, spec.resolution.grid_mm);
 }
 
-// Forces from the tool's frame into stock axes (torque, bending and engagement are the tool's own).
-void turn_forces(std::span<force_model::ForceSample> rows, const Eigen::Matrix3d& tool_to_stock) {
-    for (force_model::ForceSample& s : rows) {
-        const Eigen::Vector3d f = tool_to_stock * Eigen::Vector3d(s.fx_N, s.fy_N, s.fz_N);
-        s.fx_N = float(f.x()), s.fy_N = float(f.y()), s.fz_N = float(f.z());
-    }
-}
-
-void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& tool_to_stock) {
-    for (std::size_t i = 0; i < m.size(); ++i) {
-        const Eigen::Vector3d p = tool_to_stock * Eigen::Vector3d(m.x_mm[i], m.y_mm[i], m.z_mm[i]);
-        const Eigen::Vector3d v = tool_to_stock * Eigen::Vector3d(m.vx_mm_s[i], m.vy_mm_s[i], m.vz_mm_s[i]);
-        m.x_mm[i] = p.x(), m.y_mm[i] = p.y(), m.z_mm[i] = p.z();
-        m.vx_mm_s[i] = v.x(), m.vy_mm_s[i] = v.y(), m.vz_mm_s[i] = v.z();
-    }
-}
 
 // check_work, saying so when the stock's cells are the box turned into a tilted tool's frame (its
 // grid covers the turned box, more cells than the box).
@@ -157,10 +141,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
                                          r.ingest.rotary_axes));
     }
 
-    if (frame.tilted && (in.program || in.commanded_from_log))
-        throw InputError("machine", fmt::format("the tool leans {:.4g} deg from the stock's +Z: a tilted tool's run cannot "
-                                                "be compared with its commanded path yet (predict the log alone)",
-                                                frame.lean_deg));
     // Before predicting: a log without the program's block names takes them by mapping.
     if (in.program) {
         track.begin(Phase::Program, 0, 0);
@@ -171,8 +151,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             source.settings.start_deg = axes_start_deg;
         }
         motion_io::NcProgram program = read_program(source, in.spec, axes_start_mm);
-        // With a machine: the tip's commanded path against the part, where the motion now is.
-        if (in.machine) program = workpiece_program(program, *in.machine, in.tool_length_mm, source.settings.rapid_mm_min);
+        // With a machine: the tip's commanded path against the part (stock axes), its orientation
+        // held to the log's rule.
+        if (in.machine)
+            program = workpiece_program(program, *in.machine, in.tool_length_mm, source.settings.rapid_mm_min, {}, frame,
+                                        tool_reach(in.spec));
         // Without a tool table the run spec's one tool cuts every block; say so when the program
         // changes tools. (With a table, tools it lacks are counted after the prediction.)
         if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1 && in.spec.tools.empty()) {
@@ -190,7 +173,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
         check_work_in(r.work, in.limits, frame);
         track.begin(Phase::Mapping, 0, 0);
+        // The log is matched to the program where both are: in stock axes (a tilted tool's motion
+        // is in its own frame until the prediction is done).
+        if (frame.tilted) turn_motion(r.motion, frame.tool_to_workpiece);
         r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
+        if (frame.tilted) turn_motion(r.motion, frame.tool_to_workpiece.transpose());
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
@@ -287,7 +274,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (r.program) {
         track.begin(Phase::Commanded, actual_share, 1);
         po.progress = track.engine_progress();
-        r.commanded = predict_program(*r.program, r.motion, r.prediction, in.spec, po);
+        // A tilted tool's commanded run cuts its own turned stock, in the same frame as the actual.
+        force_model::StockPtr commanded_stock;
+        if (frame.tilted && !in.base_stock) {
+            commanded_stock = force_model::make_turned_stock(in.spec.stock, grid_frame, spec.resolution.grid_mm);
+            po.own_stock = &commanded_stock;
+        }
+        r.commanded = predict_program(*r.program, r.motion, r.prediction, spec, po, frame.tilted ? &grid_frame : nullptr);
+        po.own_stock = nullptr;
     } else if (in.commanded_from_log) {
         track.begin(Phase::Commanded, actual_share, 1);
         po.progress = track.engine_progress();

@@ -1,4 +1,5 @@
 #include "app/program_run.hpp"
+#include "app/workpiece_motion.hpp"
 
 #include <fmt/format.h>
 
@@ -184,9 +185,14 @@ TimeWarp commanded_to_actual_time(const ProgramRun& run, const motion_io::Motion
 }
 
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
-                                  const RunSpec& spec, const PredictOptions& options) {
+                                  const RunSpec& spec, const PredictOptions& options,
+                                  const force_model::Rotation3* grid_from_stock) {
     ProgramPrediction out;
-    out.commanded = force_model::predict(motion_io::commanded_motion(run.program, run.commanded), spec, options);
+    motion_io::MotionModel commanded = motion_io::commanded_motion(run.program, run.commanded);
+    const Eigen::Matrix3d tool_to_stock = grid_from_stock ? tool_to_workpiece(*grid_from_stock) : Eigen::Matrix3d::Identity();
+    if (grid_from_stock) turn_motion(commanded, tool_to_stock.transpose());
+    out.commanded = force_model::predict(commanded, spec, options);
+    if (grid_from_stock) turn_forces(out.commanded.samples, tool_to_stock);
     out.blocks = force_model::compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
     out.to_actual_time = commanded_to_actual_time(run, motion);
     return out;

@@ -103,8 +103,12 @@ struct ProgramPrediction {
 };
 
 // Predicts the commanded motion with the same spec and options as the actual one and compares
-// the two block by block. `motion` is the (relabelled) log `actual` was predicted from.
+// the two block by block. `motion` is the (relabelled) log `actual` was predicted from, in stock
+// axes like the program. With `grid_from_stock` (a fixed tilt, ToolFrame::grid_from_stock: `spec`
+// and the options' stock are in the tool's frame) the commanded motion is turned into that frame
+// for the engine and its forces back into stock axes, as the actual ones were.
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
-                                  const RunSpec& spec, const PredictOptions& options);
+                                  const RunSpec& spec, const PredictOptions& options,
+                                  const force_model::Rotation3* grid_from_stock = nullptr);
 
 }  // namespace cutload::app

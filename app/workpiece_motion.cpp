@@ -105,6 +105,12 @@ bool can_reach(const Eigen::Vector3d& tip_workpiece_mm, const Eigen::Vector3d& a
     return true;
 }
 
+// The tool spans the tool length from its tip, and at least the cutter and holder the spec
+// describes (a tool length of 0 is the service's default).
+double reach_length_mm(double tool_length_mm, const ToolReach& reach) {
+    return std::max({tool_length_mm, reach.length_mm, reach.radius_mm});
+}
+
 }  // namespace
 
 double lean_from_z_rad(const Eigen::Vector3d& axis) { return std::atan2(std::hypot(axis.x(), axis.y()), axis.z()); }
@@ -129,14 +135,22 @@ force_model::Rotation3 ToolFrame::grid_from_stock() const {
     return g;
 }
 
+double off_orientation_rad(const ToolFrame& f, const machine::ToolPose& p, double length_mm, const ToolReach& reach) {
+    // A vertical tool may turn about its axis (a C table under it); a tilted one may not.
+    const double off = f.tilted ? orientation_angle_rad(f.tool_to_workpiece, p.tool_to_workpiece.R) : tilt_from_z_rad(p);
+    if (!(off > kFixedOrientationToleranceRad)) return 0;
+    if (!can_reach(p.tip_mm(), p.axis(), length_mm, reach) &&
+        !can_reach(p.tip_mm(), f.tool_to_workpiece.col(2), length_mm, reach))
+        return 0;
+    return off;
+}
+
 ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
                      const ToolReach& reach) {
     const std::vector<AxisSource> sources = axis_sources(axes, machine);
     const std::size_t n = axes.size();
     if (n == 0) throw WorkpieceMotionError("the tool's orientation of an empty motion model");
-    // The tool spans the tool length from its tip, and at least the cutter and holder the spec
-    // describes (a tool length of 0 is the service's default).
-    const double length_mm = std::max({tool_length_mm, reach.length_mm, reach.radius_mm});
+    const double length_mm = reach_length_mm(tool_length_mm, reach);
     const auto pose_at = [&](std::size_t i) {
         machine::AxisPositions q;
         for (std::size_t k = 0; k < sources.size(); ++k) q.value[k] = (*sources[k].position)[i];
@@ -159,21 +173,13 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
     f.lean_deg = tilt_from_z_rad(ref_pose) * kDegPerRad;
     f.tilted = tilt_from_z_rad(ref_pose) > kFixedOrientationToleranceRad;
     if (f.tilted) f.tool_to_workpiece = ref_pose.tool_to_workpiece.R;
-    const Eigen::Vector3d cutting_axis = f.tool_to_workpiece.col(2);
-    // How far a sample is from the cutting orientation: a vertical tool may turn about its axis.
-    const auto off_rad = [&](const machine::ToolPose& p) {
-        return f.tilted ? orientation_angle_rad(f.tool_to_workpiece, p.tool_to_workpiece.R) : tilt_from_z_rad(p);
-    };
     std::size_t bad = n;
     double bad_off = 0, most_off = 0, most_t = 0;
     // From the log's start: the engine puts the tool at the cutting orientation at every sample, so
     // an approach or index before the first cut must keep that tool clear of the stock too.
     for (std::size_t i = 0; i < n; ++i) {
-        const machine::ToolPose p = pose_at(i);
-        const double off = off_rad(p);
-        if (!(off > kFixedOrientationToleranceRad)) continue;
-        if (!can_reach(p.tip_mm(), p.axis(), length_mm, reach) && !can_reach(p.tip_mm(), cutting_axis, length_mm, reach))
-            continue;
+        const double off = off_orientation_rad(f, pose_at(i), length_mm, reach);
+        if (off == 0) continue;
         if (bad == n) bad = i, bad_off = off;
         if (off > most_off) most_off = off, most_t = axes.t_s[i];
     }
@@ -192,6 +198,22 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
             axes.t_s[bad], from, most_off * kDegPerRad, most_t));
     }
     return f;
+}
+
+void turn_forces(std::span<force_model::ForceSample> rows, const Eigen::Matrix3d& tool_to_stock) {
+    for (force_model::ForceSample& s : rows) {
+        const Eigen::Vector3d f = tool_to_stock * Eigen::Vector3d(s.fx_N, s.fy_N, s.fz_N);
+        s.fx_N = float(f.x()), s.fy_N = float(f.y()), s.fz_N = float(f.z());
+    }
+}
+
+void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& rotation) {
+    for (std::size_t i = 0; i < m.size(); ++i) {
+        const Eigen::Vector3d p = rotation * Eigen::Vector3d(m.x_mm[i], m.y_mm[i], m.z_mm[i]);
+        const Eigen::Vector3d v = rotation * Eigen::Vector3d(m.vx_mm_s[i], m.vy_mm_s[i], m.vz_mm_s[i]);
+        m.x_mm[i] = p.x(), m.y_mm[i] = p.y(), m.z_mm[i] = p.z();
+        m.vx_mm_s[i] = v.x(), m.vy_mm_s[i] = v.y(), m.vz_mm_s[i] = v.z();
+    }
 }
 
 motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
@@ -396,17 +418,32 @@ machine::AxisPositions block_axes(const machine::Machine& machine, const motion_
 }  // namespace
 
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits) {
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits,
+                                       const ToolFrame& frame, const std::optional<ToolReach>& reach) {
     using motion_io::NcBlock;
     using motion_io::NcMotion;
+    const bool checked = frame.checked && reach.has_value();
+    const double length_mm = reach ? reach_length_mm(tool_length_mm, *reach) : tool_length_mm;
     auto tip = [&](const NcBlock& b, double u) {
         const machine::AxisPositions q = block_axes(machine, b, u);
-        const double tilt_rad = tilt_from_z_rad(machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal));
-        if (!(tilt_rad <= kVerticalToleranceRad))
+        const machine::ToolPose nominal = machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
+        if (checked) {
+            // The log's rule (tool_frame): the commanded tool keeps the orientation the log cuts at
+            // wherever it can reach the stock.
+            if (const double off = off_orientation_rad(frame, nominal, length_mm, *reach); off > 0)
+                throw motion_io::NcProgramError(fmt::format(
+                    "{}:{}: block {}: where the tool can reach the stock its axis {} {:.4g} deg from the orientation "
+                    "the log cuts at (leaning {:.4g} deg from the stock's +Z): a tilted tool is predicted at one "
+                    "fixed orientation (3+2 work); a tool that turns there needs the multi-direction stock, which is "
+                    "not built yet (docs/five_axis.md, section 3)",
+                    program.file, b.line, b.name, frame.tilted ? "turns" : "leans", off * 180.0 / std::numbers::pi,
+                    frame.lean_deg));
+        } else if (const double tilt_rad = tilt_from_z_rad(nominal); !(tilt_rad <= kVerticalToleranceRad)) {
             throw motion_io::NcProgramError(fmt::format(
                 "{}:{}: block {}: the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
                 "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
                 program.file, b.line, b.name, tilt_rad * 180.0 / std::numbers::pi));
+        }
         return Eigen::Vector3d(machine::forward(machine, q, tool_length_mm).tip_mm());
     };
     auto set_ends = [](NcBlock& piece, const Eigen::Vector3d& from, const Eigen::Vector3d& to) {

@@ -20,6 +20,7 @@
 #pragma once
 
 #include "force_model/force_model.hpp"
+#include "machine/kinematics.hpp"
 #include "machine/machine.hpp"
 #include "motion_io/motion_io.hpp"
 #include "motion_io/nc_program.hpp"
@@ -27,6 +28,7 @@
 #include <array>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -94,6 +96,17 @@ Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock)
 // workpiece_motion() does for a log the machine does not fit.
 ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
                      const ToolReach& reach);
+// How far a nominal pose turns from the frame's cutting orientation where it matters: 0 within
+// kFixedOrientationToleranceRad (a vertical frame: any turn about +Z), or where neither the pose nor
+// the cutting orientation at its tip can reach the stock; else the angle (tool_frame's rule).
+// `length_mm`: the tool's span from its tip.
+double off_orientation_rad(const ToolFrame& frame, const machine::ToolPose& pose, double length_mm, const ToolReach& reach);
+
+// Forces from the tool's frame into stock axes (torque, bending and engagement are the tool's
+// own), and a motion model's positions and velocities turned by `rotation` (tool_to_stock turns
+// the engine's frame into stock axes, its transpose back).
+void turn_forces(std::span<force_model::ForceSample> rows, const Eigen::Matrix3d& tool_to_stock);
+void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& rotation);
 
 // `axes`: the repaired log in machine axes (motion_io::ingest). `tool_length_mm`: gauge point to
 // tip along the spindle axis. Each rotary axis of the machine needs its channel in the log
@@ -187,10 +200,14 @@ struct PieceLimits {
 // do), bisected until the tip's path lies within kProgramChordTolMm of them. Joint-space
 // interpolation runs at a constant rate along the block, so each piece takes its share of the
 // block's time (block_time_s at rapid_mm_min), and its feed_mm_min is the tip's speed against
-// the part. The result has no rotary axes. Throws motion_io::NcProgramError naming the block when
-// the commanded tool axis leans from the stock's +Z (the vertical-tool engine's limit), or as soon
-// as a block or the program passes `limits` (saying how far into the block).
+// the part. The result has no rotary axes. Throws motion_io::NcProgramError naming the block as
+// soon as a block or the program passes `limits` (saying how far into the block), and where the
+// commanded tool axis is one the engine cannot cut with: with the log's checked frame (tool_frame)
+// and the reach, a block that turns from the frame's orientation where the tool can reach the
+// stock (the log's own rule: a fixed tilt is allowed, indexing in the air too); without them, any
+// lean from the stock's +Z.
 motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {});
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {},
+                                       const ToolFrame& frame = {}, const std::optional<ToolReach>& reach = std::nullopt);
 
 }  // namespace cutload::app

@@ -22,6 +22,7 @@
 #include <catch2/catch.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <optional>
@@ -339,6 +340,66 @@ Eigen::Vector3d tip_at(const machine::Machine& m, const Axes& p) {
 }
 
 }  // namespace
+
+TEST_CASE("fixed tilt: a tilted run with its NC program predicts the commanded path in the tool's frame too, and compares "
+          "the blocks",
+          "[five_axis][fixed_tilt][program]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt_program");
+    const TiltLog log = tilted_log(dir, 15, 20, *machine);
+    app::RunInput in = machine_input(log.path, kSpec, machine);
+    app::ProgramSource program;
+    program.text = log.run.program;   // the machine-axis program the log is a dry run of (G93 pieces)
+    program.name = "tilt.nc";
+    program.settings.work_offsets_mm["G54"] = {0, 0, 0};
+    in.program = program;
+    const app::RunResult r = app::predict_run(in);
+    CHECK(r.fixed_tilt);
+    REQUIRE(r.commanded);
+    // The actual prediction is the one without the program.
+    const Comparison actual = compare(r.prediction.samples, log);
+    CHECK(actual.mean_error < 0.01);
+    // The commanded rows, put on the log's time axis by the run's own warp, against the same
+    // numerical integration: the program is the path the log followed, without the servo lag.
+    std::vector<force_model::ForceSample> commanded = r.commanded->commanded.samples;
+    for (force_model::ForceSample& s : commanded) s.t_s = r.commanded->to_actual_time(s.t_s);
+    const Comparison c = compare(commanded, log);
+    INFO("commanded: mean " << c.mean_N << " N, mean error " << c.mean_error * 100 << " %, trace RMS " << c.trace_rms * 100
+                            << " % of peak, rows " << c.rows);
+    REQUIRE(c.rows > 5000);
+    CHECK(c.mean_N > 50);
+    CHECK(c.mean_error < 0.01);
+    CHECK(c.trace_rms < 0.015);
+    // The path's block, compared: matched on the path (stock axes both), peaks alike.
+    const auto& blocks = r.commanded->blocks;
+    const auto path = std::find_if(blocks.begin(), blocks.end(), [&](const auto& b) { return b.block == log.run.block; });
+    REQUIRE(path != blocks.end());
+    INFO("N30: actual peak " << path->actual_peak_force_N << " N, commanded " << path->commanded_peak_force_N
+                             << " N, deviation " << path->max_deviation_mm << " mm");
+    CHECK(path->commanded_peak_force_N > 100);
+    CHECK(std::abs(path->force_difference_pct) < 3);
+    CHECK(path->max_deviation_mm < 0.05);
+
+    // A program that turns the tool where it can reach the stock is refused naming its line and
+    // block: here A turns 10 deg more at the cut's end, the tool still in the stock.
+    std::string turned = log.run.program;
+    const std::size_t last = turned.rfind("N30 G93");
+    REQUIRE(last != std::string::npos);
+    const std::size_t a_at = turned.find(" A", last);
+    const double a_deg = std::stod(turned.substr(a_at + 2));
+    const std::size_t end = turned.find('\n', last);
+    const int line = int(std::count(turned.begin(), turned.begin() + std::ptrdiff_t(end), '\n')) + 2;
+    turned.insert(end + 1, fmt::format("N35 G94 G01 A{:.3f} F1000\n", a_deg + 10));
+    in.program->text = turned;
+    try {
+        app::predict_run(in);
+        FAIL("a program turning the tool in the stock was not refused");
+    } catch (const std::exception& e) {
+        CHECK_THAT(e.what(), Catch::Contains(fmt::format("tilt.nc:{}: block N35: where the tool can reach the stock its "
+                                                         "axis turns",
+                                                         line)));
+    }
+}
 
 TEST_CASE("fixed tilt: the tool may index in the air, turning where it can reach the stock is refused, naming when and "
           "how far",
