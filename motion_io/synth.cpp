@@ -786,4 +786,59 @@ NcDryRunSpec demo3_dry_run_spec() {
     return spec;
 }
 
+std::string demo4_program_text() {
+    // As a post for a trunnion machine without tool-centre-point control writes it: program zero at
+    // the rotary axes' intersection, the table indexed first, then X/Y/Z of the tool tip in machine
+    // axes with the part tilted, to three decimals. The pass positions are the part's
+    // (stock y 20, 22, 24 mm; tip 0.5 mm below the top face at stock z 29.5) through the machine's
+    // inverse kinematics at A-20 C0; the part's X runs along the machine's X, so each pass is one
+    // G01 in X, and the tool enters and leaves along its own axis (machine Z).
+    return "%\n"
+           "O4000 (CUTLOAD DEMO 4: 3+2 FINISHING, BALL END MILL LEANING 20 DEG)\n"
+           "(AC TABLE-TABLE MACHINE, MACHINE-AXIS FORM: A-20. TILTS THE PART, C0.)\n"
+           "(G54 = THE ROTARY AXES' INTERSECTION, MACHINE X-350. Y-275. Z-560.; X/Y/Z ARE THE TOOL TIP)\n"
+           "(T1 BALL END MILL D10. 2 FLUTES)\n"
+           "N10 G17 G21 G40 G49 G80 G90 G94\n"
+           "N20 G00 G54 X-58. Y-62.222 Z150. A0. C0. S8000 M03\n"
+           "N30 A-20. (INDEX IN THE AIR)\n"
+           "N40 Z90.\n"
+           "N50 G01 Z83.239 F500\n"
+           "N60 X58. F2000 (PASS 1)\n"
+           "N70 G00 Z90.\n"
+           "N80 X-58. Y-60.342\n"
+           "N90 G01 Z83.923 F500\n"
+           "N100 X58. F2000 (PASS 2)\n"
+           "N110 G00 Z90.\n"
+           "N120 X-58. Y-58.463\n"
+           "N130 G01 Z84.607 F500\n"
+           "N140 X58. F2000 (PASS 3)\n"
+           "N150 G00 Z150.\n"
+           "N160 A0.\n"
+           "N170 M05\n"
+           "N180 M30\n"
+           "%\n";
+}
+
+NcReadOptions demo4_read_options() {
+    NcReadOptions o;
+    o.work_offsets_mm["G54"] = {-350, -275, -560};   // the rotary axes' intersection (data/machines/ac_table_table.json)
+    o.start_mm = std::array<double, 3>{-408, -337.222, -410};   // above the first pass, where the log starts
+    o.rotary_axes = "AC";
+    o.rotary_feed = RotaryFeed::Combined;
+    return o;
+}
+
+NcDryRunSpec demo4_dry_run_spec() {
+    NcDryRunSpec spec;
+    spec.program = parse_nc_program(demo4_program_text(), "demo4_program.nc", demo4_read_options());
+    const auto start = *demo4_read_options().start_mm;
+    std::copy(start.begin(), start.end(), spec.start_mm);
+    spec.machine.max_accel_mm_s2 = 2500;   // demo2's machine
+    spec.machine.corner_speed_step_mm_min = 600;
+    spec.client.stall_probability = 0.004;
+    spec.client.stall_s = 0.03;
+    spec.seed = 20261128;
+    return spec;
+}
+
 }  // namespace cutload::motion_io

@@ -130,4 +130,14 @@ NcReadOptions demo3_read_options();
 // demo3_program_text() on demo2's machine and client; its log is data/demo3_dryrun.csv.
 NcDryRunSpec demo3_dry_run_spec();
 
+// The fourth demo (data/README.md): 3+2 work on the same AC machine. The table indexes to A-20 in
+// the air, then a D10 ball-end mill finishes three passes along the part's X on the top face with
+// its axis leaning 20 deg toward the part's +Y (the engine's fixed tilt, docs/five_axis.md 2.5).
+std::string demo4_program_text();
+// How to read it: G54 at the rotary axes' intersection, rotary axes A and C, start above the
+// first pass.
+NcReadOptions demo4_read_options();
+// demo4_program_text() on demo2's machine and client; its log is data/demo4_dryrun.csv.
+NcDryRunSpec demo4_dry_run_spec();
+
 }  // namespace cutload::motion_io

@@ -33,8 +33,13 @@ SPEC3=data/demo3_run.json
 NC3=data/demo3_program.nc
 MACHINE3=data/machines/ac_table_table.json
 NC3_OPTIONS='{"work_offsets_mm": {"G54": [-350, -275, -460]}}'
+# The 3+2 demo: the same machine's table indexed to A-20, a ball-end mill finishing with its axis leaning 20 deg.
+LOG4=data/demo4_dryrun.csv
+SPEC4=data/demo4_run.json
+NC4=data/demo4_program.nc
+NC4_OPTIONS='{"work_offsets_mm": {"G54": [-350, -275, -560]}}'
 
-for f in "$LOG" "$SPEC" "$NC" "$LOG2" "$SPEC2" "$NC2" "$LOG3" "$SPEC3" "$NC3" "$MACHINE3"; do
+for f in "$LOG" "$SPEC" "$NC" "$LOG2" "$SPEC2" "$NC2" "$LOG3" "$SPEC3" "$NC3" "$MACHINE3" "$LOG4" "$SPEC4" "$NC4"; do
   [ -f "$f" ] || { echo "cutload start: $f is missing from this checkout" >&2; exit 1; }
 done
 mkdir -p "$STATE_DIR"
@@ -80,6 +85,12 @@ if [ -z "$RUN3" ]; then
   RUN3=$(api -F "log=@$LOG3" -F "spec=<$SPEC3" -F "kinematics=@$MACHINE3" -F "nc_program=@$NC3" \
     -F "nc_options=$NC3_OPTIONS" -F name=demo3 -F program=demo3 "$URL/api/v1/runs" | json_field id)
 fi
+RUN4=$(api "$URL/api/v1/runs?program=demo4&limit=1" | json_field id)
+if [ -z "$RUN4" ]; then
+  echo "cutload start: submitting the 3+2 demo ($LOG4): the table indexed, a tilted ball-end mill, with its NC program ($NC4)"
+  RUN4=$(api -F "log=@$LOG4" -F "spec=<$SPEC4" -F "kinematics=@$MACHINE3" -F "nc_program=@$NC4" \
+    -F "nc_options=$NC4_OPTIONS" -F name=demo4 -F program=demo4 "$URL/api/v1/runs" | json_field id)
+fi
 wait_run() {
   local state
   while :; do
@@ -93,6 +104,7 @@ wait_run() {
 STATE=$(wait_run "$RUN")
 STATE2=$(wait_run "$RUN2")
 STATE3=$(wait_run "$RUN3")
+STATE4=$(wait_run "$RUN4")
 
 cat <<EOF
 
@@ -100,6 +112,7 @@ cutload is running at $URL  (Ctrl-C stops it)
   demo run $RUN: $STATE
   multi-tool demo run $RUN2: $STATE2 ($URL/#/runs/$RUN2)
   five-axis demo run $RUN3: $STATE3 ($URL/#/runs/$RUN3)
+  3+2 demo run $RUN4: $STATE4 ($URL/#/runs/$RUN4)
   web page:         $URL/
   the run:          $URL/api/v1/runs/$RUN
   per-block loads:  $URL/api/v1/runs/$RUN/blocks
