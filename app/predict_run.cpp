@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <optional>
@@ -174,10 +175,21 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         check_work_in(r.work, in.limits, frame);
         track.begin(Phase::Mapping, 0, 0);
         // The log is matched to the program where both are: in stock axes (a tilted tool's motion
-        // is in its own frame until the prediction is done).
-        if (frame.tilted) turn_motion(r.motion, frame.tool_to_workpiece);
+        // is in its own frame until the prediction is done). Its positions and velocities are put
+        // back as they were, bit for bit (a turn there and back is not): the prediction must not
+        // depend on whether a program came with the log.
+        std::optional<std::array<std::vector<double>, 6>> in_frame;
+        if (frame.tilted) {
+            in_frame.emplace(std::array<std::vector<double>, 6>{r.motion.x_mm, r.motion.y_mm, r.motion.z_mm, r.motion.vx_mm_s,
+                                                                r.motion.vy_mm_s, r.motion.vz_mm_s});
+            turn_motion(r.motion, frame.tool_to_workpiece);
+        }
         r.program = prepare_program_run(std::move(program), source.settings, r.motion, control);
-        if (frame.tilted) turn_motion(r.motion, frame.tool_to_workpiece.transpose());
+        if (in_frame) {
+            auto& [x, y, z, vx, vy, vz] = *in_frame;
+            r.motion.x_mm = std::move(x), r.motion.y_mm = std::move(y), r.motion.z_mm = std::move(z);
+            r.motion.vx_mm_s = std::move(vx), r.motion.vy_mm_s = std::move(vy), r.motion.vz_mm_s = std::move(vz);
+        }
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;

@@ -446,6 +446,24 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
         }
         return Eigen::Vector3d(machine::forward(machine, q, tool_length_mm).tip_mm());
     };
+    // The rule depends on where the tool is, so a block is checked along its path, not only where
+    // its pieces end: a straight rapid at another orientation may cross the part with both ends
+    // clear. Steps no longer than the widest radius (the reach test grows the box by more), and
+    // half a degree of any rotary axis; at most 4096 a block.
+    auto check_along = [&](const NcBlock& b) {
+        if (!checked || !(motion_io::block_moves(b) || motion_io::block_turns(b))) return;
+        double travel_mm = 0, turn_deg = 0;
+        for (std::size_t k = 0; k < 3; ++k) {
+            travel_mm = std::hypot(travel_mm, b.end_mm[k] - b.start_mm[k]);
+            turn_deg = std::max(turn_deg, std::abs(b.end_deg[k] - b.start_deg[k]));
+        }
+        if (b.motion == NcMotion::ArcCw || b.motion == NcMotion::ArcCcw)
+            travel_mm = std::max(travel_mm, std::abs(b.sweep_rad) * std::hypot(b.start_mm[std::size_t(b.plane_axes[0])] - b.center_mm[std::size_t(b.plane_axes[0])],
+                                                                                 b.start_mm[std::size_t(b.plane_axes[1])] - b.center_mm[std::size_t(b.plane_axes[1])]));
+        const double step_mm = std::max(1.0, reach->radius_mm);
+        const double steps = std::clamp(std::max(std::ceil(travel_mm / step_mm), std::ceil(turn_deg / 0.5)), 1.0, 4096.0);
+        for (int k = 1; k < int(steps); ++k) tip(b, double(k) / steps);
+    };
     auto set_ends = [](NcBlock& piece, const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
         for (int k = 0; k < 3; ++k) piece.start_mm[std::size_t(k)] = from[k], piece.end_mm[std::size_t(k)] = to[k];
         piece.start_deg = piece.end_deg = {};
@@ -469,6 +487,7 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
             program.file, b.line, b.name, limits.per_block, kProgramChordTolMm * 1e3, where));
     };
     for (const NcBlock& b : program.blocks) {
+        check_along(b);
         const bool arc = b.motion == NcMotion::ArcCw || b.motion == NcMotion::ArcCcw;
         if (!motion_io::block_moves(b) || !(arc || motion_io::block_turns(b))) {
             // At rest, or a line with the rotary axes still: the linear axes move the tip rigidly,

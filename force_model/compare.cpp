@@ -327,6 +327,16 @@ PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
             if (it != header.end()) cm[k] = static_cast<std::size_t>(it - header.begin());
         }
         if (t.machine_axes) need = std::max({need, cm[0], cm[1], cm[2]});
+        // The tool axis too, read whole or not at all (as FORCES.bin's reader does).
+        std::size_t ca3[3] = {0, 0, 0};
+        bool tool_axis = true;
+        for (int k = 0; k < 3; ++k) {
+            const char* name = k == 0 ? "tool_axis_x" : k == 1 ? "tool_axis_y" : "tool_axis_z";
+            const auto it = std::find(header.begin(), header.end(), name);
+            tool_axis = tool_axis && it != header.end();
+            if (it != header.end()) ca3[k] = static_cast<std::size_t>(it - header.begin());
+        }
+        if (tool_axis) need = std::max({need, ca3[0], ca3[1], ca3[2]});
         std::map<std::string, std::int32_t, std::less<>> blocks;
         while (csv.next()) {
             if (csv.size() <= need)
@@ -359,6 +369,17 @@ PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
                 s.fx_machine_N = force(cm[0]);
                 s.fy_machine_N = force(cm[1]);
                 s.fz_machine_N = force(cm[2]);
+            }
+            if (tool_axis) {
+                for (int k = 0; k < 3; ++k) {
+                    const double v = num(ca3[k]);
+                    if (!(std::abs(v) <= 1.001))
+                        csv.fail(ca3[k], fmt::format("column {} ({}): {:g} is not a unit vector's component", ca3[k] + 1,
+                                                     header[ca3[k]], v));
+                }
+                s.tool_axis_x = static_cast<float>(num(ca3[0]));
+                s.tool_axis_y = static_cast<float>(num(ca3[1]));
+                s.tool_axis_z = static_cast<float>(num(ca3[2]));
             }
             if (const std::string_view name = csv[cb]; !name.empty()) {
                 auto it = blocks.find(name);

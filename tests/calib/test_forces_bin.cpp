@@ -128,7 +128,7 @@ TEST_CASE("FORCES.bin holds every column to FORCES.csv's digits in a fifth of it
     CHECK(from_bin.samples.back().tool == 12);
 }
 
-TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES.csv's digits", "[calib][forces_bin]") {
+TEST_CASE("FORCES.bin with machine axes: six more columns, read back to FORCES.csv's digits", "[calib][forces_bin]") {
     Scratch scratch;
     Prediction p = made_up_run(70000);   // two chunks
     for (std::size_t i = 0; i < p.samples.size(); ++i) {   // the table turned 90 deg: (Fx, Fy, Fz) -> (Fy, -Fx, Fz)
@@ -161,6 +161,7 @@ TEST_CASE("FORCES.bin with machine axes: three more columns, read back to FORCES
                       b.fz_machine_N != static_cast<float>(printed(o.fz_machine_N, 3)) ||
                       b.fx_N != static_cast<float>(printed(o.fx_N, 3)) ||
                       b.tool_axis_x != static_cast<float>(printed(o.tool_axis_x, 6)) ||
+                      b.tool_axis_y != static_cast<float>(printed(o.tool_axis_y, 6)) ||
                       b.tool_axis_z != static_cast<float>(printed(o.tool_axis_z, 6));
     }
     CHECK(mismatches == 0);
