@@ -108,8 +108,9 @@ void check_feed_unit(double ratio, detail::Diagnostics& diag) {
     static const Cause causes[] = {
         {60.0, "per-minute values read as per-second: try --feed-units mm/min"},
         {1 / 60.0, "per-second values read as per-minute: try --feed-units mm/s"},
-        {25.4, "inch values read as mm: try --feed-units in/min"},
-        {1 / 25.4, "mm values read as inch: try --feed-units mm/min"}};
+        // The feed's values as read are 25.4 x the motion's: mm values read as inch (and back).
+        {25.4, "mm values read as inch: try --feed-units mm/min"},
+        {1 / 25.4, "inch values read as mm: try --feed-units in/min"}};
     std::string hint = "check the feed channel's unit (--feed-units)";
     for (const Cause& c : causes)
         if (std::fabs(std::log(ratio / c.ratio)) < std::log(1.5)) hint = c.hint;

@@ -24,7 +24,7 @@ std::unique_ptr<StageChain> make_ingest_chain(Diagnostics& diag, GridSink& sink,
     chain->append(std::make_unique<Survey>(diag, s.event_driven));
     if (!s.event_driven) chain->append(std::make_unique<StaleRepeats>(diag));
     chain->append(std::make_unique<ClockRecovery>(diag, s.event_driven, s.clock));
-    chain->append(std::make_unique<Velocity>());
+    chain->append(std::make_unique<Velocity>(s.slopes));
     chain->append(std::make_unique<Resample>(diag, s.step_s));
     chain->append(std::make_unique<SpindleAngle>(s.step_s));
     chain->append(std::make_unique<BlockAttribution>());

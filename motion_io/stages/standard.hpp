@@ -5,6 +5,7 @@
 #include "stages/clock_recovery.hpp"
 #include "stages/jumps.hpp"
 #include "stages/validate.hpp"
+#include "stages/velocity.hpp"
 
 #include <memory>
 
@@ -17,6 +18,7 @@ struct ChainSettings {
     PhysicalLimits physical;     // validate
     JumpLimits jumps;            // drop_jumps
     ClockLimits clock;           // clock
+    SlopeLimit slopes;           // velocity
 };
 
 // Polled logs:       validate, sequence, drop_jumps, survey, stale_repeats, clock, velocity,

@@ -19,7 +19,8 @@ Survey::Survey(Diagnostics& diag, bool event_driven) : Stage("survey"), diag_(di
 void Survey::begin_session() {
     session_ = SessionSummary{};
     last_pos_.reset();
-    last_feed_.reset();
+    feed_now_.reset();
+    feed_since_pos_mm_ = 0;
     usual_dt_ = 0;
     for (ChannelStats* c : {&pos_stats_, &feed_stats_, &spindle_stats_, &block_stats_, &tool_stats_}) c->have_last = false;
     emit_begin_session();
@@ -51,14 +52,23 @@ void Survey::record(const Record& r) {
     }
 }
 
+void Survey::advance_feed(double t_s) {
+    if (feed_now_ && t_s > feed_t_) feed_since_pos_mm_ += *feed_now_ / 60.0 * (t_s - feed_t_);
+    if (!feed_now_ || t_s > feed_t_) feed_t_ = t_s;
+}
+
 void Survey::on_feed(const Record& r) {
     feed_stats_.add(r.t_s);
-    if (last_feed_) feed_integral_mm_ += last_feed_->second / 60.0 * (r.t_s - last_feed_->first);
-    last_feed_ = {r.t_s, r.v[0]};
+    advance_feed(r.t_s);
+    feed_now_ = r.v[0];
+    feed_t_ = r.t_s;
 }
 
 void Survey::on_position(const Record& r) {
     pos_stats_.add(r.t_s);
+    advance_feed(r.t_s);
+    const double feed_mm = feed_since_pos_mm_;
+    feed_since_pos_mm_ = 0;
     if (session_.position_reads++ == 0) {
         session_.first_t_s = r.t_s;
         session_.first_line = r.line;
@@ -69,7 +79,12 @@ void Survey::on_position(const Record& r) {
         const double d = std::sqrt((r.v[0] - last_pos_->v[0]) * (r.v[0] - last_pos_->v[0]) +
                                    (r.v[1] - last_pos_->v[1]) * (r.v[1] - last_pos_->v[1]) +
                                    (r.v[2] - last_pos_->v[2]) * (r.v[2] - last_pos_->v[2]));
-        path_length_mm_ += d;
+        double turn2 = 0;
+        for (int k = 0; k < 3; ++k) turn2 += (r.rot_deg[k] - last_pos_->rot_deg[k]) * (r.rot_deg[k] - last_pos_->rot_deg[k]);
+        if (std::sqrt(turn2) * kRotaryMmPerDeg <= kRotaryStandingShare * d) {
+            path_length_mm_ += d;
+            feed_integral_mm_ += feed_mm;
+        }
         if (dt > 0) {
             // What plain differencing of consecutive readings would call the feed.
             const double f = d / dt * 60.0;

@@ -1,8 +1,26 @@
 #include "stages/velocity.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace cutload::motion_io::detail {
+
+double limit_slope(double slope, std::optional<double> d_left, std::optional<double> d_right, double h_max, double tol) {
+    if (!d_left && !d_right) return slope;
+    double lo = 0, hi = 0;
+    if (d_left && d_right) {
+        const double m = 3 * std::min(std::abs(*d_left), std::abs(*d_right));
+        if (*d_left > 0 && *d_right > 0) hi = m;
+        if (*d_left < 0 && *d_right < 0) lo = -m;
+    } else {
+        const double d = d_left ? *d_left : *d_right;
+        (d > 0 ? hi : lo) = 3 * d;
+    }
+    // A slope off the monotone bound by e moves the Hermite on an interval of h seconds by at most
+    // h e / 4 (|h10(u)| + |h11(u)| = u (1 - u) <= 1/4), both ends together.
+    const double widen = h_max > 0 ? 4 * tol / h_max : 0.0;
+    return std::clamp(slope, lo - widen, hi + widen);
+}
 
 void Velocity::begin_session() {
     knots_.clear();
@@ -42,6 +60,7 @@ void Velocity::finalise(bool final) {
         const bool have_right = knots_.size() > next_ + 1 && knots_.back().t_s >= tj + H;
         if (!final && !have_right) break;
         fit(next_, H);
+        limit(next_);
         emit(knots_[next_]);
         ++next_;
         // Keep the left neighbour and everything inside the next knot's window.
@@ -77,6 +96,26 @@ void Velocity::fit(std::size_t j, double H) {
     for (int a = 0; a < 3; ++a) {
         knots_[j].v_mm_s[a] = sxx > 0 ? sxy[a] / sxx : 0.0;
         knots_[j].rot_vel_deg_s[a] = sxx > 0 ? sxr[a] / sxx : 0.0;
+    }
+}
+
+void Velocity::limit(std::size_t j) {
+    Knot& k = knots_[j];
+    const Knot* left = j > 0 && knots_[j - 1].t_s < k.t_s ? &knots_[j - 1] : nullptr;
+    const Knot* right = j + 1 < knots_.size() && knots_[j + 1].t_s > k.t_s ? &knots_[j + 1] : nullptr;
+    if (!left && !right) return;
+    const double h_max = std::max(left ? k.t_s - left->t_s : 0.0, right ? right->t_s - k.t_s : 0.0);
+    // The secants of one axis's positions (p: the knot's array of them) left and right of the knot.
+    auto limited = [&](double slope, double (Knot::*p)[3], int a, double tol) {
+        std::optional<double> d_left, d_right;
+        if (left) d_left = ((k.*p)[a] - (left->*p)[a]) / (k.t_s - left->t_s);
+        if (right) d_right = ((right->*p)[a] - (k.*p)[a]) / (right->t_s - k.t_s);
+        return limit_slope(slope, d_left, d_right, h_max, tol);
+    };
+    const bool linear = limit_.linear && h_max > limit_.linear_min_interval_s;
+    for (int a = 0; a < 3; ++a) {
+        if (linear) k.v_mm_s[a] = limited(k.v_mm_s[a], &Knot::p_mm, a, limit_.tol_mm);
+        if (limit_.rotary) k.rot_vel_deg_s[a] = limited(k.rot_vel_deg_s[a], &Knot::rot_deg, a, limit_.tol_deg);
     }
 }
 

@@ -26,6 +26,8 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <string>
+#include <vector>
 
 using namespace cutload;
 
@@ -59,6 +61,7 @@ struct CaseLog {
     std::string csv;
     motion_io::MotionModel axes;
     double period_s = 0;   // the CNC period the repair recovered
+    std::vector<motion_io::IngestWarning> warnings;
 };
 
 const CaseLog& case_log() {
@@ -72,6 +75,7 @@ const CaseLog& case_log() {
         app::IngestedLog in = app::ingest_log((dir / "case.csv").string(), app::read_options(app::LogFormat{}));
         c.axes = std::move(in.motion);
         c.period_s = in.report.channels["pos"].update_period_s;
+        c.warnings = in.report.warnings;
         return c;
     }();
     return log;
@@ -169,6 +173,16 @@ TEST_CASE("doc000 case: the generator runs the path on the A = -theta, C = 180 d
         if (a.t_s[i] > 0.45 && a.t_s[i] < 1.6) CHECK(std::abs(a.spindle_rpm[i] - 6000) <= 2);
     }
     CHECK(a.t_s.back() > 1.9);
+}
+
+TEST_CASE("doc000 case: the G93 log's feed, which counts degrees as mm, raises no feed-unit warning",
+          "[five_axis][doc000][feed]") {
+    // The feed column is the joint-space speed (A's degrees as mm) while A turns throughout the
+    // path; the feed-unit check compares the feed with the x, y, z path only where the rotary axes
+    // stand, and here they never do while the axes move. Two stale repeats are all the log has.
+    std::vector<std::string> codes;
+    for (const auto& w : case_log().warnings) codes.push_back(w.code);
+    CHECK(codes == std::vector<std::string>{"stale_repeat"});
 }
 
 TEST_CASE("doc000 case (a): the repaired axes through forward kinematics follow r_trj(t) and r_pst(t)",

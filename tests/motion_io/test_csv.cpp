@@ -2,6 +2,9 @@
 #include "test_helpers.hpp"
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
+
+#include <algorithm>
 
 using namespace cutload::motion_io;
 using namespace cutload::motion_io::test;
@@ -52,6 +55,33 @@ TEST_CASE("CSV: units in brackets (ms, in, in/min) are converted", "[csv]") {
     CHECK(m.spindle_rpm[10] == Approx(6000));
     // 60 in/min = 25.4 mm/s matches the positions: no unit warning.
     for (const auto& w : report.warnings) CHECK(w.code != "feed_unit_suspect");
+}
+
+TEST_CASE("CSV: a three-axis feed column in the wrong unit is flagged, naming the unit to give", "[csv][feed]") {
+    // X at 10 mm/s = 600 mm/min = 23.62 in/min for 2 s.
+    auto log = [](const std::string& feed_header, double feed) {
+        std::string s = "t,x,y,z," + feed_header + "\n";
+        for (int i = 0; i <= 200; ++i) s += fmt::format("{:.3f},{:.3f},2.000,-5.000,{:.2f}\n", 0.01 * i, 10.0 + 0.1 * i, feed);
+        return s;
+    };
+    struct Case {
+        std::string header;
+        double feed;
+        const char* hint;
+    };
+    for (const Case& c : {Case{"feed [mm/min]", 600 / 25.4, "--feed-units in/min"},   // in/min read as mm/min
+                          Case{"feed [in/min]", 600, "--feed-units mm/min"},          // mm/min read as in/min
+                          Case{"feed [mm/s]", 600, "--feed-units mm/min"}}) {         // mm/min read as mm/s
+        INFO(c.header << " holding " << c.feed);
+        TempFile f("feed_unit.csv", log(c.header, c.feed));
+        const IngestReport report = inspect(f.path(), ReadOptions{});
+        REQUIRE(warning_count(report, "feed_unit_suspect") == 1);
+        const auto w = std::find_if(report.warnings.begin(), report.warnings.end(),
+                                    [](const IngestWarning& x) { return x.code == "feed_unit_suspect"; });
+        CHECK_THAT(w->message, Catch::Contains(c.hint));
+    }
+    TempFile right("feed_unit_right.csv", log("feed [mm/min]", 600));
+    CHECK(warning_count(inspect(right.path(), ReadOptions{}), "feed_unit_suspect") == 0);
 }
 
 TEST_CASE("CSV: --units fills in an undeclared length unit and conflicts with a declared one", "[csv]") {

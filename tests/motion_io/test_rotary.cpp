@@ -10,6 +10,7 @@
 #include <catch2/catch.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -162,4 +163,49 @@ TEST_CASE("ingest: a rotary cell that is empty, not a number or beyond 1e9 deg i
     CHECK_THAT(message("rot_alone.csv", head + "0.006,,,,0,10\n"),
                Catch::Contains(":3") && Catch::Contains("without the linear axes"));
     CHECK_THAT(message("rot_text.csv", head + "0.006,1,2,3,0,ten\n"), Catch::Contains(":3"));
+}
+
+namespace {
+
+// A five-axis log whose feed column counts degrees as mm (FANUC: the feed of a block that turns a
+// rotary axis is its travel over linear and rotary axes together, degrees as mm; an inverse-time
+// (G93) block's actual feed is shown the same way): readings every 6 ms of
+//   0 to 1 s: X at 10 mm/s, A and C standing              feed 600 mm/min
+//   1 to 2 s: X at 10 mm/s while C turns 60 deg/s         feed sqrt(10^2 + 60^2) x 60 = 3649
+//   2 to 3 s: X standing, C turning 90 deg/s              feed 5400 (deg/min as mm/min)
+// The x, y, z path is 20 mm, the feed integrates to 10 + 60.8 + 90 = 160.8 mm: 8 x. `feed_scale`
+// writes the feed column in another unit (1 / 25.4: in/min under a mm/min header).
+std::string combined_feed_csv(double feed_scale = 1) {
+    std::string csv = "t,x,y,z,a,c,feed [mm/min],s\n";
+    for (int k = 0; 0.006 * k <= 3.0; ++k) {
+        const double t = 0.006 * k;
+        const double x = 100 + 10 * std::min(t, 2.0);
+        const double c = 60 * std::clamp(t - 1, 0.0, 1.0) + 90 * std::max(t - 2, 0.0);
+        const double feed = t < 1 ? 600 : t < 2 ? std::hypot(10.0, 60.0) * 60 : 5400;
+        csv += fmt::format("{:.6f},{:.3f},0.000,50.000,0.000,{:.3f},{:.1f},8000\n", t, x, c, feed * feed_scale);
+    }
+    return csv;
+}
+
+}  // namespace
+
+TEST_CASE("ingest: a feed combined over linear and rotary travel is no feed-unit mistake", "[rotary][ingest][feed]") {
+    const TempFile log("combined_feed.csv", combined_feed_csv());
+    IngestReport report;
+    const MotionModel m = ingest(log.path(), ReadOptions{}, &report);
+    CHECK(report.rotary_axes == "ac");
+    REQUIRE(m.has_rotary(2));
+    CHECK(warning_count(report, "feed_unit_suspect") == 0);
+}
+
+TEST_CASE("ingest: a five-axis log's feed in the wrong unit is still found where the rotary axes stand",
+          "[rotary][ingest][feed]") {
+    // in/min written under a mm/min header: 1/25.4 of the path on the first second.
+    const TempFile log("combined_feed_inch.csv", combined_feed_csv(1 / 25.4));
+    IngestReport report;
+    (void)ingest(log.path(), ReadOptions{}, &report);
+    REQUIRE(warning_count(report, "feed_unit_suspect") == 1);
+    const auto w = std::find_if(report.warnings.begin(), report.warnings.end(),
+                                [](const IngestWarning& x) { return x.code == "feed_unit_suspect"; });
+    CHECK_THAT(w->message, Catch::Contains("--feed-units in/min"));
 }

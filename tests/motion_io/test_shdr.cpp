@@ -2,6 +2,9 @@
 #include "test_helpers.hpp"
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
+
+#include <algorithm>
 
 using namespace cutload::motion_io;
 using namespace cutload::motion_io::test;
@@ -84,4 +87,23 @@ TEST_CASE("SHDR: a JSON map file picks the keys and declares units", "[shdr]") {
     REQUIRE(m.size() == 7);
     CHECK(m.x_mm.back() == Approx(3 * 25.4));
     CHECK(m.spindle_rpm.front() == Approx(100));
+}
+
+TEST_CASE("SHDR: a linear axis that stops between sparse reports does not run past them", "[shdr][slope_limit]") {
+    // An event-driven log: X stands at 0, is next reported at 10 mm (a rapid between the reports
+    // 0.3 s apart) and stands there; Z moves on at 1 mm/s, read with X's reports.
+    const std::string start = "2024-01-01T00:00:";
+    std::string log = start + "00.000Z|X1actw|0|Y1actw|0|Z1actw|0|S1speed|1000\n";
+    for (int k = 1; k <= 20; ++k)
+        log += fmt::format("{}{:06.3f}Z|Z1actw|{:.3f}{}\n", start, 0.3 * k, 0.3 * k, k == 10 ? "|X1actw|10" : "");
+    TempFile f("sparse_x.shdr", log);
+    ReadOptions opt;
+    opt.step_ms = 10;
+    const MotionModel m = ingest(f.path(), opt);
+    REQUIRE(m.size() > 500);
+    const auto [lo, hi] = std::minmax_element(m.x_mm.begin(), m.x_mm.end());
+    CHECK(*lo >= -0.005);
+    CHECK(*hi <= 10.005);
+    CHECK(m.x_mm.back() == Approx(10).margin(1e-9));
+    for (std::size_t i = 0; i < m.size(); ++i) REQUIRE(m.vz_mm_s[i] == Approx(1).margin(1e-6));
 }

@@ -191,6 +191,54 @@ TEST_CASE("SHDR rotary: a map names the items and their unit, and may not give o
     CHECK_THROWS_WITH(ingest(f.path(), opt), Catch::Contains("key 'tableC'") && Catch::Contains("another channel"));
 }
 
+TEST_CASE("SHDR rotary: an index reported by two sparse readings stays between them, its rate with it",
+          "[shdr][rotary]") {
+    // X moves on at 10 mm/s, read every 0.3 s; B stands at 0, is next reported at 180 (the head
+    // indexed between the readings at 2.7 and 3.0 s), and stands there. The machine turned from 0 to
+    // 180 and stopped: the resampled B must not swing past either end (it went to -15 and 195).
+    std::string log = stamp(0) + "|X1actw|0|Y1actw|0|Z1actw|0|S1speed|1000|B1actw|0\n";
+    for (int k = 1; k <= 20; ++k)
+        log += fmt::format("{}|X1actw|{:.3f}{}\n", stamp(0.3 * k), 3.0 * k, k == 10 ? "|B1actw|180" : "");
+    TempFile f("index_b.shdr", log);
+    ReadOptions opt;
+    opt.step_ms = 10;
+    IngestReport report;
+    const MotionModel m = ingest(f.path(), opt, &report);
+    REQUIRE(m.has_rotary(1));
+    REQUIRE(m.size() > 500);
+    const auto [lo, hi] = std::minmax_element(m.rot_deg[1].begin(), m.rot_deg[1].end());
+    CHECK(*lo >= -0.005);   // the limit's tolerance: 0.005 mm at 100 mm from the axis, 0.0029 deg
+    CHECK(*hi <= 180.005);
+    CHECK(m.rot_deg[1].front() == Approx(0).margin(1e-9));
+    CHECK(m.rot_deg[1].back() == Approx(180).margin(1e-9));
+    CHECK(*std::max_element(m.rot_vel_deg_s[1].begin(), m.rot_vel_deg_s[1].end()) > 300);   // it did turn
+    // The rate is the positions' derivative: across each grid step the trapezoid of the rates gives
+    // the change of angle (to the cubic's third derivative, under 0.01 deg at 10 ms here).
+    double worst = 0;
+    for (std::size_t i = 1; i < m.size(); ++i) {
+        const double dt = m.t_s[i] - m.t_s[i - 1];
+        worst = std::max(worst, std::abs(m.rot_deg[1][i] - m.rot_deg[1][i - 1] -
+                                         0.5 * dt * (m.rot_vel_deg_s[1][i] + m.rot_vel_deg_s[1][i - 1])));
+    }
+    CHECK(worst < 0.01);
+    // X, at constant feed, is untouched by the limit.
+    for (std::size_t i = 0; i < m.size(); ++i) REQUIRE(m.vx_mm_s[i] == Approx(10).margin(1e-6));
+}
+
+TEST_CASE("Okuma SHDR: B stays within its readings across the 0 -> 180 deg index", "[shdr][rotary][shared]") {
+    // B1actw reads 0 (14:28:49.8), 180 (14:29:01.56), 180.0091, then 166.2915, 137.3912, 135 as
+    // the head comes back: the log's extremes are 0 and 180.0091 deg. The resampled B went from
+    // -14.8 to 192.2 deg around the index before its slopes were limited.
+    ReadOptions opt;
+    opt.step_ms = 50;
+    const MotionModel m = ingest(shared_path("data/real/okuma_multus_shdr/okuma.txt"), opt);
+    REQUIRE(m.has_rotary(1));
+    const auto [lo, hi] = std::minmax_element(m.rot_deg[1].begin(), m.rot_deg[1].end());
+    CHECK(*lo >= -0.01);
+    CHECK(*hi <= 180.0091 + 0.01);
+    CHECK(*hi >= 180);
+}
+
 TEST_CASE("Okuma SHDR: B (work item only) and C (machine item) are read, in range, continuous once unwrapped",
           "[shdr][rotary][shared]") {
     // The MULTUS log has B1actw (no B1actm) and C3actm beside C3actw; C is displayed 0 to 360 and
@@ -207,8 +255,7 @@ TEST_CASE("Okuma SHDR: B (work item only) and C (machine item) are read, in rang
     // B is read between 0 and 180.0091 deg (the log's extremes); the head indexes by 180 deg
     // (0 -> 180) between two of the adapter's sparse reports. Half a turn is a tie for the unwrap
     // stage, which keeps the reading as shown, so B stays at the log's range: 0 to 180 (before this
-    // was fixed it reached -180). The resampled model overshoots an index reported by two sparse
-    // readings (the cubic between them: about 15 deg either side here), so the bounds are loose.
+    // was fixed it reached -180). The resampled B stays within it too (the next test).
     const auto [b_lo, b_hi] = std::minmax_element(m.rot_deg[1].begin(), m.rot_deg[1].end());
     CHECK(*b_hi - *b_lo > 170);
     CHECK(*b_lo > -20);

@@ -4,6 +4,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace cutload::motion_io;
@@ -70,6 +71,23 @@ TEST_CASE("survey: the feed channel's integral against the path length tells a 6
     s.rig.feeder->end();
     CHECK(s.survey().feed_to_path_ratio() == Approx(60).epsilon(1e-9));
     CHECK(s.survey().position_reads() == 101);
+}
+
+TEST_CASE("survey: the feed check leaves out the intervals in which a rotary axis turns", "[survey][rotary]") {
+    SurveyRig s;
+    s.rig.feeder->begin();
+    // 10 mm/s along x with C standing (feed 600 mm/min) for 1 s, then C turning 60 deg/s with x
+    // standing for 1 s, the feed counting its degrees as mm (3600): only the first second counts.
+    // C standing to 0.001 deg (jitter) still counts as standing.
+    for (int i = 0; i <= 200; ++i) {
+        const double t = 0.01 * i;
+        Record p = pos(t, 0.1 * std::min(i, 100));
+        p.rot_deg[2] = i <= 100 ? 0.001 * (i % 2) : 0.6 * (i - 100);
+        s.push(p);
+        s.push(value(Chan::Feed, t, i < 100 ? 600 : 3600));
+    }
+    s.rig.feeder->end();
+    CHECK(s.survey().feed_to_path_ratio() == Approx(1).epsilon(1e-9));
 }
 
 TEST_CASE("survey: a gap in a polled log is warned, an event-driven log's silences are not gaps", "[survey]") {
