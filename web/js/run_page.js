@@ -16,6 +16,7 @@ import { problemsPanel, worstLoad } from './problems.js';
 import { Listing, programRows, blockRows } from './listing.js';
 import { flagLabel, warningText, QUANTITIES } from './labels.js';
 import { setTitle } from './title.js';
+import { toolAxisText } from './tool_axis.js';
 
 const POLL_MS = 250;   // the server updates progress at most every 250 ms
 const MIN_BLOCK_SPAN_S = 1e-3;
@@ -248,7 +249,7 @@ function view3dSection(run, disposers, blocks = []) {
       view = new View3D(box, {
         field, path: points, ratio, relative, onPick,
         tool: run.inputs.spec.tool || run.inputs.spec.tools?.[0], toolAt: toolAtTime(run.inputs.spec, blocks),
-        startTop: sameGrid ? fieldHeights(baseField) : null,
+        startTop: sameGrid ? fieldHeights(baseField) : null, kinematics: run.summary?.kinematics,
       });
       disposers.push(() => view.destroy());
       box.view3d = view;   // for the bench, which turns the view frame by frame
@@ -279,6 +280,7 @@ function view3dSection(run, disposers, blocks = []) {
         h('span', { class: 'sep' }), mode, measure,
         btn('Final stock', () => view.setTime(null), { title: 'Show the final stock without the tool' }));
       const limitWord = relative ? 'of the peak force (no limit set)' : 'of the limit';
+      const axisText = toolAxisText(run.summary?.kinematics);
       const showLegend = (m) => {
         if (m === 'continuous') {
           clear(legend, h('span', {}, '0 %'),
@@ -291,6 +293,8 @@ function view3dSection(run, disposers, blocks = []) {
             c.key === 'air' ? c.label : c.label.replace('of the limit', limitWord))));
         }
         legend.append(h('span', { class: 'muted' }, ` Stock ${num(field.box_mm.max[0] - field.box_mm.min[0])} × ${num(field.box_mm.max[1] - field.box_mm.min[1])} × ${num(field.box_mm.max[2] - field.box_mm.min[2])} mm, shown in ${num(field.cell_mm)} mm cells.`));
+        // A tilted tool reads wrong against the X, Y, Z of the view unless its axis is said too.
+        if (axisText) legend.append(h('span', { class: 'tool-axis', id: 'tool-axis' }, axisText));
       };
       showLegend('classes');
       status.textContent = '';

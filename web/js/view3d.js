@@ -8,10 +8,14 @@
 // path over the starting top surface (the box top, or the base run's final stock) and never
 // shown below the final stock. It sees the top surface only, like the height field.
 //
+// The tool stands along the stock's +Z, or along the run's fixed tilt (summary.kinematics, 3+2
+// machining): the path points are its tip, and the tilted tool is drawn and swept turned about it.
+//
 // Three.js renders on demand (a changed view or cursor), never in a loop.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { h, lowerBound, num } from './dom.js';
+import { toolAxis, axisQuaternion, tiltedLift } from './tool_axis.js';
 
 // Load classes against the limit: colour, dash and markers (pixels), so colour alone never tells.
 export const LOAD_CLASSES = [
@@ -91,6 +95,12 @@ export function toolProfile(tool) {
     const d = r - flat;
     return rc - Math.sqrt(Math.max(0, rc * rc - d * d));
   };
+}
+
+// The part of the tool that cuts, from its tip up its axis: the flutes, else as drawn.
+function cutterLength(tool) {
+  const R = tool.diameter_mm / 2;
+  return tool.flute_length_mm || tool.stickout_mm || 4 * R;
 }
 
 // The tool (cutting part and shank) and holder as lathe profiles around +z from the tip.
@@ -218,8 +228,9 @@ export class View3D {
   // grid (null: the box top); path: {t, x, y, z} in stock coordinates; ratio: load / limit per
   // path point (Float32Array), relative: true when no limit was set (ratio is load / peak);
   // tool: the run spec's tool; toolAt(t): the tool in the spindle at time t (runs with a tool
-  // table), null where none is known (the default tool is shown); onPick(t).
-  constructor(container, { field, startTop = null, path, ratio, relative = false, tool, toolAt = null, onPick, onMeasure }) {
+  // table), null where none is known (the default tool is shown); kinematics: the run's
+  // summary.kinematics (a fixed tilt turns the tool; absent: along +Z); onPick(t).
+  constructor(container, { field, startTop = null, path, ratio, relative = false, tool, toolAt = null, kinematics = null, onPick, onMeasure }) {
     this.container = container;
     this.field = field;
     this.path = path;
@@ -232,6 +243,7 @@ export class View3D {
     const boxTop = field.box_mm.max[2];
     this.startTop = startTop || new Float32Array(this.finalTop.length).fill(boxTop);
     this.profile = toolProfile(tool);
+    this.toolAxis = toolAxis(kinematics);   // null: along +Z, the three-axis view
     // Per path point, the tool that walks it (an index into this.tools), for the in-process stock
     // and the tool drawn at the cursor.
     this.tools = [{ tool, profile: this.profile }];
@@ -486,14 +498,36 @@ export class View3D {
     const { nx, ny } = f;
     const c = f.cell_mm;
     const { x, y, z } = this.path;
-    let R = 0, rc = 0, profile = this.profile;
+    let R = 0, rc = 0, profile = this.profile, cutter = null;
     const use = (i) => {
       const k = this.tools[this.pointTool[i]];
       R = k.tool.diameter_mm / 2;
       rc = Math.ceil(R / c);
       profile = k.profile;
+      if (this.toolAxis && !k.lift) {
+        // Built on the first sweep, once per tool: the view opens on the final stock, which needs none.
+        k.lift = tiltedLift({ profile, radius_mm: R, length_mm: cutterLength(k.tool), axis: this.toolAxis, step_mm: c / 4 });
+      }
+      cutter = k.lift;
     };
-    const stamp = (px, py, pz) => {
+    // A tilted cutter reaches past its tip's disc (toward its top), and its lowest point at an
+    // offset is no longer a function of the distance alone.
+    const stampTilted = (px, py, pz) => {
+      const i0 = Math.max(0, Math.ceil((px + cutter.x0_mm - f.x0_mm) / c - 0.5));
+      const i1 = Math.min(nx - 1, Math.floor((px + cutter.x1_mm - f.x0_mm) / c - 0.5));
+      const j0 = Math.max(0, Math.ceil((py + cutter.y0_mm - f.y0_mm) / c - 0.5));
+      const j1 = Math.min(ny - 1, Math.floor((py + cutter.y1_mm - f.y0_mm) / c - 0.5));
+      for (let j = j0; j <= j1; j++) {
+        const dy = f.y0_mm + (j + 0.5) * c - py;
+        for (let i = i0; i <= i1; i++) {
+          const up = cutter.at(f.x0_mm + (i + 0.5) * c - px, dy);
+          if (up === Infinity) continue;
+          const k = j * nx + i;
+          if (pz + up < top[k]) top[k] = pz + up;
+        }
+      }
+    };
+    const stampVertical = (px, py, pz) => {
       const ci = Math.floor((px - f.x0_mm) / c);
       const cj = Math.floor((py - f.y0_mm) / c);
       for (let j = Math.max(0, cj - rc); j <= Math.min(ny - 1, cj + rc); j++) {
@@ -507,6 +541,7 @@ export class View3D {
         }
       }
     };
+    const stamp = (px, py, pz) => (cutter ? stampTilted(px, py, pz) : stampVertical(px, py, pz));
     for (let i = Math.max(1, from); i < to; i++) {
       use(i - 1);
       const len = Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
@@ -591,6 +626,9 @@ export class View3D {
         });
       }
       this.toolGroup = toolMeshes(this.tools[this.shownTool].tool);
+      // Built around +Z from its tip, so turning the group about the tip stands the tool, its
+      // shank and holder on the run's axis.
+      if (this.toolAxis) this.toolGroup.quaternion.set(...axisQuaternion(this.toolAxis));
       this.scene.add(this.toolGroup);
     }
     this.toolGroup.position.set(x[i], y[i], z[i]);
