@@ -554,3 +554,20 @@ test('a five-axis run names its machine file, tool length and how the tool stood
   assert.deepEqual(errors, []);
   await page.context().close();
 });
+
+test('a 3+2 run (demo 4) names its tilt and tool axis on the Kinematics row', { skip: !dataFile('demo4_dryrun.csv') }, async () => {
+  const fd = new FormData();
+  fd.append('log', new Blob([fs.readFileSync(dataFile('demo4_dryrun.csv'))]), 'demo4_dryrun.csv');
+  fd.append('spec', fs.readFileSync(dataFile('demo4_run.json'), 'utf8'));
+  fd.append('kinematics', new Blob([fs.readFileSync(dataFile('machines/ac_table_table.json'))]), 'ac_table_table.json');
+  const { id } = await server.api('POST', 'runs', fd);
+  const run = await waitDone(id);
+  assert.equal(run.state, 'done', run.error);
+  assert.equal(run.summary.kinematics.fixed_tilt, true);
+  const { page, errors } = await runPage(1400, id);
+  const text = await page.locator('dl.meta').innerText();
+  assert.match(text, /Kinematics\s+ac_table_table\.json, tool length 0 mm; tool tilted 20° from the stock's \+Z, axis \(0, 0\.342, 0\.94\), fixed while it cuts \(3\+2\)/);
+  assert.doesNotMatch(text, /e-\d/, 'no float noise');
+  assert.deepEqual(errors, []);
+  await page.context().close();
+});

@@ -23,13 +23,14 @@ const MIN_BLOCK_SPAN_S = 1e-3;
 const PATH_POINTS = 6000;
 const STOCK_CELLS = 40000;
 
-// The five-axis machine the log's axes went through, and how the tool stood against the part.
+// The five-axis machine the log's axes went through, and how the tool stood against the part. An
+// axis component below 5e-7 is the rotation's rounding (6e-17 for a 0), shown as 0.
 function kinematicsText(run) {
   const k = run.inputs?.kinematics;
   if (!k) return '–';
   const o = run.summary?.kinematics;
   const stand = !o ? '' : o.fixed_tilt
-    ? `; tool tilted ${num(o.tool_lean_deg)}° from the stock's +Z, axis (${o.tool_axis.map((v) => num(v)).join(', ')}), fixed while it cuts (3+2)`
+    ? `; tool tilted ${num(o.tool_lean_deg)}° from the stock's +Z, axis (${o.tool_axis.map((v) => num(Math.abs(v) < 5e-7 ? 0 : v)).join(', ')}), fixed while it cuts (3+2)`
     : '; tool vertical to the stock';
   return `${k.filename}${k.errors ? ' with geometric errors' : ''}, tool length ${num(k.tool_length_mm)} mm${stand}`;
 }
