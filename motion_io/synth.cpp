@@ -773,17 +773,28 @@ NcReadOptions demo3_read_options() {
     return o;
 }
 
-NcDryRunSpec demo3_dry_run_spec() {
+namespace {
+
+// The five-axis demos' dry run: `text` read with `read` on demo2's machine and client (for the
+// table, 2500 deg/s^2), starting where the options start.
+NcDryRunSpec five_axis_demo_spec(const std::string& text, const std::string& name, const NcReadOptions& read,
+                                 std::uint64_t seed) {
     NcDryRunSpec spec;
-    spec.program = parse_nc_program(demo3_program_text(), "demo3_program.nc", demo3_read_options());
-    const auto start = *demo3_read_options().start_mm;
+    spec.program = parse_nc_program(text, name, read);
+    const auto start = *read.start_mm;
     std::copy(start.begin(), start.end(), spec.start_mm);
-    spec.machine.max_accel_mm_s2 = 2500;   // demo2's machine; for the table, 2500 deg/s^2
+    spec.machine.max_accel_mm_s2 = 2500;
     spec.machine.corner_speed_step_mm_min = 600;
     spec.client.stall_probability = 0.004;
     spec.client.stall_s = 0.03;
-    spec.seed = 20250315;
+    spec.seed = seed;
     return spec;
+}
+
+}  // namespace
+
+NcDryRunSpec demo3_dry_run_spec() {
+    return five_axis_demo_spec(demo3_program_text(), "demo3_program.nc", demo3_read_options(), 20250315);
 }
 
 std::string demo4_program_text() {
@@ -829,16 +840,7 @@ NcReadOptions demo4_read_options() {
 }
 
 NcDryRunSpec demo4_dry_run_spec() {
-    NcDryRunSpec spec;
-    spec.program = parse_nc_program(demo4_program_text(), "demo4_program.nc", demo4_read_options());
-    const auto start = *demo4_read_options().start_mm;
-    std::copy(start.begin(), start.end(), spec.start_mm);
-    spec.machine.max_accel_mm_s2 = 2500;   // demo2's machine
-    spec.machine.corner_speed_step_mm_min = 600;
-    spec.client.stall_probability = 0.004;
-    spec.client.stall_s = 0.03;
-    spec.seed = 20261128;
-    return spec;
+    return five_axis_demo_spec(demo4_program_text(), "demo4_program.nc", demo4_read_options(), 20261128);
 }
 
 }  // namespace cutload::motion_io

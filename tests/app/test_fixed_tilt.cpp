@@ -399,15 +399,19 @@ TEST_CASE("fixed tilt: a tilted run with its NC program predicts the commanded p
     const std::size_t end = turned.find('\n', last);
     const int line = int(std::count(turned.begin(), turned.begin() + std::ptrdiff_t(end), '\n')) + 2;
     turned.insert(end + 1, fmt::format("N35 G94 G01 A{:.3f} F1000\n", a_deg + 10));
-    in.program->text = turned;
-    try {
-        app::predict_run(in);
-        FAIL("a program turning the tool in the stock was not refused");
-    } catch (const std::exception& e) {
-        CHECK_THAT(e.what(), Catch::Contains(fmt::format("tilt.nc:{}: block N35: where the tool can reach the stock its "
-                                                         "axis turns",
-                                                         line)));
-    }
+    // The run with `text` as its program is refused at `line`, naming `block`.
+    const auto refused_at = [&](const std::string& text, int at, const std::string& block) {
+        in.program->text = text;
+        try {
+            app::predict_run(in);
+            FAIL("block " << block << " was not refused");
+        } catch (const std::exception& e) {
+            CHECK_THAT(e.what(), Catch::Contains(fmt::format("tilt.nc:{}: block {}: where the tool can reach the stock "
+                                                             "its axis turns",
+                                                             at, block)));
+        }
+    };
+    refused_at(turned, line, "N35");
     // After the cut: up and clear, A back to 0 in the air (allowed), then a rapid with the tool
     // vertical straight through the part from 250 mm on one side to 250 mm on the other: both
     // ends out of reach, the middle in the stock. Refused at that block's line.
@@ -415,15 +419,7 @@ TEST_CASE("fixed tilt: a tilted run with its NC program predicts the commanded p
     const std::size_t after = crossing.find('\n', crossing.rfind("N30 G")) + 1;
     const int crossing_line = int(std::count(crossing.begin(), crossing.begin() + std::ptrdiff_t(after), '\n')) + 5;
     crossing.insert(after, "N36 G94 G00 Z-200.\nN37 A0.\nN38 X-600. Y-275.\nN39 Z-465.\nN40 X-100.\n");
-    in.program->text = crossing;
-    try {
-        app::predict_run(in);
-        FAIL("a rapid through the part at another orientation was not refused");
-    } catch (const std::exception& e) {
-        CHECK_THAT(e.what(), Catch::Contains(fmt::format("tilt.nc:{}: block N40: where the tool can reach the stock its "
-                                                         "axis turns",
-                                                         crossing_line)));
-    }
+    refused_at(crossing, crossing_line, "N40");
 }
 
 TEST_CASE("fixed tilt: the tool may index in the air, turning where it can reach the stock is refused, naming when and "
