@@ -135,4 +135,21 @@ double CutterProfile::lower_surface_mm(double r_mm) const {
     return std::isfinite(lowest) ? lowest : length_mm_;
 }
 
+std::vector<ProfilePoint> profile_polyline(const CutterProfile& profile, double sagitta_mm) {
+    if (!(sagitta_mm > 0)) throw std::invalid_argument("profile polyline: the sagitta must be > 0 mm");
+    std::vector<ProfilePoint> points{segment_start(profile.segments().front())};
+    for (const ProfileSegment& s : profile.segments()) {
+        if (const auto* arc = std::get_if<ArcSegment>(&s)) {
+            // A chord over the angle d strays rho (1 - cos(d / 2)) from its arc.
+            const double ratio = std::clamp(1 - sagitta_mm / arc->radius_mm, -1.0, 1.0);
+            const double max_step = std::max(2 * std::acos(ratio), 1e-6);
+            const int pieces = std::max(1, int(std::ceil((arc->to_rad - arc->from_rad) / max_step)));
+            for (int k = 1; k < pieces; ++k)
+                points.push_back(arc->at(arc->from_rad + (arc->to_rad - arc->from_rad) * k / pieces));
+        }
+        points.push_back(segment_end(s));
+    }
+    return points;
+}
+
 }  // namespace cutload::force_model

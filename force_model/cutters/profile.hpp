@@ -56,4 +56,10 @@ private:
     double radius_mm_ = 0, length_mm_ = 0;
 };
 
+// The profile as a polyline through points on it from the tip up, each arc divided so that no
+// chord strays more than sagitta_mm from it (inscribed: the polyline lies on or inside the
+// profile). The multi-direction stock cuts with the solid this polyline turns about the axis
+// (kernels/tri_dexel.hpp), a stack of cones that one quadratic serves, instead of tori.
+std::vector<ProfilePoint> profile_polyline(const CutterProfile& profile, double sagitta_mm);
+
 }  // namespace cutload::force_model

@@ -1,0 +1,177 @@
+// Engagement and forces for a tool at any orientation on the tri-dexel stock
+// (kernels::engage_tri_dexel, docs/five_axis.md section 4), against the closed-form mean forces of
+// Altintas' model (reference.hpp): a vertical side cut, the same cut turned so the tool lies
+// horizontal, and a tool that only turns (the chip from the rotation, omega x r).
+#include "force_model/cutters/shapes.hpp"
+#include "force_model/cutters/tool_geometry.hpp"
+#include "force_model/reference.hpp"
+#include "kernels/tri_dexel.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+
+using namespace cutload;
+using Vec = std::array<double, 3>;
+using Mat = std::array<Vec, 3>;   // rows
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kCellMm = 0.1;
+
+struct Setup {
+    force_model::ToolGeometry geometry;
+    kernels::EngageParams params;
+};
+
+Setup flat_end_mill(const testref::Cut& cut) {
+    const force_model::Cutter cutter{force_model::corner_radius_profile(cut.diameter_mm, 0, 20), cut.flutes,
+                                     cut.helix_deg, 30, 0, 0};
+    Setup s{force_model::build_tool_geometry(cutter, 0.05), {}};
+    const testref::Coefficients k = testref::test_coefficients();
+    s.params.k = {k.Ktc_N_mm2, k.Krc_N_mm2, k.Kac_N_mm2, k.Kte_N_mm, k.Kre_N_mm, k.Kae_N_mm};
+    s.params.element_end = int(s.geometry.edges.size());
+    return s;
+}
+
+Vec apply(const Mat& m, const Vec& v) {
+    return {m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2], m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+            m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2]};
+}
+
+constexpr Mat kIdentity{{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
+
+// Mean forces (stock frame) over one tooth period of a tool held at `tip` with orientation `rot`,
+// feeding `feed_tool` per tooth and turning `turn_tool` per tooth (tool frame), on the stock.
+Vec mean_force(const Setup& s, const kernels::TriDexel& stock, const Vec& tip, const Mat& rot, const Vec& feed_tool,
+               const Vec& turn_tool, int flutes, double* torque_Nmm = nullptr) {
+    const int steps = 720;
+    std::vector<kernels::PoseStep> poses(steps);
+    for (int i = 0; i < steps; ++i) {
+        kernels::PoseStep& p = poses[i];
+        p.tip_mm = tip;
+        p.rot = rot;
+        p.feed_mm = feed_tool;
+        p.turn_rad = turn_tool;
+        p.theta_rad = 2 * kPi / flutes * (i + 0.5) / steps;
+    }
+    std::vector<kernels::StepResult> out(steps);
+    kernels::engage_tri_dexel(poses.data(), poses.size(), 1.0, s.geometry.edges, s.params, stock, out.data());
+    Vec sum{0, 0, 0};
+    double t = 0;
+    for (const auto& o : out) {
+        sum[0] += o.fx_N;
+        sum[1] += o.fy_N;
+        sum[2] += o.fz_N;
+        t += o.torque_Nmm;
+    }
+    if (torque_Nmm) *torque_Nmm = t / steps;
+    return {sum[0] / steps, sum[1] / steps, sum[2] / steps};
+}
+
+// The material box that gives the cut's immersion window to a tool whose tip is at the origin
+// feeding along +X (reference.hpp's convention: cutting points at R (sin phi, cos phi), up milling
+// from phi = 0 on the +Y side), between heights z0 and z0 + a_p.
+std::pair<Vec, Vec> window_box(const testref::Cut& cut, double z0_mm) {
+    const double R = cut.diameter_mm / 2;
+    const double y_lo = cut.phi_start_rad > 0 ? -R - 5 : R * std::cos(cut.phi_exit_rad);
+    const double y_hi = cut.phi_start_rad > 0 ? R * std::cos(cut.phi_start_rad) : R + 5;
+    return {{-12.03, y_lo, z0_mm}, {12.07, y_hi, z0_mm + cut.axial_depth_mm}};
+}
+
+void check_close(const Vec& got, const testref::Forces& want, double tol) {
+    const double scale = std::hypot(want.fx_N, want.fy_N, want.fz_N);
+    INFO("got (" << got[0] << ", " << got[1] << ", " << got[2] << ") N, want (" << want.fx_N << ", " << want.fy_N
+                 << ", " << want.fz_N << ") N");
+    CHECK(std::abs(got[0] - want.fx_N) <= tol * scale);
+    CHECK(std::abs(got[1] - want.fy_N) <= tol * scale);
+    CHECK(std::abs(got[2] - want.fz_N) <= tol * scale);
+}
+
+}  // namespace
+
+TEST_CASE("tri-dexel engagement: a vertical side cut gives Altintas' closed-form mean forces", "[tri_dexel]") {
+    const double fz_mm = 0.1;
+    for (const testref::Cut& cut : {testref::up_cut(8, 2, 30, 2, fz_mm, 2), testref::down_cut(8, 2, 30, 2, fz_mm, 3),
+                                    testref::slot_cut(8, 2, 30, 2, fz_mm)}) {
+        const Setup s = flat_end_mill(cut);
+        // The tip 0.5 mm below the material: the flat bottom stays in air, as in the closed form.
+        const auto [lo, hi] = window_box(cut, 0.5);
+        const auto stock = kernels::make_tri_dexel_box(lo, hi, kCellMm);
+        double torque = 0;
+        const Vec f = mean_force(s, stock, {0, 0, 0}, kIdentity, {fz_mm, 0, 0}, {0, 0, 0}, cut.flutes, &torque);
+        const testref::Forces want = testref::average_forces(cut, testref::test_coefficients());
+        INFO("window " << cut.phi_start_rad << " to " << cut.phi_exit_rad << " rad");
+        check_close(f, want, 0.005);
+        CHECK(torque / 1000 == Approx(want.torque_Nm).epsilon(0.005));
+    }
+}
+
+TEST_CASE("tri-dexel engagement: the side cut turned so the tool lies horizontal gives the same forces, turned",
+          "[tri_dexel]") {
+    // Q turns the vertical set-up about Y by -90 deg: the tool axis +Z becomes -X, +X becomes +Z.
+    // The stock box turns with it (still a box), and the forces must be Q times the vertical ones.
+    const testref::Cut cut = testref::up_cut(8, 2, 30, 2, 0.1, 2);
+    const Setup s = flat_end_mill(cut);
+    const Mat Q{{{0, 0, -1}, {0, 1, 0}, {1, 0, 0}}};
+    const auto [lo, hi] = window_box(cut, 0.5);
+    const Vec a = apply(Q, lo), b = apply(Q, hi);
+    const Vec turned_lo{std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2])};
+    const Vec turned_hi{std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2])};
+    const auto vertical = kernels::make_tri_dexel_box(lo, hi, kCellMm);
+    const auto horizontal = kernels::make_tri_dexel_box(turned_lo, turned_hi, kCellMm);
+    const Vec tip{0, 0, 0};
+    const Vec f_vertical = mean_force(s, vertical, tip, kIdentity, {0.1, 0, 0}, {0, 0, 0}, 2);
+    const Vec f_horizontal = mean_force(s, horizontal, tip, Q, {0.1, 0, 0}, {0, 0, 0}, 2);
+    const Vec want = apply(Q, f_vertical);
+    const double scale = std::hypot(want[0], want[1], want[2]);
+    for (int c = 0; c < 3; ++c) CHECK(std::abs(f_horizontal[c] - want[c]) <= 1e-6 * scale);
+    check_close(f_horizontal,
+                [&] {
+                    const testref::Forces r = testref::average_forces(cut, testref::test_coefficients());
+                    const Vec t = apply(Q, {r.fx_N, r.fy_N, r.fz_N});
+                    return testref::Forces{t[0], t[1], t[2], r.torque_Nm};
+                }(),
+                0.005);
+}
+
+TEST_CASE("tri-dexel engagement: a tool that only turns cuts with the chip of omega x r", "[tri_dexel]") {
+    // The tip stands still while the tool turns about its own y axis through the tip by w per tooth:
+    // a point at height z feeds w z along +x. Over the material from z = 0.5 to 2.5 the chip grows
+    // linearly with z, and the mean force is linear in the chip, so it equals the closed form at the
+    // mean feed w (0.5 + 2.5) / 2 with a_p = 2.
+    const double w_rad = 0.1 / 1.5;
+    const testref::Cut cut = testref::up_cut(8, 2, 30, 2, 0.1, 2);
+    const Setup s = flat_end_mill(cut);
+    const auto [lo, hi] = window_box(cut, 0.5);
+    const auto stock = kernels::make_tri_dexel_box(lo, hi, kCellMm);
+    const Vec f = mean_force(s, stock, {0, 0, 0}, kIdentity, {0, 0, 0}, {0, w_rad, 0}, 2);
+    check_close(f, testref::average_forces(cut, testref::test_coefficients()), 0.005);
+    // Turning the other way the front half feeds backwards: with material only ahead of the
+    // tool (x > 0), no chip and no force.
+    const auto ahead = kernels::make_tri_dexel_box({0.0, lo[1], lo[2]}, hi, kCellMm);
+    const Vec back = mean_force(s, ahead, {0, 0, 0}, kIdentity, {0, 0, 0}, {0, -w_rad, 0}, 2);
+    CHECK(std::hypot(back[0], back[1], back[2]) < 1e-9);
+}
+
+TEST_CASE("tri-dexel engagement: a side cut against a wall left between grid lines by an earlier pass", "[tri_dexel]") {
+    // An earlier pass of a D20 flat end mill along X leaves the wall y = 2.037, off the grid's
+    // lines, so the Z and X rays place it only to a cell while the Y rays place it exactly. The
+    // up-milling cut (ae 2, D8) then runs with its centre at y = 0.037: its window ends on that wall.
+    const testref::Cut cut = testref::up_cut(8, 2, 30, 2, 0.1, 2);
+    const Setup s = flat_end_mill(cut);
+    const double y_shift = 0.037, wall_y = y_shift + 4 * std::cos(cut.phi_exit_rad);
+    auto stock = kernels::make_tri_dexel_box({-12.03, -9.99, 0.5}, {12.07, 10.01, 2.5}, kCellMm);
+    std::vector<std::array<double, 2>> flat20{{0, 0}, {10, 0}, {10, 20}};
+    const auto big = kernels::convex_tool_solid(flat20);
+    kernels::ToolChord pass;
+    pass.from_mm = {-30, wall_y - 10, 0};
+    pass.to_mm = {30, wall_y - 10, 0};
+    pass.rot = kIdentity;
+    const auto removed = kernels::sweep_tri_dexel(stock, big, &pass, 1);
+    CHECK(removed[1] == Approx((wall_y + 9.99) * 24.1 * 2).epsilon(1e-4));   // the Y rays: exact
+    const Vec f = mean_force(s, stock, {0, y_shift, 0}, kIdentity, {0.1, 0, 0}, {0, 0, 0}, 2);
+    check_close(f, testref::average_forces(cut, testref::test_coefficients()), 0.005);
+}
