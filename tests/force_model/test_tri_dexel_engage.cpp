@@ -4,11 +4,13 @@
 // horizontal, and a tool that only turns (the chip from the rotation, omega x r).
 #include "force_model/cutters/shapes.hpp"
 #include "force_model/cutters/tool_geometry.hpp"
+#include "force_model/engine/pose_engine.hpp"
 #include "force_model/reference.hpp"
 #include "kernels/tri_dexel.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -174,4 +176,61 @@ TEST_CASE("tri-dexel engagement: a side cut against a wall left between grid lin
     CHECK(removed[1] == Approx((wall_y + 9.99) * 24.1 * 2).epsilon(1e-4));   // the Y rays: exact
     const Vec f = mean_force(s, stock, {0, y_shift, 0}, kIdentity, {0.1, 0, 0}, {0, 0, 0}, 2);
     check_close(f, testref::average_forces(cut, testref::test_coefficients()), 0.005);
+}
+
+TEST_CASE("tri-dexel pose engine: a side cut through the stock, removing as it goes, gives the closed-form mean forces",
+          "[tri_dexel]") {
+    // Up milling, D8, ae 2, ap 2, 0.1 mm per tooth at 6000 rpm (20 mm/s), 2 deg per step. The tool
+    // enters the block y 2..9, x 0..30 from outside and runs to x = 20; the engine engages each
+    // batch against the stock its earlier sweep left (trailing by the lag) and removes as it goes.
+    const testref::Cut cut = testref::up_cut(8, 2, 30, 2, 0.1, 2);
+    const Setup s = flat_end_mill(cut);
+    const double rpm = 6000, v_mm_s = 0.1 * 2 * rpm / 60, dt_s = (2.0 / 360) / (rpm / 60);
+    const double x0 = -6, x1 = 20;
+    const auto n = std::size_t(std::llround((x1 - x0) / v_mm_s / dt_s));
+    for (const bool horizontal : {false, true}) {
+        INFO((horizontal ? "tool horizontal (the set-up turned by Q)" : "tool vertical"));
+        // Q turns about Y by -90 deg: the tool axis +Z becomes -X.
+        const Mat rot = horizontal ? Mat{{{0, 0, -1}, {0, 1, 0}, {1, 0, 0}}} : kIdentity;
+        const Vec a = apply(rot, {0, 2, 0.5}), b = apply(rot, {30, 9, 2.5});
+        auto stock = kernels::make_tri_dexel_box({std::min(a[0], b[0]), std::min(a[1], b[1]), std::min(a[2], b[2])},
+                                                 {std::max(a[0], b[0]), std::max(a[1], b[1]), std::max(a[2], b[2])},
+                                                 kCellMm);
+        std::vector<kernels::PoseStep> steps(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double t = i * dt_s;
+            steps[i].tip_mm = apply(rot, {x0 + v_mm_s * t, 0, 0});
+            steps[i].rot = rot;
+            steps[i].feed_mm = {0.1, 0, 0};
+            steps[i].theta_rad = 2 * kPi * rpm / 60 * t;
+        }
+        std::vector<std::array<double, 2>> rz;
+        for (const auto& p : force_model::profile_polyline(force_model::corner_radius_profile(8, 0, 20), kCellMm / 64))
+            rz.push_back({p.r_mm, p.z_mm});
+        force_model::PoseEngine engine(std::move(stock), s.geometry, kernels::convex_tool_solid(rz), s.params, 1.0);
+        std::vector<kernels::StepResult> out;
+        engine.run(steps, out);
+        engine.finish();
+        // Mean over whole tooth periods (90 steps) while the centre runs from x = 8 to 18.
+        const auto i0 = std::size_t(std::llround((8 - x0) / v_mm_s / dt_s));
+        const std::size_t periods = std::size_t(std::llround(10 / v_mm_s / dt_s)) / 90;
+        Vec sum{0, 0, 0};
+        for (std::size_t i = i0; i < i0 + periods * 90; ++i) {
+            sum[0] += out[i].fx_N;
+            sum[1] += out[i].fy_N;
+            sum[2] += out[i].fz_N;
+        }
+        const Vec mean{sum[0] / (periods * 90.0), sum[1] / (periods * 90.0), sum[2] / (periods * 90.0)};
+        const testref::Forces r = testref::average_forces(cut, testref::test_coefficients());
+        const Vec want = apply(rot, {r.fx_N, r.fy_N, r.fz_N});
+        check_close(mean, {want[0], want[1], want[2], r.torque_Nm}, 0.005);
+        // The band the tool swept: y 2..4 over x 0..20 and the arc of its last position, ap 2.
+        const double end_arc = 8 * kPi / 2 - (std::sqrt(12.0) + 8 * kPi / 6);
+        CHECK(engine.removed_mm3() == Approx((40 + end_arc) * 2).epsilon(0.005));
+        // The tool stops in the block, so its last tooth period still cuts (the cut is interrupted:
+        // 60 deg of immersion and 16.5 deg of helix lag in 180 deg of pitch); its first steps, 2 mm
+        // clear of the block, do not.
+        CHECK(std::any_of(out.end() - 90, out.end(), [](const auto& o) { return o.engaged > 0; }));
+        CHECK(std::none_of(out.begin(), out.begin() + 90, [](const auto& o) { return o.engaged > 0; }));
+    }
 }

@@ -1,0 +1,104 @@
+#include "engine/pose_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cutload::force_model {
+
+namespace {
+
+using Mat = std::array<std::array<double, 3>, 3>;
+
+// Angle of the rotation between two orientations: acos((trace(A^T B) - 1) / 2).
+double turn_between_rad(const Mat& a, const Mat& b) {
+    double trace = 0;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) trace += a[r][c] * b[r][c];
+    return std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0));
+}
+
+double distance_mm(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+    return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+}
+
+// Distance of p from the segment a-b.
+double off_segment_mm(const std::array<double, 3>& p, const std::array<double, 3>& a, const std::array<double, 3>& b) {
+    const std::array<double, 3> d{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+    const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    const double s = dd > 0 ? std::clamp((w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dd, 0.0, 1.0) : 0.0;
+    return std::hypot(w[0] - s * d[0], w[1] - s * d[1], w[2] - s * d[2]);
+}
+
+}  // namespace
+
+PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernels::ConvexToolSolid solid,
+                       kernels::EngageParams params, double spin, PoseEngineSettings settings)
+    : stock_(std::move(stock)),
+      tool_(tool),
+      solid_(std::move(solid)),
+      params_(params),
+      spin_(spin),
+      settings_(settings),
+      reach_mm_(std::hypot(tool.flute_length_mm, tool.radius_mm)) {}
+
+void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out) {
+    out.resize(steps.size());
+    const double lag_mm = settings_.lag_cells * stock_.cell_mm;
+    for (std::size_t b0 = 0; b0 < steps.size(); b0 += settings_.batch_steps) {
+        const std::size_t n = std::min(settings_.batch_steps, steps.size() - b0);
+        kernels::engage_tri_dexel(steps.data() + b0, n, spin_, tool_.edges, params_, stock_, out.data() + b0);
+        for (std::size_t i = b0; i < b0 + n; ++i) {
+            const kernels::PoseStep& s = steps[i];
+            double travel = 0;
+            if (!pending_.empty())
+                travel = travel_mm_.back() + distance_mm(pending_.back().tip_mm, s.tip_mm) +
+                         turn_between_rad(pending_.back().rot, s.rot) * reach_mm_;
+            pending_.push_back(s);
+            travel_mm_.push_back(travel);
+        }
+        // Remove up to the last pose at least a lag of travel behind the batch's end.
+        const double upto = travel_mm_.back() - lag_mm;
+        std::size_t last = 0;
+        while (last + 1 < pending_.size() && travel_mm_[last + 1] <= upto) ++last;
+        if (last > 0) remove_through(last);
+    }
+}
+
+void PoseEngine::finish() {
+    if (pending_.size() > 1) remove_through(pending_.size() - 1);
+}
+
+void PoseEngine::remove_through(std::size_t last) {
+    const double tol_mm = settings_.chord_tolerance_cells * stock_.cell_mm;
+    std::vector<kernels::ToolChord> chords;
+    std::size_t a = 0;
+    while (a < last) {
+        // Extend the chord while its orientation (the start's) and its straight tip stay within the
+        // tolerance of every pose it covers.
+        std::size_t c = a + 1;
+        while (c + 1 <= last) {
+            const std::size_t next = c + 1;
+            if (turn_between_rad(pending_[a].rot, pending_[next].rot) * reach_mm_ > tol_mm) break;
+            bool straight = true;
+            for (std::size_t k = a + 1; k < next && straight; ++k)
+                straight = off_segment_mm(pending_[k].tip_mm, pending_[a].tip_mm, pending_[next].tip_mm) <= tol_mm;
+            if (!straight) break;
+            c = next;
+        }
+        kernels::ToolChord chord;
+        chord.from_mm = pending_[a].tip_mm;
+        chord.to_mm = pending_[c].tip_mm;
+        chord.rot = pending_[a].rot;
+        chords.push_back(chord);
+        a = c;
+    }
+    const auto removed = kernels::sweep_tri_dexel(stock_, solid_, chords.data(), chords.size());
+    removed_mm3_ += removed[2];
+    chords_ += chords.size();
+    pending_.erase(pending_.begin(), pending_.begin() + std::ptrdiff_t(last));
+    const double base = travel_mm_[last];
+    travel_mm_.erase(travel_mm_.begin(), travel_mm_.begin() + std::ptrdiff_t(last));
+    for (double& t : travel_mm_) t -= base;
+}
+
+}  // namespace cutload::force_model

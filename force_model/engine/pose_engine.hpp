@@ -1,0 +1,56 @@
+// Internal: the engine for a tool whose orientation changes while it cuts (simultaneous five-axis
+// work), on the tri-dexel stock (kernels/tri_dexel.hpp; docs/five_axis.md sections 3 and 4).
+// Scalar for now: engagement per step with the twist's chip, then the batch's sweep removed in
+// chords of fixed orientation, trailing the engagement by a lag of travel as the Z-map engine's
+// removal does (docs/force_model.md, "Stock lag").
+#pragma once
+
+#include "cutters/tool_geometry.hpp"
+#include "kernels/tri_dexel.hpp"
+
+#include <cstddef>
+#include <vector>
+
+namespace cutload::force_model {
+
+struct PoseEngineSettings {
+    double lag_cells = 4;               // removal trails the engagement by this much travel
+    double chord_tolerance_cells = 0.5; // a chord's fixed orientation and straight tip stay this close
+    std::size_t batch_steps = 256;      // steps engaged against one state of the stock
+};
+
+class PoseEngine {
+public:
+    // `reach_mm`: how far from the tip the tool's cutting part extends (flute length and radius),
+    // which turns an orientation change into travel.
+    PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernels::ConvexToolSolid solid,
+               kernels::EngageParams params, double spin, PoseEngineSettings settings = {});
+
+    // Engages and removes along the steps, in order; out receives one result per step. Steps of
+    // successive calls continue one path.
+    void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out);
+    // Removes what is still pending (the last lag of travel).
+    void finish();
+
+    const kernels::TriDexel& stock() const { return stock_; }
+    // Material removed so far, as the Z family measures it, mm^3.
+    double removed_mm3() const { return removed_mm3_; }
+    std::size_t chords() const { return chords_; }
+
+private:
+    void remove_through(std::size_t last);   // pending poses [0, last] become chords
+
+    kernels::TriDexel stock_;
+    const ToolGeometry& tool_;
+    kernels::ConvexToolSolid solid_;
+    kernels::EngageParams params_;
+    double spin_;
+    PoseEngineSettings settings_;
+    double reach_mm_;
+    std::vector<kernels::PoseStep> pending_;   // poses not yet removed; the first is the last chord's end
+    std::vector<double> travel_mm_;            // cumulative travel over pending_
+    double removed_mm3_ = 0;
+    std::size_t chords_ = 0;
+};
+
+}  // namespace cutload::force_model
