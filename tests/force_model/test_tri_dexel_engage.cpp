@@ -234,3 +234,118 @@ TEST_CASE("tri-dexel pose engine: a side cut through the stock, removing as it g
         CHECK(std::none_of(out.begin(), out.begin() + 90, [](const auto& o) { return o.engaged > 0; }));
     }
 }
+
+namespace {
+
+// The same edge elements, cutting where they lie below the flat top face z = top_mm and feed into
+// it (h > min chip), with the fraction of each element's span below the face: for a convex tool fed
+// straight, the leading side below the face is exactly the surface against uncut material, so this
+// is the engagement without any stock. Forces by the same law (reference.hpp's Altintas model:
+// Ft, Fr, Fa on the edge, summed in the tool frame, turned into the stock frame).
+Vec face_cut_force(const Setup& s, const kernels::PoseStep& st, double top_mm, double spin) {
+    const kernels::EdgeTable& t = s.geometry.edges;
+    const auto& k = s.params.k;
+    const double pitch = 2 * kPi / t.flutes;
+    Vec F{0, 0, 0};
+    auto world_z = [&](double x, double y, double z) {
+        return st.tip_mm[2] + st.rot[2][0] * x + st.rot[2][1] * y + st.rot[2][2] * z;
+    };
+    for (int j = 0; j < t.flutes; ++j)
+        for (std::size_t e = 0; e < t.size(); ++e) {
+            const double alpha = kPi / 2 - st.theta_rad - j * pitch + spin * t.lag_rad[e];
+            const double cu = std::cos(alpha), su = std::sin(alpha);
+            const double h = t.nr[e] * (st.feed_mm[0] * cu + st.feed_mm[1] * su) + t.nz[e] * st.feed_mm[2];
+            if (h <= s.params.min_chip_mm) continue;
+            const double r = t.r_mm[e];
+            const double za = world_z(r * cu, r * su, t.z_lo_mm[e]), zb = world_z(r * cu, r * su, t.z_hi_mm[e]);
+            double w = 0;
+            if (t.z_hi_mm[e] > t.z_lo_mm[e]) {
+                const double lo = std::min(za, zb), hi = std::max(za, zb);
+                w = hi > lo ? std::clamp((top_mm - lo) / (hi - lo), 0.0, 1.0) : (lo < top_mm ? 1.0 : 0.0);
+            } else {
+                w = world_z(r * cu, r * su, t.z_mm[e]) < top_mm ? 1.0 : 0.0;
+            }
+            if (w <= 0) continue;
+            const double db = t.db_mm[e] * w;
+            const double dFt = (k.Ktc * h + k.Kte) * db, dFr = (k.Krc * h + k.Kre) * db, dFa = (k.Kac * h + k.Kae) * db;
+            const double normal = dFr * t.nr[e] + dFa * t.nz[e];
+            const Vec f_tool{-spin * dFt * su - normal * cu, spin * dFt * cu - normal * su, -dFr * t.nz[e] + dFa * t.nr[e]};
+            const Vec f = apply(st.rot, f_tool);
+            for (int c = 0; c < 3; ++c) F[c] += f[c];
+        }
+    return F;
+}
+
+}  // namespace
+
+TEST_CASE("tri-dexel pose engine: a tilted ball end mill's cut matches the same edge cutting below the face",
+          "[tri_dexel]") {
+    // Ball D10, 2 flutes, 30 deg helix, 8000 rpm, 0.08 mm per tooth along +X, tip 2 mm below the
+    // top face z = 0 of the block x 0..40, y -15..15, z -20..0; the axis leans by a lead (toward
+    // +X) and a tilt (toward +Y). The reference (face_cut_force) needs no stock.
+    const double R = 5, rpm = 8000, fz_mm = 0.08;
+    const double v_mm_s = fz_mm * 2 * rpm / 60, dt_s = (2.0 / 360) / (rpm / 60);
+    const force_model::Cutter cutter{force_model::corner_radius_profile(2 * R, R, 20), 2, 30, 30, 0, 0};
+    Setup s{force_model::build_tool_geometry(cutter, 0.1), {}};
+    const testref::Coefficients kc = testref::test_coefficients();
+    s.params.k = {kc.Ktc_N_mm2, kc.Krc_N_mm2, kc.Kac_N_mm2, kc.Kte_N_mm, kc.Kre_N_mm, kc.Kae_N_mm};
+    s.params.min_chip_mm = 5e-4;
+    s.params.element_end = int(s.geometry.edges.size());
+    std::vector<std::array<double, 2>> rz;
+    for (const auto& p : force_model::profile_polyline(cutter.profile, kCellMm / 64)) rz.push_back({p.r_mm, p.z_mm});
+    const auto [lead_deg, tilt_deg] = GENERATE(std::pair{0.0, 0.0}, std::pair{30.0, 0.0}, std::pair{15.0, 20.0},
+                                               std::pair{-20.0, -10.0});
+    INFO("lead " << lead_deg << " deg, tilt " << tilt_deg << " deg");
+    const double lead = lead_deg * kPi / 180, tilt = tilt_deg * kPi / 180;
+    const Vec axis{std::sin(lead) * std::cos(tilt), std::sin(tilt), std::cos(lead) * std::cos(tilt)};
+    // Tool x: +X made normal to the axis; y = axis x x.
+    Vec x{1 - axis[0] * axis[0], -axis[0] * axis[1], -axis[0] * axis[2]};
+    const double nx = std::hypot(x[0], x[1], x[2]);
+    for (double& c : x) c /= nx;
+    const Vec y{axis[1] * x[2] - axis[2] * x[1], axis[2] * x[0] - axis[0] * x[2], axis[0] * x[1] - axis[1] * x[0]};
+    const Mat rot{{{x[0], y[0], axis[0]}, {x[1], y[1], axis[1]}, {x[2], y[2], axis[2]}}};
+    // The feed per tooth along +X in the tool frame: rot^T (fz, 0, 0).
+    const Vec feed_tool{rot[0][0] * fz_mm, rot[0][1] * fz_mm, rot[0][2] * fz_mm};
+    const double x0 = -8, x1 = 17;
+    const auto n = std::size_t(std::llround((x1 - x0) / v_mm_s / dt_s));
+    std::vector<kernels::PoseStep> steps(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double t = i * dt_s;
+        steps[i].tip_mm = {x0 + v_mm_s * t, 0, -2};
+        steps[i].rot = rot;
+        steps[i].feed_mm = feed_tool;
+        steps[i].theta_rad = 2 * kPi * rpm / 60 * t;
+    }
+    force_model::PoseEngine engine(kernels::make_tri_dexel_box({0, -15, -20}, {40, 15, 0}, kCellMm), s.geometry,
+                                   kernels::convex_tool_solid(rz), s.params, 1.0);
+    std::vector<kernels::StepResult> out;
+    engine.run(steps, out);
+    // Steady stretch: the tip from x = 8 to 16, whole tooth periods (90 steps each).
+    const auto i0 = std::size_t(std::llround((8 - x0) / v_mm_s / dt_s));
+    const std::size_t m = std::size_t(std::llround(8 / v_mm_s / dt_s)) / 90 * 90;
+    Vec mean_engine{0, 0, 0}, mean_ref{0, 0, 0};
+    double diff2 = 0, peak = 0;
+    for (std::size_t i = i0; i < i0 + m; ++i) {
+        const Vec ref = face_cut_force(s, steps[i], 0.0, 1.0);
+        const Vec got{out[i].fx_N, out[i].fy_N, out[i].fz_N};
+        for (int c = 0; c < 3; ++c) {
+            mean_engine[c] += got[c] / double(m);
+            mean_ref[c] += ref[c] / double(m);
+            diff2 += (got[c] - ref[c]) * (got[c] - ref[c]) / double(m);
+        }
+        peak = std::max(peak, std::hypot(ref[0], ref[1], ref[2]));
+    }
+    const double mean_err = std::hypot(mean_engine[0] - mean_ref[0], mean_engine[1] - mean_ref[1], mean_engine[2] - mean_ref[2]) /
+                            std::hypot(mean_ref[0], mean_ref[1], mean_ref[2]);
+    const double trace_rms = std::sqrt(diff2) / peak;
+    INFO("mean (" << mean_engine[0] << ", " << mean_engine[1] << ", " << mean_engine[2] << ") N against ("
+                  << mean_ref[0] << ", " << mean_ref[1] << ", " << mean_ref[2] << ") N: " << mean_err * 100
+                  << " %, trace RMS " << trace_rms * 100 << " % of the peak " << peak << " N");
+    CHECK(peak > 50);
+    // Issue 15 asks for 3 % on the traces of a tilted ball end mill.
+    CHECK(mean_err < 0.01);
+    CHECK(trace_rms < 0.03);
+    testref::report_figure("tri-dexel tilted ball lead " + std::to_string(lead_deg) + " tilt " + std::to_string(tilt_deg) +
+                           ": mean " + std::to_string(mean_err * 100) + " %, trace RMS " + std::to_string(trace_rms * 100) +
+                           " % of peak");
+}
