@@ -113,29 +113,57 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         if (r.motion.has_rotary(int(k))) axes_start_deg[k] = r.motion.rot_deg[k].front();
     force_model::RunSpec spec = in.spec;   // in the tool's frame for a fixed tilt
     ToolFrame frame;
+    // A tool that turns where it can reach the stock: its poses, for the multi-direction stock.
+    std::optional<force_model::ToolPoses> turning;
     if (in.machine) {
         if (in.commanded_from_log)
             throw InputError("machine", "a machine definition cannot be combined with the log's commanded path yet: "
                                         "predict the log alone, or with its NC program");
         try {
             motion_io::MotionModel axes = std::move(r.motion);
-            frame = tool_frame(axes, *in.machine, in.tool_length_mm, tool_reach(in.spec));
-            if (frame.tilted) {
-                // A base stock cut at (about) this tilt keeps its frame, so the two runs share a grid.
-                if (in.base_stock && same_frame(force_model::stock_grid_frame(*in.base_stock), frame.grid_from_stock()))
-                    frame.tool_to_workpiece = tool_to_workpiece(force_model::stock_grid_frame(*in.base_stock));
-                turn_spec(spec, frame.grid_from_stock());
+            bool turns = false;
+            try {
+                frame = tool_frame(axes, *in.machine, in.tool_length_mm, tool_reach(in.spec));
+            } catch (const ToolTurnsInStock&) {
+                if (in.program)
+                    throw InputError("nc_program", "the tool turns while it can reach the stock (simultaneous five-axis "
+                                                   "work), and comparing such a run with its NC program is not built "
+                                                   "yet: predict the log alone (docs/five_axis.md, section 3.4)");
+                if (in.base_stock)
+                    throw InputError("base_stock", "the tool turns while it can reach the stock (simultaneous five-axis "
+                                                   "work), which cuts the multi-direction stock from the run spec's box: "
+                                                   "a base stock cannot be its start yet (docs/five_axis.md, section 3.4)");
+                turns = true;
             }
-            r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm, frame);
+            if (turns) {
+                TurningMotion t = turning_motion(axes, *in.machine, in.tool_length_mm);
+                r.motion = std::move(t.motion);
+                turning = std::move(t.poses);
+                r.tool_lean_deg = t.max_lean_deg;
+                r.turning = true;
+            } else {
+                if (frame.tilted) {
+                    // A base stock cut at (about) this tilt keeps its frame, so the two runs share a grid.
+                    if (in.base_stock && same_frame(force_model::stock_grid_frame(*in.base_stock), frame.grid_from_stock()))
+                        frame.tool_to_workpiece = tool_to_workpiece(force_model::stock_grid_frame(*in.base_stock));
+                    turn_spec(spec, frame.grid_from_stock());
+                }
+                r.motion = workpiece_motion(axes, *in.machine, in.tool_length_mm, frame);
+            }
             // The machine axes stay for the rows' machine-axis forces (MachineAxesForces says why
             // they are taken at each row's time).
             machine_axes.emplace(std::move(axes), in.machine);
         } catch (const WorkpieceMotionError& e) {
             throw InputError("machine", e.what());
         }
-        for (int k = 0; k < 3; ++k) r.tool_axis[std::size_t(k)] = frame.tool_to_workpiece(k, 2);
-        r.tool_lean_deg = frame.lean_deg;
-        r.fixed_tilt = frame.tilted;
+        if (turning) {
+            // It turns: the axis reported is the log's first sample's, the lean the largest.
+            for (int k = 0; k < 3; ++k) r.tool_axis[std::size_t(k)] = turning->tool_to_stock.front().m[std::size_t(3 * k + 2)];
+        } else {
+            for (int k = 0; k < 3; ++k) r.tool_axis[std::size_t(k)] = frame.tool_to_workpiece(k, 2);
+            r.tool_lean_deg = frame.lean_deg;
+            r.fixed_tilt = frame.tilted;
+        }
     } else if (!r.ingest.rotary_axes.empty()) {
         r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
                                          "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
@@ -270,7 +298,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             if (pipe) pipe->post([&machine_axes, begin, end, first_row] { machine_axes->begin_session(begin, end, first_row); });
             else machine_axes->begin_session(begin, end, first_row);
         };
-    r.prediction = force_model::predict(r.motion, spec, po);
+    r.prediction = turning ? force_model::predict_turning(r.motion, *turning, spec, po) : force_model::predict(r.motion, spec, po);
     if (pipe) pipe->finish();
     if (frame.tilted) {
         turn_forces(r.prediction.samples, frame.tool_to_workpiece);

@@ -102,6 +102,10 @@ struct RunResult {
     std::array<double, 3> tool_axis{0, 0, 1};
     double tool_lean_deg = 0;
     bool fixed_tilt = false;
+    // The tool turned where it could reach the stock (simultaneous five-axis work): predicted on the
+    // multi-direction stock (force_model::predict_turning); tool_axis is then the log's first
+    // sample's and tool_lean_deg the largest lean over the log. FORCES rows carry the axis per row.
+    bool turning = false;
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path

@@ -3,6 +3,7 @@
 #include "app/inputs.hpp"
 #include "app/predict_run.hpp"
 #include "machine/kinematics.hpp"
+#include "machine/twist.hpp"
 
 #include <fmt/format.h>
 
@@ -190,14 +191,57 @@ ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine&
                                                         "s (leaning {:.4g} deg from the stock's +Z)",
                                                         bad_off * kDegPerRad, f.t_s, f.lean_deg)
                                           : fmt::format("leans {:.4g} deg from the stock's +Z", bad_off * kDegPerRad);
-        throw WorkpieceMotionError(fmt::format(
+        throw ToolTurnsInStock(fmt::format(
             "at t = {:.4f} s, where the tool can reach the stock, the tool axis {} (at most {:.4g} deg, at t = "
             "{:.4f} s): a tilted tool is predicted at one fixed orientation wherever it can reach the stock (3+2 "
-            "work); a tool that turns there needs the multi-direction stock, which is not built yet "
-            "(docs/five_axis.md, section 3)",
+            "work); a tool that turns there is predicted on the multi-direction stock (docs/five_axis.md, section "
+            "3.4)",
             axes.t_s[bad], from, most_off * kDegPerRad, most_t));
     }
     return f;
+}
+
+TurningMotion turning_motion(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm) {
+    const std::vector<AxisSource> sources = axis_sources(axes, machine);
+    const std::size_t n = axes.size();
+    for (const AxisSource& s : sources)
+        if (s.position->size() != n || s.rate->size() != n)
+            throw WorkpieceMotionError("a motion model whose axis channels are not as long as its time axis");
+    TurningMotion out;
+    out.motion = axes;
+    out.motion.rot_deg = {};
+    out.motion.rot_vel_deg_s = {};
+    out.poses.tool_to_stock.resize(n);
+    out.poses.omega_tool_rad_s.resize(n);
+    constexpr double h_s = 1e-4;   // as workpiece_motion's central difference
+    machine::AxisPositions q, q_lo, q_hi;
+    for (std::size_t i = 0; i < n; ++i) {
+        for (std::size_t k = 0; k < sources.size(); ++k) {
+            const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
+            q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
+        }
+        const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
+        const machine::ToolPose nominal = machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
+        const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
+        if (!(error_tilt_rad <= kErrorTiltLimitRad))
+            throw WorkpieceMotionError(fmt::format(
+                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from its commanded axis, "
+                "more than the {:.4g} deg a tool may lean by them (check the errors' units: micrometres per metre)",
+                axes.t_s[i], error_tilt_rad * kDegPerRad, kErrorTiltLimitRad * kDegPerRad));
+        const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
+        const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
+        const Eigen::Vector3d v = (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);
+        out.motion.x_mm[i] = pose.tip_mm().x(), out.motion.y_mm[i] = pose.tip_mm().y(), out.motion.z_mm[i] = pose.tip_mm().z();
+        out.motion.vx_mm_s[i] = v.x(), out.motion.vy_mm_s[i] = v.y(), out.motion.vz_mm_s[i] = v.z();
+        const Eigen::Matrix3d& R = pose.tool_to_workpiece.R;
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) out.poses.tool_to_stock[i].m[std::size_t(3 * r + c)] = R(r, c);
+        // Rows of zero rate give the zero twist: lo and hi are the same pose.
+        const Eigen::Vector3d w = machine::interval_twist(lo.tool_to_workpiece, hi.tool_to_workpiece, 2 * h_s).omega_rad_s;
+        out.poses.omega_tool_rad_s[i] = {w.x(), w.y(), w.z()};
+        out.max_lean_deg = std::max(out.max_lean_deg, tilt_from_z_rad(nominal) * kDegPerRad);
+    }
+    return out;
 }
 
 void turn_forces(std::span<force_model::ForceSample> rows, const Eigen::Matrix3d& tool_to_stock) {

@@ -42,6 +42,13 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+// tool_frame()'s refusal of a tool that turns where it can reach the stock: simultaneous five-axis
+// work, which predict_run takes on the multi-direction stock instead (turning_motion below).
+class ToolTurnsInStock : public WorkpieceMotionError {
+public:
+    using WorkpieceMotionError::WorkpieceMotionError;
+};
+
 // The nominal tool axis may lean this far from the stock's +Z and still count as vertical
 // (rounding of the kinematics, not a tilt).
 inline constexpr double kVerticalToleranceRad = 1e-9;
@@ -117,6 +124,22 @@ void turn_motion(motion_io::MotionModel& m, const Eigen::Matrix3d& rotation);
 // same way); without, any lean from the stock's +Z is refused.
 motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, const machine::Machine& machine,
                                         double tool_length_mm, const ToolFrame& frame = {});
+
+// A log whose tool turns where it can reach the stock (simultaneous five-axis work), as
+// force_model::predict_turning takes it: the tip's motion in workpiece coordinates (positions
+// from forward kinematics with the machine's errors, velocities along the axes' own rates, as
+// workpiece_motion's), the spindle's own angle and speed (the engine turns the cutter against the
+// tool frame, which the poses carry), and per sample the tool's orientation and the tool frame's
+// angular velocity in its own axes: the body twist (machine::interval_twist) between the poses
+// at the axes +-0.1 ms along their rates. Throws WorkpieceMotionError as workpiece_motion() does
+// for a log the machine does not fit, and for errors that lean the tool more than
+// kErrorTiltLimitRad off its nominal axis.
+struct TurningMotion {
+    motion_io::MotionModel motion;
+    force_model::ToolPoses poses;
+    double max_lean_deg = 0;   // the axis's largest lean from the stock's +Z over the log
+};
+TurningMotion turning_motion(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm);
 
 // The engine's forces turned into the machine's (bed) axes: F_M = R_bed^T F_W, with R_bed the
 // rotation of bed_to_workpiece (docs/five_axis.md, section 4), filled into each row's

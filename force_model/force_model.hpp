@@ -322,6 +322,26 @@ std::size_t stock_bytes_per_cell();
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 
+// ---- A tool that turns while it cuts (simultaneous five-axis work; docs/five_axis.md, 3.4) ------
+// Per motion sample: the tool's orientation against the stock (row-major; its columns are the
+// tool's x, y and z axes in stock coordinates, z from the tip toward the spindle) and the tool
+// frame's angular velocity in its own axes (the body twist's omega, eqs. 3.16-3.22). The motion's
+// positions and velocities are the tip's in workpiece coordinates (the run spec's offset turns them
+// into stock coordinates, as for predict), and its spindle angle is the cutter's against the tool
+// frame's x axis: the spindle's own.
+struct ToolPoses {
+    std::vector<Rotation3> tool_to_stock;
+    std::vector<std::array<double, 3>> omega_tool_rad_s;
+};
+// Predicts such a motion on the multi-direction (tri-dexel) stock with the scalar pose engine,
+// whatever opt.device says (the OpenCL kernels are not written yet; stats.device says so). Rows,
+// block summaries, progress, cancel, max_rows, rows_out and session_begins as predict's; the final
+// stock comes back as a Z-map of the box (the tri-dexel's Z family, ray for ray). SpecError for
+// what it cannot take yet: several cutters, a base stock, a cutter whose cutting part is not
+// convex.
+Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec,
+                           const PredictOptions& opt);
+
 // Optional columns of FORCES.csv and FORCES.bin (docs/formats.md). Without any, the files are
 // exactly as before these options existed.
 struct ForcesColumns {

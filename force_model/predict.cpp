@@ -10,6 +10,7 @@
 #include "engine/phase_timer.hpp"
 #include "engine/setup.hpp"
 #include "engine/tool_plan.hpp"
+#include "engine/turning_run.hpp"
 
 #include <fmt/format.h>
 
@@ -189,6 +190,16 @@ Prediction predict_with(const motion_io::MotionModel& motion, const RunSpec& spe
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt) {
     return predict_with(motion, spec, opt, EngineSettings{});
+}
+
+Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec,
+                           const PredictOptions& opt) {
+    check_inputs(motion, spec);
+    const ToolPlan plan = plan_tools(motion, spec);
+    check_plan(plan);
+    Prediction p = run_turning(motion, poses, spec, plan, opt, check_rows);
+    check_outputs(p);
+    return p;
 }
 
 }  // namespace cutload::force_model

@@ -14,7 +14,9 @@ namespace {
 using Vec = std::array<double, 3>;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-int axis_count(double lo, double hi, double cell) { return std::max(0, int(std::ceil((hi - lo) / cell - 1e-9))); }
+// Whole cells, rounded as the Z-map's make_stock rounds them (a box that is a multiple of the cell
+// is exact), so the Z family and a Z-map of the same box are laid out alike.
+int axis_count(double lo, double hi, double cell) { return std::max(1, int(std::lround((hi - lo) / cell))); }
 
 Vec sub(const Vec& a, const Vec& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 
@@ -86,10 +88,6 @@ TriDexel make_tri_dexel_box(const std::array<double, 3>& lo_mm, const std::array
             for (int i = 0; i < fam.nu; ++i) {
                 float* ray = fam.ray(std::size_t(j) * fam.nu + i);
                 std::copy(kNoMaterial.begin(), kNoMaterial.end(), ray);
-                // A ray whose centre lies beyond the box (the last cell of a box that is not a
-                // whole number of cells) holds no material, as the Z-map's does not.
-                const double cu = fam.u0_mm + (i + 0.5) * cell_mm, cv = fam.v0_mm + (j + 0.5) * cell_mm;
-                if (cu >= hi_mm[u] || cv >= hi_mm[v]) continue;
                 ray[0] = float(lo_mm[f]);
                 ray[kDexelIntervals] = float(hi_mm[f]);
             }

@@ -20,7 +20,9 @@ namespace cutload::kernels {
 // Rays along axis `axis` (0 x, 1 y, 2 z) on the grid over the two other axes, in cyclic order:
 // u = (axis + 1) % 3, v = (axis + 2) % 3. Ray (i, j) is the line u = u0 + (i + 0.5) g,
 // v = v0 + (j + 0.5) g; its intervals are positions along `axis`, kDexelFloats floats per ray as
-// in the Z-map (lo[4], hi[4], sorted, unused slots empty), row-major (j * nu + i), unencoded.
+// in the Z-map (lo[4], hi[4], sorted, unused slots empty), row-major (j * nu + i), unencoded. The
+// counts are the box's size in whole cells, rounded as make_stock rounds them, so the Z family
+// (u = x, v = y) lies exactly as a Z-map of the same box.
 struct RayFamily {
     int axis = 2;
     double u0_mm = 0, v0_mm = 0;

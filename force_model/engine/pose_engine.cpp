@@ -32,21 +32,20 @@ double off_segment_mm(const std::array<double, 3>& p, const std::array<double, 3
 }  // namespace
 
 PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernels::ConvexToolSolid solid,
-                       kernels::EngageParams params, double spin, PoseEngineSettings settings)
+                       kernels::EngageParams params, PoseEngineSettings settings)
     : stock_(std::move(stock)),
       tool_(tool),
       solid_(std::move(solid)),
       params_(params),
-      spin_(spin),
       settings_(settings),
       reach_mm_(std::hypot(tool.flute_length_mm, tool.radius_mm)) {}
 
-void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out) {
+void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin) {
     out.resize(steps.size());
     const double lag_mm = settings_.lag_cells * stock_.cell_mm;
     for (std::size_t b0 = 0; b0 < steps.size(); b0 += settings_.batch_steps) {
         const std::size_t n = std::min(settings_.batch_steps, steps.size() - b0);
-        kernels::engage_tri_dexel(steps.data() + b0, n, spin_, tool_.edges, params_, stock_, out.data() + b0);
+        kernels::engage_tri_dexel(steps.data() + b0, n, spin, tool_.edges, params_, stock_, out.data() + b0);
         for (std::size_t i = b0; i < b0 + n; ++i) {
             const kernels::PoseStep& s = steps[i];
             double travel = 0;

@@ -28,11 +28,11 @@ public:
     // `reach_mm`: how far from the tip the tool's cutting part extends (flute length and radius),
     // which turns an orientation change into travel.
     PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernels::ConvexToolSolid solid,
-               kernels::EngageParams params, double spin, PoseEngineSettings settings = {});
+               kernels::EngageParams params, PoseEngineSettings settings = {});
 
-    // Engages and removes along the steps, in order; out receives one result per step. Steps of
-    // successive calls continue one path.
-    void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out);
+    // Engages and removes along the steps, in order, with the spindle turning `spin` (+1 M03, -1
+    // M04); out receives one result per step. Steps of successive calls continue one path.
+    void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin);
     // Removes what is still pending (the last lag of travel).
     void finish();
 
@@ -48,7 +48,6 @@ private:
     const ToolGeometry& tool_;
     kernels::ConvexToolSolid solid_;
     kernels::EngageParams params_;
-    double spin_;
     PoseEngineSettings settings_;
     double reach_mm_;
     std::vector<kernels::PoseStep> pending_;   // poses not yet removed; the first is the last chord's end

@@ -184,15 +184,17 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turni
     replace(R"("offset_mm": [-200, 300, 350])", R"("offset_mm": [0, 0, 0])");
     replace(R"("grid_mm": 0.1)", R"("grid_mm": 2)");
     std::ofstream(dir / "near.json") << near_spec;
-    const clitest::Result tilted = clitest::run("predict " + (dir / "tilted.csv").string() + " --spec " +
-                                                (dir / "near.json").string() + " --device cpu -q --out " +
-                                                (dir / "forces.csv").string() + " --machine " + machine);
-    INFO(tilted.output);
-    CHECK(tilted.exit_code != 0);
-    CHECK_THAT(tilted.output, Catch::Contains("the tool axis turns") && Catch::Contains("leaning 15 deg") &&
-                                  Catch::Contains("multi-direction stock"));
-    CHECK(std::count(tilted.output.begin(), tilted.output.end(), '\n') == 1);
-    // Refused before any row: the earlier FORCES.csv is untouched and no temporary file is left.
+    // With its NC program the turning tool is refused (comparing such a run with a program is not
+    // built), in one line, before any row: the earlier FORCES.csv is untouched and no temporary
+    // file is left.
+    const clitest::Result with_program = clitest::run(
+        "predict " + (dir / "tilted.csv").string() + " --spec " + (dir / "near.json").string() + " --device cpu -q --out " +
+        (dir / "forces.csv").string() + " --machine " + machine + " --program " + clitest::source("data/demo3_program.nc"));
+    INFO(with_program.output);
+    CHECK(with_program.exit_code != 0);
+    CHECK_THAT(with_program.output, Catch::Contains("the tool turns while it can reach the stock") &&
+                                        Catch::Contains("NC program"));
+    CHECK(std::count(with_program.output.begin(), with_program.output.end(), '\n') == 1);
     {
         std::ifstream in(dir / "forces.csv", std::ios::binary);
         CHECK(std::string(std::istreambuf_iterator<char>(in), {}) == forces_before);
@@ -200,6 +202,13 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turni
     std::size_t files = 0;
     for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++files;
     CHECK(files == 4);   // level.csv, tilted.csv, near.json, forces.csv
+    // Alone, the tilted tool turning inside the stock is predicted on the multi-direction stock.
+    const clitest::Result tilted = clitest::run("predict " + (dir / "tilted.csv").string() + " --spec " +
+                                                (dir / "near.json").string() + " --device cpu --out " +
+                                                (dir / "forces.csv").string() + " --machine " + machine);
+    INFO(tilted.output);
+    CHECK(tilted.exit_code == 0);
+    CHECK_THAT(tilted.output, Catch::Contains("multi-direction stock"));
 
     const clitest::Result bad = predict("level.csv", " --machine " + spec);
     INFO(bad.output);

@@ -207,9 +207,9 @@ TEST_CASE("tri-dexel pose engine: a side cut through the stock, removing as it g
         std::vector<std::array<double, 2>> rz;
         for (const auto& p : force_model::profile_polyline(force_model::corner_radius_profile(8, 0, 20), kCellMm / 64))
             rz.push_back({p.r_mm, p.z_mm});
-        force_model::PoseEngine engine(std::move(stock), s.geometry, kernels::convex_tool_solid(rz), s.params, 1.0);
+        force_model::PoseEngine engine(std::move(stock), s.geometry, kernels::convex_tool_solid(rz), s.params);
         std::vector<kernels::StepResult> out;
-        engine.run(steps, out);
+        engine.run(steps, out, 1.0);
         engine.finish();
         // Mean over whole tooth periods (90 steps) while the centre runs from x = 8 to 18.
         const auto i0 = std::size_t(std::llround((8 - x0) / v_mm_s / dt_s));
@@ -317,9 +317,9 @@ TEST_CASE("tri-dexel pose engine: a tilted ball end mill's cut matches the same 
         steps[i].theta_rad = 2 * kPi * rpm / 60 * t;
     }
     force_model::PoseEngine engine(kernels::make_tri_dexel_box({0, -15, -20}, {40, 15, 0}, kCellMm), s.geometry,
-                                   kernels::convex_tool_solid(rz), s.params, 1.0);
+                                   kernels::convex_tool_solid(rz), s.params);
     std::vector<kernels::StepResult> out;
-    engine.run(steps, out);
+    engine.run(steps, out, 1.0);
     // Steady stretch: the tip from x = 8 to 16, whole tooth periods (90 steps each).
     const auto i0 = std::size_t(std::llround((8 - x0) / v_mm_s / dt_s));
     const std::size_t m = std::size_t(std::llround(8 / v_mm_s / dt_s)) / 90 * 90;
