@@ -374,10 +374,12 @@ void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
         for (std::size_t k = 0; k < source_.size(); ++k)
             q.value[k] = source_[k] < 3 ? st.pos_mm[source_[k]] : st.rot_deg[source_[k] - 3];
         // The axis turns with every rotary axis of the chain (a head's too), errors included, as the
-        // engine's motion was made (workpiece_motion); it does not depend on the tool's length.
-        const Eigen::Vector3d axis = machine::forward(*machine_, q, 0.0).axis();
+        // engine's motion was made (workpiece_motion); it does not depend on the tool's length. One
+        // walk of the chain gives it and R_bed (the workpiece-side part of the same product).
+        const machine::ToolAndBed frames = machine::forward_with_bed(*machine_, q, 0.0);
+        const Eigen::Vector3d axis = frames.tool.axis();
         row.tool_axis_x = float(axis.x()), row.tool_axis_y = float(axis.y()), row.tool_axis_z = float(axis.z());
-        const Eigen::Matrix3d R = machine::bed_to_workpiece(*machine_, q).R;
+        const Eigen::Matrix3d& R = frames.bed_to_workpiece.R;
         if (R == Eigen::Matrix3d::Identity()) {
             row.fx_machine_N = row.fx_N, row.fy_machine_N = row.fy_N, row.fz_machine_N = row.fz_N;
             continue;

@@ -129,9 +129,10 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
 // samples, and a table turning 30 deg/s turns 0.03 deg in a sample; so each row's axes are taken
 // from the axes' own Hermite at its time (motion_io::sample_between, as the engine takes the tip),
 // and R_bed from the workpiece-side half of forward kinematics with the machine's errors: exact
-// to the joint path. With the tool axis from a whole forward call too, a row costs about one and
-// a half forward calls (0.4 to 1.5 us each, docs/five_axis.md section 0: a few per cent of a core
-// at 30 000 rows a second; not measured separately). The
+// to the joint path. The tool axis comes from the same walk of the chain (machine::forward_with_bed),
+// so a row costs one forward call: 0.47 us with the example errors against 0.71 to 0.75 us as
+// forward and bed_to_workpiece apart (bench_kinematics, docs/five_axis.md section 0: 1.4 % of a
+// core at 30 000 rows a second). The
 // machine axes are kept for this, whole, until the prediction ends (about as much memory again as
 // the motion model). Where R_bed is exactly the identity (every workpiece-side axis at 0 on a
 // machine without errors) the forces are copied, so a machine at rest reports machine-axis forces
