@@ -79,20 +79,61 @@ void turn_spec(force_model::RunSpec& spec, const force_model::Rotation3& g) {
     spec.stock = force_model::turned_stock_box(spec.stock, g, spec.resolution.grid_mm);
 }
 
+CuttingOrientation orientation_of(const ToolFrame& frame) {
+    CuttingOrientation o;
+    o.tilted = frame.tilted;
+    o.lean_deg = frame.lean_deg;
+    if (frame.tilted) o.grid_from_stock = frame.grid_from_stock();
+    return o;
+}
+
+}  // namespace
+
+InspectedLog inspect_run_log(const std::string& path, const motion_io::ReadOptions& read, const force_model::RunSpec& spec,
+                             const machine::Machine* machine, double tool_length_mm) {
+    InspectedLog out;
+    std::optional<CuttingOrientationWatch> watch;
+    if (machine) {
+        try {
+            watch.emplace(*machine, tool_length_mm, tool_reach(spec));
+        } catch (const WorkpieceMotionError&) {
+            // A machine no log can drive: check_log_axes says so.
+        }
+    }
+    if (!watch) {
+        out.report = motion_io::inspect(path, read);
+        return out;
+    }
+    out.report = motion_io::inspect(path, read, [&](const motion_io::MotionState& s) { return watch->see(s); });
+    out.orientation = orientation_of(watch->frame());
+    return out;
+}
+
+WorkEstimate estimate_run_work(const motion_io::IngestReport& log, const force_model::RunSpec& spec,
+                               const CuttingOrientation& orientation, const CommandedWork& commanded,
+                               bool actual_rows_streamed) {
+    if (!orientation.tilted) return estimate_work(log, spec, commanded, actual_rows_streamed);
+    // Only the box and the grid count: the engine's cells of the box turned into the tool's frame.
+    force_model::RunSpec turned = spec;
+    turned.stock = force_model::turned_stock_box(spec.stock, orientation.grid_from_stock, spec.resolution.grid_mm);
+    return estimate_work(log, turned, commanded, actual_rows_streamed);
+}
 
 // check_work, saying so when the stock's cells are the box turned into a tilted tool's frame (its
 // grid covers the turned box, more cells than the box).
-void check_work_in(const WorkEstimate& work, const WorkLimits& limits, const ToolFrame& frame) {
+void check_run_work(const WorkEstimate& work, const WorkLimits& limits, const CuttingOrientation& orientation) {
     try {
         check_work(work, limits);
     } catch (const TooMuchWork& e) {
-        if (!frame.tilted || e.key() != "stock_cells") throw;
+        if (!orientation.tilted || e.key() != "stock_cells") throw;
         const std::string why = std::string(e.what()).substr(e.key().size() + 2);   // what() is "key: why"
         throw TooMuchWork(e.key(), fmt::format("{} (the box turned into the frame of the tool leaning {:.4g} deg, whose "
                                                "grid covers it turned)",
-                                               why, frame.lean_deg));
+                                               why, orientation.lean_deg));
     }
 }
+
+namespace {
 
 RunResult predict_steps(const RunInput& in, const Control& control) {
     Tracker track(control);
@@ -199,8 +240,8 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.program = &program;
         commanded.options.step_s = r.motion.step_s;
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
-        r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
-        check_work_in(r.work, in.limits, frame);
+        r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
+        check_run_work(r.work, in.limits, orientation_of(frame));
         track.begin(Phase::Mapping, 0, 0);
         // The log is matched to the program where both are: in stock axes (a tilted tool's motion
         // is in its own frame until the prediction is done). Its positions and velocities are put
@@ -221,8 +262,8 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     } else {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
-        r.work = estimate_work(r.ingest, spec, commanded, in.rows_out.has_value());
-        check_work_in(r.work, in.limits, frame);
+        r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
+        check_run_work(r.work, in.limits, orientation_of(frame));
     }
     motion_io::MotionModel logged_commanded;
     if (in.commanded_from_log) {

@@ -83,6 +83,36 @@ void check_log_axes(const machine::Machine& machine, const std::string& log_rota
 // (workpiece_motion.hpp; declared here for front ends, which do not see the machine).
 std::string machine_rotary_axes(const machine::Machine& machine);
 
+// The orientation a log's tool cuts at, as a front end sees it (no Eigen): a fixed tilt (3+2
+// work) lays the stock out in the tool's frame, whose grid covers the box turned, so the work a run
+// implies depends on it (docs/five_axis.md, "Fixed tilt").
+struct CuttingOrientation {
+    bool tilted = false;
+    double lean_deg = 0;                    // the tool axis from the stock's +Z
+    force_model::Rotation3 grid_from_stock;  // the engine's frame (the identity unless tilted)
+};
+
+// The log read as the job will read it (inspect_log: streamed, memory does not grow with the log)
+// and, with a machine, the orientation its tool cuts at by the job's rule (tool_frame: the nominal
+// pose at the first sample where a tool of the spec can reach the stock; one forward call a sample
+// until then). What the job checks further (that the tool keeps that orientation there) it still
+// checks; a machine whose axes the log cannot give leaves the orientation vertical (check_log_axes
+// refuses such a log). Throws what inspect_log throws.
+struct InspectedLog {
+    motion_io::IngestReport report;
+    CuttingOrientation orientation;
+};
+InspectedLog inspect_run_log(const std::string& path, const motion_io::ReadOptions& read, const force_model::RunSpec& spec,
+                             const machine::Machine* machine, double tool_length_mm);
+
+// estimate_work with the stock box the engine lays out at `orientation` (turned for a fixed tilt),
+// and check_work saying so in a stock_cells refusal: what the job estimates and checks, so an upload
+// that knows the orientation refuses with the job's figures.
+WorkEstimate estimate_run_work(const motion_io::IngestReport& log, const force_model::RunSpec& spec,
+                               const CuttingOrientation& orientation, const CommandedWork& commanded = {},
+                               bool actual_rows_streamed = false);
+void check_run_work(const WorkEstimate& estimate, const WorkLimits& limits, const CuttingOrientation& orientation);
+
 struct RunResult {
     motion_io::MotionModel motion;               // the repaired log; blocks named after the program's when mapped
     motion_io::IngestReport ingest;

@@ -146,34 +146,74 @@ double off_orientation_rad(const ToolFrame& f, const machine::ToolPose& p, doubl
     return off;
 }
 
+CuttingOrientationWatch::CuttingOrientationWatch(const machine::Machine& machine, double tool_length_mm,
+                                                 const ToolReach& reach)
+    : machine_(machine), tool_length_mm_(tool_length_mm), reach_length_mm_(reach_length_mm(tool_length_mm, reach)),
+      reach_(reach) {
+    // The channels axis_sources() maps the chain to, as MotionState's fields.
+    for (const machine::Axis& a : machine.chain) {
+        if (a.rotary()) {
+            sources_.push_back(3 + rotary_channel(machine, a));
+        } else if (a.name >= 'X' && a.name <= 'Z') {
+            sources_.push_back(a.name - 'X');
+        } else {
+            throw WorkpieceMotionError(fmt::format("machine {}: linear axis {} has no channel in a log (x, y, z only)",
+                                                   machine.name, a.name));
+        }
+    }
+}
+
+bool CuttingOrientationWatch::see(const machine::AxisPositions& q, double t_s) {
+    if (found_) return false;
+    if (!seen_any_) first_t_s_ = t_s, seen_any_ = true;
+    const machine::ToolPose p = machine::forward(machine_, q, tool_length_mm_, machine::ErrorMode::Nominal);
+    if (!can_reach(p.tip_mm(), p.axis(), reach_length_mm_, reach_)) return true;
+    found_ = true;
+    first_t_s_ = t_s;
+    first_ = p.tool_to_workpiece.R;
+    lean_rad_ = tilt_from_z_rad(p);
+    return false;
+}
+
+bool CuttingOrientationWatch::see(const motion_io::MotionState& s) {
+    machine::AxisPositions q;
+    for (std::size_t k = 0; k < sources_.size(); ++k)
+        q.value[k] = sources_[k] < 3 ? s.pos_mm[sources_[k]] : s.rot_deg[sources_[k] - 3];
+    return see(q, s.t_s);
+}
+
+ToolFrame CuttingOrientationWatch::frame() const {
+    ToolFrame f;
+    f.checked = true;
+    f.t_s = first_t_s_;
+    // A tool that never reaches the stock cuts nothing at any orientation: the stock's own frame.
+    if (!found_) return f;
+    f.lean_deg = lean_rad_ * kDegPerRad;
+    f.tilted = lean_rad_ > kFixedOrientationToleranceRad;
+    if (f.tilted) f.tool_to_workpiece = first_;
+    return f;
+}
+
 ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
                      const ToolReach& reach) {
     const std::vector<AxisSource> sources = axis_sources(axes, machine);
     const std::size_t n = axes.size();
     if (n == 0) throw WorkpieceMotionError("the tool's orientation of an empty motion model");
     const double length_mm = reach_length_mm(tool_length_mm, reach);
-    const auto pose_at = [&](std::size_t i) {
+    const auto positions_at = [&](std::size_t i) {
         machine::AxisPositions q;
         for (std::size_t k = 0; k < sources.size(); ++k) q.value[k] = (*sources[k].position)[i];
-        return machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
+        return q;
     };
-    ToolFrame f;
-    f.checked = true;
-    std::size_t first = n;
-    for (std::size_t i = 0; i < n && first == n; ++i) {
-        const machine::ToolPose p = pose_at(i);
-        if (can_reach(p.tip_mm(), p.axis(), length_mm, reach)) first = i;
+    const auto pose_at = [&](std::size_t i) {
+        return machine::forward(machine, positions_at(i), tool_length_mm, machine::ErrorMode::Nominal);
+    };
+    // The orientation by the rule the upload applies as it reads the log (CuttingOrientationWatch).
+    CuttingOrientationWatch watch(machine, tool_length_mm, reach);
+    for (std::size_t i = 0; i < n && watch.see(positions_at(i), axes.t_s[i]); ++i) {
     }
-    // A tool that never reaches the stock cuts nothing at any orientation: the stock's own frame.
-    if (first == n) {
-        f.t_s = axes.t_s[0];
-        return f;
-    }
-    const machine::ToolPose ref_pose = pose_at(first);
-    f.t_s = axes.t_s[first];
-    f.lean_deg = tilt_from_z_rad(ref_pose) * kDegPerRad;
-    f.tilted = tilt_from_z_rad(ref_pose) > kFixedOrientationToleranceRad;
-    if (f.tilted) f.tool_to_workpiece = ref_pose.tool_to_workpiece.R;
+    ToolFrame f = watch.frame();
+    if (!watch.found()) return f;
     std::size_t bad = n;
     double bad_off = 0, most_off = 0, most_t = 0;
     // From the log's start: the engine puts the tool at the cutting orientation at every sample, so
@@ -418,10 +458,12 @@ void MachineAxesForces::apply(std::span<force_model::ForceSample> rows) {
         for (std::size_t k = 0; k < source_.size(); ++k)
             q.value[k] = source_[k] < 3 ? st.pos_mm[source_[k]] : st.rot_deg[source_[k] - 3];
         // The axis turns with every rotary axis of the chain (a head's too), errors included, as the
-        // engine's motion was made (workpiece_motion); it does not depend on the tool's length.
-        const Eigen::Vector3d axis = machine::forward(*machine_, q, 0.0).axis();
+        // engine's motion was made (workpiece_motion); it does not depend on the tool's length. One
+        // walk of the chain gives it and R_bed (the workpiece-side part of the same product).
+        const machine::ToolAndBed frames = machine::forward_with_bed(*machine_, q, 0.0);
+        const Eigen::Vector3d axis = frames.tool.axis();
         row.tool_axis_x = float(axis.x()), row.tool_axis_y = float(axis.y()), row.tool_axis_z = float(axis.z());
-        const Eigen::Matrix3d R = machine::bed_to_workpiece(*machine_, q).R;
+        const Eigen::Matrix3d& R = frames.bed_to_workpiece.R;
         if (R == Eigen::Matrix3d::Identity()) {
             row.fx_machine_N = row.fx_N, row.fy_machine_N = row.fy_N, row.fz_machine_N = row.fz_N;
             continue;

@@ -32,6 +32,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace cutload::app {
 
@@ -103,6 +104,33 @@ Eigen::Matrix3d tool_to_workpiece(const force_model::Rotation3& grid_from_stock)
 // workpiece_motion() does for a log the machine does not fit.
 ToolFrame tool_frame(const motion_io::MotionModel& axes, const machine::Machine& machine, double tool_length_mm,
                      const ToolReach& reach);
+// tool_frame's cutting orientation, found a sample at a time as a log is read (motion_io::inspect's
+// visitor), so an upload knows it without holding the motion: the same poses (nominal forward
+// kinematics) and the same rule, so the same frame, bit for bit. It does not check that the tool
+// keeps that orientation where it can reach the stock (tool_frame does, on the ingested log). A
+// sample costs one nominal forward call until the tool first can reach the stock, nothing after.
+class CuttingOrientationWatch {
+public:
+    // Throws WorkpieceMotionError for a machine axis no log channel can give (as tool_frame does).
+    CuttingOrientationWatch(const machine::Machine& machine, double tool_length_mm, const ToolReach& reach);
+    // The next sample, in the log's order; false once the orientation is found (later samples
+    // cannot change it).
+    bool see(const machine::AxisPositions& q, double t_s);
+    bool see(const motion_io::MotionState& s);
+    bool found() const { return found_; }
+    // As tool_frame() makes it (checked set), before its check of the other samples.
+    ToolFrame frame() const;
+
+private:
+    const machine::Machine& machine_;
+    double tool_length_mm_, reach_length_mm_;
+    ToolReach reach_;
+    std::vector<int> sources_;   // per chain axis: 0..2 the position x, y, z; 3..5 the rotary a, b, c
+    bool seen_any_ = false, found_ = false;
+    double first_t_s_ = 0, lean_rad_ = 0;
+    Eigen::Matrix3d first_ = Eigen::Matrix3d::Identity();
+};
+
 // How far a nominal pose turns from the frame's cutting orientation where it matters: 0 within
 // kFixedOrientationToleranceRad (a vertical frame: any turn about +Z), or where neither the pose nor
 // the cutting orientation at its tip can reach the stock; else the angle (tool_frame's rule).
@@ -152,9 +180,10 @@ TurningMotion turning_motion(const motion_io::MotionModel& axes, const machine::
 // samples, and a table turning 30 deg/s turns 0.03 deg in a sample; so each row's axes are taken
 // from the axes' own Hermite at its time (motion_io::sample_between, as the engine takes the tip),
 // and R_bed from the workpiece-side half of forward kinematics with the machine's errors: exact
-// to the joint path. With the tool axis from a whole forward call too, a row costs about one and
-// a half forward calls (0.4 to 1.5 us each, docs/five_axis.md section 0: a few per cent of a core
-// at 30 000 rows a second; not measured separately). The
+// to the joint path. The tool axis comes from the same walk of the chain (machine::forward_with_bed),
+// so a row costs one forward call: 0.47 us with the example errors against 0.71 to 0.75 us as
+// forward and bed_to_workpiece apart (bench_kinematics, docs/five_axis.md section 0: 1.4 % of a
+// core at 30 000 rows a second). The
 // machine axes are kept for this, whole, until the prediction ends (about as much memory again as
 // the motion model). Where R_bed is exactly the identity (every workpiece-side axis at 0 on a
 // machine without errors) the forces are copied, so a machine at rest reports machine-axis forces

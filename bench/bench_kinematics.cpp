@@ -1,5 +1,6 @@
 // Cost of the machine kinematics a five-axis engine will call per step: forward kinematics
-// (nominal and with the example error set), inverse kinematics, the interval twist.
+// (nominal and with the example error set), the tool axis and bed frame a machine-axis prediction row
+// needs (two walks of the chain, or forward_with_bed's one), inverse kinematics, the interval twist.
 // Prints the median time per call over several runs, the calls per second, what that means at
 // the engine's step rate (10000 rpm at 2 deg per step: 30000 steps per second of motion), and the
 // load average, since the machine is shared.
@@ -62,6 +63,15 @@ int main(int argc, char** argv) {
     std::vector<ToolPose> poses(calls);
     const double fk = median_ns_per_call(runs, calls, [&](int i) { poses[i] = forward(nominal, q[i], 120, ErrorMode::Nominal); });
     const double fk_err = median_ns_per_call(runs, calls, [&](int i) { g_sink = g_sink + forward(with_errors, q[i], 120).tip_mm().x(); });
+    // What a prediction row with machine axes needs (app::MachineAxesForces): the tool axis and the
+    // bed frame, once as two walks of the chain and once as one.
+    const double fk_bed_two = median_ns_per_call(runs, calls, [&](int i) {
+        g_sink = g_sink + forward(with_errors, q[i], 0).axis().x() + bed_to_workpiece(with_errors, q[i]).R(0, 1);
+    });
+    const double fk_bed_one = median_ns_per_call(runs, calls, [&](int i) {
+        const ToolAndBed both = forward_with_bed(with_errors, q[i], 0);
+        g_sink = g_sink + both.tool.axis().x() + both.bed_to_workpiece.R(0, 1);
+    });
     const double ik = median_ns_per_call(runs, calls / 4, [&](int i) {
         const int k = i + 1;
         g_sink = g_sink + inverse(nominal, poses[k].tip_mm(), poses[k].axis(), 120, q[k - 1]).value[0];
@@ -73,6 +83,10 @@ int main(int argc, char** argv) {
     std::printf("forward, nominal:        %7.0f ns/call  %6.2f M/s  %5.2f %% of one core at %.0f steps/s\n", fk, 1e3 / fk,
                 100 * fk * 1e-9 * steps_per_s, steps_per_s);
     std::printf("forward, with errors:    %7.0f ns/call  %6.2f M/s  %5.2f %%\n", fk_err, 1e3 / fk_err, 100 * fk_err * 1e-9 * steps_per_s);
+    std::printf("forward + bed, 2 walks:  %7.0f ns/call  %6.2f M/s  %5.2f %%  (with errors)\n", fk_bed_two, 1e3 / fk_bed_two,
+                100 * fk_bed_two * 1e-9 * steps_per_s);
+    std::printf("forward_with_bed:        %7.0f ns/call  %6.2f M/s  %5.2f %%  (with errors)\n", fk_bed_one, 1e3 / fk_bed_one,
+                100 * fk_bed_one * 1e-9 * steps_per_s);
     std::printf("inverse (nearest):       %7.0f ns/call  %6.2f M/s\n", ik, 1e3 / ik);
     std::printf("interval twist:          %7.0f ns/call  %6.2f M/s  %5.2f %%\n", tw, 1e3 / tw, 100 * tw * 1e-9 * steps_per_s);
     std::printf("load average after: %s\n", load_average().c_str());

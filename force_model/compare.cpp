@@ -374,7 +374,7 @@ PredictedTrace read_forces_csv(std::istream& in, const std::string& source) {
                 for (int k = 0; k < 3; ++k) {
                     const double v = num(ca3[k]);
                     if (!(std::abs(v) <= 1.001))
-                        csv.fail(ca3[k], fmt::format("column {} ({}): {:g} is not a unit vector's component", ca3[k] + 1,
+                        csv.fail(ca3[k], fmt::format("column {} ({}): {} is not a unit vector's component (beyond \u00b11.001)", ca3[k] + 1,
                                                      header[ca3[k]], v));
                 }
                 s.tool_axis_x = static_cast<float>(num(ca3[0]));

@@ -409,6 +409,14 @@ private:
                 if (!(std::abs(f) <= 1e6)) fail(offset_, fmt::format("{}: force {:g} N is beyond \u00b11e+06 N", row, f));
             if (s.block < -1 || s.block >= static_cast<std::int64_t>(block_names_.size()))
                 fail(offset_, fmt::format("{}: block {} where the header names {} blocks", row, s.block, block_names_.size()));
+            // A unit vector's component, with FORCES.csv's bound. The row holds the float of a value printed
+            // to 6 decimals; float(1.001) is above 1.001 itself, so the bound is compared as a float too
+            // (rounding is monotonic: 1.001000 passes, 1.001001 does not).
+            const float axis[3] = {s.tool_axis_x, s.tool_axis_y, s.tool_axis_z};
+            for (std::size_t k = 0; k < 3; ++k)
+                if (!(std::abs(axis[k]) <= static_cast<float>(1.001)))
+                    fail(offset_, fmt::format("{}: {} {} is not a unit vector's component (beyond \u00b11.001)", row,
+                                              kColumns[kBaseColumns + 3 + k].name, axis[k]));
         }
     }
 

@@ -80,4 +80,15 @@ Frame bed_to_workpiece(const Machine& m, const AxisPositions& q, ErrorMode mode)
     return t;
 }
 
+ToolAndBed forward_with_bed(const Machine& m, const AxisPositions& q, double tool_length_mm, ErrorMode mode) {
+    // forward()'s loop split where bed_to_workpiece() stops (at the first stage not on the workpiece
+    // side), so both results are the products those functions form, in their order.
+    Frame t;
+    std::size_t i = 0;
+    for (; i < m.chain.size() && m.chain[i].side == Side::Workpiece; ++i) t = t * detail::stage(m.chain[i], q.value[i], mode);
+    const Frame bed = t;
+    for (; i < m.chain.size(); ++i) t = t * detail::stage(m.chain[i], q.value[i], mode);
+    return {{t * detail::tool_at_home(m.spindle, tool_length_mm)}, bed};
+}
+
 }  // namespace cutload::machine

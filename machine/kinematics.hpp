@@ -51,6 +51,17 @@ ToolPose forward(const Machine& m, const AxisPositions& q, double tool_length_mm
 // both).
 Frame bed_to_workpiece(const Machine& m, const AxisPositions& q, ErrorMode mode = ErrorMode::WithErrors);
 
+// Both of the above from one walk of the chain: the workpiece-side stages lead the chain, so the
+// bed frame is forward()'s product part way along. For a caller that needs both at every step (the
+// machine-axis forces of each prediction row): one walk instead of a full and a half one. Equal,
+// bit for bit, to forward() and bed_to_workpiece() (the same products in the same order).
+struct ToolAndBed {
+    ToolPose tool;
+    Frame bed_to_workpiece;
+};
+ToolAndBed forward_with_bed(const Machine& m, const AxisPositions& q, double tool_length_mm,
+                            ErrorMode mode = ErrorMode::WithErrors);
+
 // A target the nominal chain cannot reach (orientation impossible for its rotary axes, or outside
 // the limits). The message says which axis and by how much.
 class KinematicsError : public std::runtime_error {

@@ -64,6 +64,29 @@ public:
     void sample(const GridSample&) override {}
 };
 
+// Hands each sample to a caller that looks at the motion as it passes (inspect with a visitor),
+// until it says it has seen enough.
+class VisitSink final : public GridSink {
+public:
+    explicit VisitSink(const std::function<bool(const MotionState&)>& each) : each_(each) {}
+    void sample(const GridSample& s) override {
+        if (done_) return;
+        MotionState m;
+        m.t_s = s.t_s;
+        for (std::size_t k = 0; k < 3; ++k) {
+            m.pos_mm[k] = s.p_mm[k], m.vel_mm_s[k] = s.v_mm_s[k];
+            if (s.rotary & (1u << k)) m.rot_deg[k] = s.rot_deg[k], m.rot_vel_deg_s[k] = s.rot_vel_deg_s[k];
+        }
+        m.spindle_rpm = s.spindle_rpm, m.spindle_angle_deg = s.spindle_angle_deg;
+        m.block = s.block, m.tool = s.tool;
+        done_ = !each_(m);
+    }
+
+private:
+    const std::function<bool(const MotionState&)>& each_;
+    bool done_ = false;
+};
+
 class CsvSink final : public GridSink {
 public:
     CsvSink(std::FILE* f, const detail::BlockTable& blocks) : f_(f), blocks_(blocks) {
@@ -184,6 +207,12 @@ MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport
 
 IngestReport inspect(const std::string& path, const ReadOptions& opt) {
     NullSink sink;
+    detail::BlockTable blocks;
+    return run_pipeline(path, opt, sink, blocks);
+}
+
+IngestReport inspect(const std::string& path, const ReadOptions& opt, const std::function<bool(const MotionState&)>& each_sample) {
+    VisitSink sink(each_sample);
     detail::BlockTable blocks;
     return run_pipeline(path, opt, sink, blocks);
 }

@@ -175,6 +175,10 @@ MotionModel ingest(const std::string& path, const ReadOptions& opt, IngestReport
 
 // Streaming variants with bounded memory (inspect, resample of very long logs).
 IngestReport inspect(const std::string& path, const ReadOptions& opt);
+// The same, handing each sample of the repaired motion to `each_sample` as ingest would store it
+// (positions, rotary axes, times bit for bit; a rotary axis the log lacks at 0) until it returns
+// false: a caller can look at the motion as it passes without holding it.
+IngestReport inspect(const std::string& path, const ReadOptions& opt, const std::function<bool(const MotionState&)>& each_sample);
 // Writes t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block; returns rows written.
 std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,
                             IngestReport* report = nullptr);

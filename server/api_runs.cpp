@@ -375,8 +375,15 @@ void create_run(Core& core, Ctx& x) {
     const std::string rotary_axes = machine ? app::machine_rotary_axes(*machine) : std::string();
 
     motion_io::IngestReport report;
+    // With a machine, the orientation the tool cuts at, from the same read: a fixed tilt's stock is
+    // laid out turned, and the work estimate below must count the cells the job will.
+    app::CuttingOrientation orientation;
     try {
-        report = app::inspect_log((tmp / stored_as).string(), ro);
+        const double tool_length_mm = kinematics.is_object() ? kinematics.value("tool_length_mm", 0.0) : 0.0;
+        app::InspectedLog inspected = app::inspect_run_log((tmp / stored_as).string(), ro, force_model::parse_run_spec(r.spec),
+                                                           machine.get(), tool_length_mm);
+        report = std::move(inspected.report);
+        orientation = inspected.orientation;
     } catch (const motion_io::IngestError& e) {
         // Name the uploaded file, not the server's temporary path.
         std::string msg = replace_all(e.what(), (tmp / stored_as).string(), log_part.filename.empty() ? "log" : log_part.filename);
@@ -413,8 +420,8 @@ void create_run(Core& core, Ctx& x) {
         }
         try {
             // The job streams the actual rows (job_kinds.cpp).
-            app::check_work(app::estimate_work(report, force_model::parse_run_spec(r.spec), commanded, true),
-                            work_limits(core.opt));
+            app::check_run_work(app::estimate_run_work(report, force_model::parse_run_spec(r.spec), orientation, commanded, true),
+                                work_limits(core.opt), orientation);
         } catch (const app::TooMuchWork& e) {
             throw ApiError(400, "too_much_work", e.what());
         }

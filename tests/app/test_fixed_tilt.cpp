@@ -735,3 +735,50 @@ TEST_CASE("fixed tilt: the holder of a horizontal tool is checked against the si
         }
     }
 }
+
+TEST_CASE("fixed tilt: the upload's streamed read finds the job's orientation, and both refuse a turned box past the "
+          "cell limit with the same figures",
+          "[five_axis][fixed_tilt][work]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("fixed_tilt_work");
+    const TiltLog log = tilted_log(dir, 30, 10, *machine);
+    app::RunInput in = machine_input(log.path, kSpec, machine);
+    const app::InspectedLog seen = app::inspect_run_log(in.log_path, in.read, in.spec, machine.get(), in.tool_length_mm);
+    REQUIRE(seen.orientation.tilted);
+    CHECK(seen.orientation.lean_deg == Approx(std::acos(tool_axis(30, 10).z()) * 180 / kPi).margin(1e-3));
+    // The 40 x 30 x 20 mm box at 0.1 mm is 120 000 cells; turned into the tool's frame, more.
+    const double flat_cells = force_model::stock_cells(in.spec.stock, in.spec.resolution.grid_mm);
+    const app::WorkEstimate upload = app::estimate_run_work(seen.report, in.spec, seen.orientation);
+    CHECK(flat_cells == Approx(120000));
+    CHECK(upload.stock_cells > flat_cells * 1.2);
+
+    SECTION("a limit between the box and the turned box: refused at upload with the job's message") {
+        in.limits.max_stock_cells = (flat_cells + upload.stock_cells) / 2;
+        // As the upload estimated before it knew the orientation: the unturned box passed.
+        CHECK_NOTHROW(app::check_run_work(app::estimate_run_work(seen.report, in.spec, {}), in.limits, {}));
+        std::string at_upload, in_job;
+        try {
+            app::check_run_work(upload, in.limits, seen.orientation);
+        } catch (const app::TooMuchWork& e) {
+            at_upload = e.what();
+        }
+        try {
+            app::predict_run(in);
+        } catch (const app::TooMuchWork& e) {
+            in_job = e.what();
+        }
+        CHECK_THAT(at_upload, Catch::StartsWith("stock_cells: resolution.grid_mm gives the stock box") &&
+                                  Catch::Contains("(the box turned into the frame of the tool leaning 31."));
+        CHECK(at_upload == in_job);
+    }
+    SECTION("a limit the turned box fits: both pass, the job at the orientation and the cells the upload found") {
+        in.limits.max_stock_cells = upload.stock_cells;
+        CHECK_NOTHROW(app::check_run_work(upload, in.limits, seen.orientation));
+        const app::RunResult r = app::predict_run(in);
+        CHECK(r.fixed_tilt);
+        CHECK(r.work.stock_cells == upload.stock_cells);
+        CHECK(r.tool_lean_deg == seen.orientation.lean_deg);
+        const Eigen::Matrix3d R = app::tool_to_workpiece(seen.orientation.grid_from_stock);
+        for (int k = 0; k < 3; ++k) CHECK(r.tool_axis[std::size_t(k)] == R(k, 2));
+    }
+}

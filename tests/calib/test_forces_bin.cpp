@@ -313,6 +313,37 @@ TEST_CASE("a damaged FORCES.bin is refused at its byte offset", "[calib][forces_
     }
 }
 
+TEST_CASE("a tool-axis component beyond 1.001 is refused by both readers, naming where", "[calib][forces_bin][errors]") {
+    Scratch scratch;
+    Prediction p = made_up_run(8);
+    for (ForceSample& s : p.samples) s.tool_axis_x = 0.6f, s.tool_axis_y = 0, s.tool_axis_z = 0.8f;
+    ForcesColumns columns;
+    columns.machine_axes = true;
+    const std::string bin = scratch.path("axis.bin"), csv = scratch.path("axis.csv");
+    // The bound itself passes: 1.001000 is read as float(1.001), which lies a little above 1.001.
+    p.samples[2].tool_axis_z = -1.001f;
+    write_forces_file(p, bin, columns);
+    write_forces_file(p, csv, columns);
+    CHECK(read_predicted_forces(bin).samples[2].tool_axis_z == -1.001f);
+    CHECK(read_predicted_forces(csv).samples[2].tool_axis_z == -1.001f);
+
+    p.samples[3].tool_axis_x = 1.5f;   // row 4: FORCES.csv's line 5 (after the header)
+    write_forces_file(p, bin, columns);
+    write_forces_file(p, csv, columns);
+    CHECK_THROWS_WITH(read_predicted_forces(bin),
+                      Catch::Contains("axis.bin: byte ") && Catch::Contains("row 4: tool_axis_x 1.5 is not a unit vector's component"));
+    // tool_axis_x is FORCES.csv's 19th column.
+    CHECK_THROWS_WITH(read_predicted_forces(csv), Catch::Contains("axis.csv:5:") &&
+                                                      Catch::Contains("column 19 (tool_axis_x): 1.5 is not a unit vector's component"));
+
+    p.samples[3].tool_axis_x = 0.6f;
+    p.samples[6].tool_axis_y = -1.001001f;   // one step of the 6th decimal past the bound
+    write_forces_file(p, bin, columns);
+    write_forces_file(p, csv, columns);
+    CHECK_THROWS_WITH(read_predicted_forces(bin), Catch::Contains("row 7: tool_axis_y -1.001001 is not a unit vector's component"));
+    CHECK_THROWS_WITH(read_predicted_forces(csv), Catch::Contains("axis.csv:8:") && Catch::Contains("column 20 (tool_axis_y)"));
+}
+
 TEST_CASE("the FORCES.bin writer refuses what it cannot carry and leaves nothing behind", "[calib][forces_bin][errors]") {
     Scratch scratch;
     const std::string path = scratch.path("nan.bin");

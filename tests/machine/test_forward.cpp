@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <random>
 
 using namespace cutload::machine;
 using machine_fixtures::kDeg;
@@ -122,4 +123,45 @@ TEST_CASE("the bed frame turns machine axes into workpiece axes", "[machine]") {
     check_vec(bed.R.col(0), Eigen::Vector3d(std::cos(C * kDeg), std::sin(C * kDeg), 0), 1e-15);
     const Eigen::Vector3d pC = bc.chain[0].pivot_mm;
     check_vec(apply(bed, pC), pC, 1e-12);
+}
+
+TEST_CASE("forward_with_bed equals forward and bed_to_workpiece, bit for bit, with and without errors", "[machine]") {
+    Machine ac = machine_fixtures::ac_table_table();
+    Machine ac_errors = ac;
+    load_errors(ac_errors, machine_fixtures::data_path("ac_table_table_errors.json"));
+    // No error set is bundled for BC; one of the same kinds (location, constant and tabulated
+    // component errors on a linear, the table and the head axis), so both halves of its chain carry errors.
+    Machine bc = machine_fixtures::bc_head_table();
+    Machine bc_errors = bc;
+    set_errors(bc_errors, nlohmann::json::parse(R"({
+      "X": {"EXX_um": {"at_mm": [-1200, -600, 0], "values": [7.5, 3.0, 0]}, "EC0X_urad": -9},
+      "C": {"EX0C_um": -5, "EY0C_um": 11, "EA0C_urad": 8, "EB0C_urad": 14,
+            "ECC_arcsec": {"at_deg": [0, 90, 180, 270, 360], "values": [0, 2.0, -1.5, -2.5, 0]}},
+      "B": {"EX0B_um": 9, "EZ0B_um": -6, "EA0B_urad": -12, "EC0B_urad": 7,
+            "EBB_arcsec": {"at_deg": [-110, 0, 110], "values": [-4, 0, 3]}}
+    })"));
+    std::mt19937 rng(2026);
+    for (const Machine* m : {&ac, &ac_errors, &bc, &bc_errors}) {
+        INFO(m->name << (m == &ac_errors || m == &bc_errors ? ", with errors" : ""));
+        std::size_t differ = 0;
+        for (int n = 0; n < 2000; ++n) {
+            AxisPositions q;
+            for (std::size_t i = 0; i < m->chain.size(); ++i) {
+                const Axis& a = m->chain[i];
+                // A continuous axis over a few turns; otherwise its travel.
+                const double lo = std::isfinite(a.lower) ? a.lower : -720, hi = std::isfinite(a.upper) ? a.upper : 720;
+                q.value[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
+            }
+            for (const ErrorMode mode : {ErrorMode::Nominal, ErrorMode::WithErrors}) {
+                const double length_mm = n % 3 == 0 ? 0.0 : 85.5;
+                const ToolAndBed both = forward_with_bed(*m, q, length_mm, mode);
+                const ToolPose tool = forward(*m, q, length_mm, mode);
+                const Frame bed = bed_to_workpiece(*m, q, mode);
+                differ += both.tool.tool_to_workpiece.R != tool.tool_to_workpiece.R ||
+                          both.tool.tip_mm() != tool.tip_mm() || both.bed_to_workpiece.R != bed.R ||
+                          both.bed_to_workpiece.origin_mm != bed.origin_mm;
+            }
+        }
+        CHECK(differ == 0);
+    }
 }

@@ -55,6 +55,45 @@ std::string without_column(const std::string& csv, const std::string& name) {
     return out;
 }
 
+// A D8 flat end mill leaning 30 deg toward the feed (+X), 2 mm into a 40 x 30 x 20 block's top
+// face, logged through the AC machine with a 120 mm tool (docs/five_axis.md, section 2.5).
+std::string tilted_log_csv() {
+    const auto machine_def = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
+    cutload::app::PathDryRunSpec p;
+    const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, lean = 30 * std::numbers::pi / 180;
+    p.path = [=](double u) {
+        cutload::app::PathPose pose;
+        pose.tip_mm = {-358 + feed_mm_s * u, -275, -582};
+        pose.axis = {std::sin(lean), 0, std::cos(lean)};
+        return pose;
+    };
+    p.duration_s = 28 / feed_mm_s;
+    p.tool_length_mm = 120;
+    p.start_axes = {{'A', 0}, {'C', 0}};
+    p.spindle_rpm = 8000;
+    std::ostringstream log;
+    cutload::app::synthesize_path_dry_run(p, *machine_def, log);
+    return log.str();
+}
+// Its block at 0.2 mm: 200 x 150 = 30 000 cells as given, more turned into the tool's frame.
+constexpr const char* kTiltedSpec = R"json({
+  "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
+           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
+  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
+               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
+  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
+  "setup": {"offset_mm": [350, 275, 580]},
+  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.2}
+})json";
+
+httplib::Result upload_tilted(httplib::Client& c, const std::string& log) {
+    return c.Post("/api/v1/runs", httplib::MultipartFormDataItems{
+                                      {"log", log, "tilted.csv", "text/csv"},
+                                      {"spec", kTiltedSpec, "", "application/json"},
+                                      {"kinematics", slurp(kData / "machines" / "ac_table_table.json"), "ac.json", "application/json"},
+                                      {"tool_length_mm", "120", "", ""}});
+}
+
 }  // namespace
 
 TEST_CASE("kinematics: the five-axis demo uploaded with its machine cuts the ring groove's closed-form volume") {
@@ -91,39 +130,10 @@ TEST_CASE("kinematics: the five-axis demo uploaded with its machine cuts the rin
 
 TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says so, and its stock is seen from above in "
           "stock axes") {
-    // A D8 flat end mill leaning 30 deg toward the feed (+X), 2 mm into a 40 x 30 x 20 block's top
-    // face, logged through the AC machine (docs/five_axis.md, section 2.5).
-    const auto machine_def = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
-    cutload::app::PathDryRunSpec p;
-    const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, lean = 30 * std::numbers::pi / 180;
-    p.path = [=](double u) {
-        cutload::app::PathPose pose;
-        pose.tip_mm = {-358 + feed_mm_s * u, -275, -582};
-        pose.axis = {std::sin(lean), 0, std::cos(lean)};
-        return pose;
-    };
-    p.duration_s = 28 / feed_mm_s;
-    p.tool_length_mm = 120;
-    p.start_axes = {{'A', 0}, {'C', 0}};
-    p.spindle_rpm = 8000;
-    std::ostringstream log;
-    cutload::app::synthesize_path_dry_run(p, *machine_def, log);
-    const std::string spec = R"json({
-  "tool": {"shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 0,
-           "flute_length_mm": 20, "stickout_mm": 30, "holder": {"diameter_mm": 20, "length_mm": 40}},
-  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
-               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
-  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 15, 0]}},
-  "setup": {"offset_mm": [350, 275, 580]},
-  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.1, "grid_mm": 0.2}
-})json";
+    const std::string log = tilted_log_csv();
     TestServer ts;
     auto c = ts.client(ts.write_key);
-    auto r = c.Post("/api/v1/runs", httplib::MultipartFormDataItems{
-                                        {"log", log.str(), "tilted.csv", "text/csv"},
-                                        {"spec", spec, "", "application/json"},
-                                        {"kinematics", slurp(kData / "machines" / "ac_table_table.json"), "ac.json", "application/json"},
-                                        {"tool_length_mm", "120", "", ""}});
+    auto r = upload_tilted(c, log);
     REQUIRE(r->status == 202);
     const auto id = body(r)["id"].get<std::int64_t>();
     json run = wait_finished(c, id, 120);
@@ -162,6 +172,52 @@ TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says s
         }
     CHECK(cut > 100);
     CHECK(top > 1000);
+}
+
+TEST_CASE("kinematics: a tilted run whose turned stock passes the cell limit is refused at upload with the job's figures, "
+          "and one that fits passes both") {
+    const std::string log = tilted_log_csv();
+    // What the job makes of it: the same log and spec through predict_run, as jobs.cpp sets it up.
+    TempDir dir;
+    const fs::path log_path = dir.path() / "tilted.csv";
+    std::ofstream(log_path, std::ios::binary) << log;
+    cutload::app::RunInput in;
+    in.log_path = log_path.string();
+    in.read = cutload::app::read_options(cutload::app::LogFormat{});
+    in.spec = cutload::force_model::parse_run_spec_text(kTiltedSpec, "spec");
+    in.machine = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
+    in.tool_length_mm = 120;
+    const auto seen = cutload::app::inspect_run_log(in.log_path, in.read, in.spec, in.machine.get(), in.tool_length_mm);
+    const double turned_cells = cutload::app::estimate_run_work(seen.report, in.spec, seen.orientation).stock_cells;
+    REQUIRE(turned_cells > 30000 * 1.1);
+    in.limits.max_stock_cells = (30000 + turned_cells) / 2;
+    std::string job_refusal;
+    try {
+        cutload::app::predict_run(in);
+    } catch (const cutload::app::TooMuchWork& e) {
+        job_refusal = e.what();
+    }
+    REQUIRE_THAT(job_refusal, Catch::Contains("(the box turned into the frame of the tool leaning 30 deg"));
+    {
+        TestServer ts([&](cutload::server::ServerOptions& o) { o.max_stock_cells = in.limits.max_stock_cells; });
+        auto c = ts.client(ts.write_key);
+        const auto r = upload_tilted(c, log);
+        require_error(r, 400, "too_much_work");
+        CHECK(body(r)["error"]["message"] == job_refusal);
+        // Nothing stored or queued.
+        CHECK(body(ts.admin().Get("/api/v1/runs"))["items"].empty());
+        CHECK(files_under(ts.data_dir() / "uploads") == 0);
+    }
+    {
+        TestServer ts([&](cutload::server::ServerOptions& o) { o.max_stock_cells = turned_cells; });
+        auto c = ts.client(ts.write_key);
+        const auto r = upload_tilted(c, log);
+        REQUIRE(r->status == 202);
+        const json run = wait_finished(c, body(r)["id"].get<std::int64_t>(), 120);
+        INFO(run.dump());
+        CHECK(run["state"] == "done");
+        CHECK(run["summary"]["kinematics"]["fixed_tilt"] == true);
+    }
 }
 
 TEST_CASE("kinematics: with its NC program in the machine's axes the run also predicts and compares the commanded motion") {
