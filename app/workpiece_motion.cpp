@@ -341,8 +341,8 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
             }
             throw WorkpieceMotionError(fmt::format(
                 "at t = {:.4f} s the tool axis leans {:.4g} deg from the stock's +Z (at most {:.4g} deg, at t = {:.4f} "
-                "s): a tilted tool needs the multi-direction stock, which is not built yet (docs/five_axis.md, "
-                "section 3)",
+                "s): a tilted tool is taken at the fixed orientation tool_frame() finds, or on the multi-direction "
+                "stock through turning_motion() (docs/five_axis.md, sections 2.5 and 3.4)",
                 axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi, most_rad * 180.0 / std::numbers::pi, most_t_s));
         }
         const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
@@ -519,15 +519,16 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
             if (const double off = off_orientation_rad(frame, nominal, length_mm, *reach); off > 0)
                 throw motion_io::NcProgramError(fmt::format(
                     "{}:{}: block {}: where the tool can reach the stock its axis {} {:.4g} deg from the orientation "
-                    "the log cuts at (leaning {:.4g} deg from the stock's +Z): a tilted tool is predicted at one "
-                    "fixed orientation (3+2 work); a tool that turns there needs the multi-direction stock, which is "
-                    "not built yet (docs/five_axis.md, section 3)",
+                    "the log cuts at (leaning {:.4g} deg from the stock's +Z): a program's commanded path is predicted "
+                    "at the log's one fixed orientation (3+2 work); a program that turns the tool there is not "
+                    "predicted yet (docs/five_axis.md, section 3.4)",
                     program.file, b.line, b.name, frame.tilted ? "turns" : "leans", off * 180.0 / std::numbers::pi,
                     frame.lean_deg));
         } else if (const double tilt_rad = tilt_from_z_rad(nominal); !(tilt_rad <= kVerticalToleranceRad)) {
             throw motion_io::NcProgramError(fmt::format(
-                "{}:{}: block {}: the tool axis leans {:.4g} deg from the stock's +Z: a tilted tool needs the "
-                "multi-direction stock, which is not built yet (docs/five_axis.md, section 3)",
+                "{}:{}: block {}: the tool axis leans {:.4g} deg from the stock's +Z, and the program is read "
+                "without the log's orientations, which a tilted tool's commanded path needs (docs/five_axis.md, "
+                "section 2.5)",
                 program.file, b.line, b.name, tilt_rad * 180.0 / std::numbers::pi));
         }
         return Eigen::Vector3d(machine::forward(machine, q, tool_length_mm).tip_mm());
