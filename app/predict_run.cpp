@@ -1,4 +1,5 @@
 #include "app/predict_run.hpp"
+#include "app/tool_centre_point.hpp"
 #include "app/workpiece_motion.hpp"
 
 #include "rows_pipe.hpp"
@@ -219,6 +220,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         if (in.machine) {
             source.settings.rotary_axes = machine_rotary_axes(*in.machine);
             source.settings.start_deg = axes_start_deg;
+            source.settings.tool_centre_point = tool_centre_point_kinematics(in.machine, in.tool_length_mm);
         }
         motion_io::NcProgram program = read_program(source, in.spec, axes_start_mm);
         // With a machine: the tip's commanded path against the part (stock axes), its orientation

@@ -82,6 +82,7 @@ motion_io::NcReadOptions program_read_options(const ProgramSettings& settings, c
     ro.rotary_axes = settings.rotary_axes;
     ro.rotary_feed = settings.rotary_feed;
     ro.start_deg = settings.start_deg;
+    ro.tool_centre_point = settings.tool_centre_point;
     ro.arc_tolerance_mm = settings.arc_tolerance_mm;
     ro.tool_change_on_t = settings.tool_change_on_t;
     ro.block_skip = settings.block_skip;

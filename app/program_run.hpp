@@ -13,6 +13,7 @@
 
 #include <array>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -45,6 +46,10 @@ struct ProgramSettings {
     std::string rotary_axes;
     motion_io::RotaryFeed rotary_feed = motion_io::RotaryFeed::Combined;
     std::array<double, 3> start_deg{};       // A, B, C before the first block (the log's first angles)
+    // The machine's kinematics for tool-centre-point programs (G43.4/G43.5): app::
+    // tool_centre_point_kinematics(machine, tool length). Null without a machine: those codes are
+    // then an error naming the line and the word.
+    std::shared_ptr<const motion_io::ToolCentrePointKinematics> tool_centre_point;
 };
 
 struct ProgramRun {

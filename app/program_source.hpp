@@ -22,6 +22,8 @@ struct ProgramSource {
 
 // The program interpreted in machine coordinates (program_read_options: the spec's setup offset
 // as G54 unless the settings say otherwise, the machine at `start_mm` before the first block).
+// Blocks under tool-centre-point control (G43.4/G43.5, with settings.tool_centre_point) come in
+// machine-axis form (app::machine_axis_program).
 // motion_io::NcProgramError naming file, line and word; an unreadable or empty file is one too.
 motion_io::NcProgram read_program(const ProgramSource& source, const force_model::RunSpec& spec,
                                   std::optional<std::array<double, 3>> start_mm);

@@ -125,7 +125,7 @@ void add_predict(CLI::App& app) {
                     "Machine definition (JSON, docs/machines.md): the log's x, y, z and a, b, c are its axes, turned "
                     "into the tool's motion against the part (five-axis: wherever it can reach the stock the tool stands at "
                     "one orientation, vertical or tilted, a vertical one may turn about its axis, docs/five_axis.md); a "
-                    "--program is then read in its axes (A/B/C words, docs/nc_program.md)")
+                    "--program is then read in its axes (A/B/C words, or G43.4/G43.5 tool-centre-point blocks, docs/nc_program.md)")
         ->check(CLI::ExistingFile);
     cmd->add_option("--machine-errors", a->machine_errors, "Geometric errors of the --machine (JSON, docs/machines.md)")
         ->check(CLI::ExistingFile);

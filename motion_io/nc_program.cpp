@@ -173,9 +173,6 @@ std::string unsupported_g(double g) {
         case 500: case 510: return "scaling is not supported";
         case 100: case 110: return "programmable data input (G10) is not supported";
         case 520: case 920: return "local coordinate systems (G52/G92) are not supported";
-        case 434: case 435:
-            return "tool-centre-point control (G43.4/G43.5) is not supported yet: give the machine's axis positions "
-                   "(A/B/C words in machine-axis form, docs/nc_program.md)";
         default: return "this G code is not supported";
     }
 }
@@ -212,7 +209,17 @@ struct Modal {
     double dwell_s = 0;
     std::array<double, 3> rot_deg{};     // A, B, C (machine-axis form; read with a machine's rotary axes)
     bool inverse_time = false;           // G93 (else G94)
+    // Tool-centre-point control (G43.4/G43.5 until G49): the programmed tip and tool axis in
+    // workpiece coordinates. pos_mm and rot_deg stay the machine's axes throughout, so the block
+    // after G49 starts where the machine is.
+    ToolCentrePoint tcp = ToolCentrePoint::Off;
+    std::array<double, 3> tip_mm{};
+    std::array<double, 3> tool_axis{0, 0, 1};
 };
+
+const char* tcp_code(ToolCentrePoint t) { return t == ToolCentrePoint::AxisVector ? "G43.5" : "G43.4"; }
+
+std::string vec_text(const std::array<double, 3>& v) { return fmt::format("({:.6g}, {:.6g}, {:.6g})", v[0], v[1], v[2]); }
 
 // A rotary word beyond this is a typo, not a position (a continuous table logs turns, not years).
 constexpr double kMaxAbsAngleDeg = 1e6;
@@ -340,8 +347,10 @@ private:
         const NcWord* center[3] = {nullptr, nullptr, nullptr};
         const NcWord *r_word = nullptr, *f_word = nullptr, *s_word = nullptr, *p_word = nullptr, *q_word = nullptr,
                      *t_word = nullptr, *motion_word = nullptr, *cycle_word = nullptr;
-        bool dwell = false, machine_coords = false, m06 = false, cancel_cycle = false;
+        bool dwell = false, machine_coords = false, m06 = false, cancel_cycle = false, cancel_tcp = false;
         int new_plane = 0, new_cycle = 0;
+        const NcWord* tcp_word = nullptr;
+        ToolCentrePoint new_tcp = ToolCentrePoint::Off;
         auto once = [&](const NcWord*& slot, const NcWord& w) {
             if (slot) fail(line_no, word_text(line, w), "appears twice in the block");
             slot = &w;
@@ -402,8 +411,14 @@ private:
                         m_.inverse_time = true;
                     } else if (is_code(w, 'G', 94)) {
                         m_.inverse_time = false;
-                    } else if (is_code(w, 'G', 40) || is_code(w, 'G', 43) || is_code(w, 'G', 44) || is_code(w, 'G', 49) ||
-                               is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64)) {
+                    } else if (is_code(w, 'G', 43.4) || is_code(w, 'G', 43.5)) {
+                        if (tcp_word) fail(line_no, text, "two tool-centre-point codes in one block");
+                        tcp_word = &w;
+                        new_tcp = is_code(w, 'G', 43.4) ? ToolCentrePoint::RotaryAngles : ToolCentrePoint::AxisVector;
+                    } else if (is_code(w, 'G', 43) || is_code(w, 'G', 44) || is_code(w, 'G', 49)) {
+                        // Group 08: plain tool length compensation (a no-op here) ends tool-centre-point control too.
+                        cancel_tcp = true;
+                    } else if (is_code(w, 'G', 40) || is_code(w, 'G', 9) || is_code(w, 'G', 61) || is_code(w, 'G', 64)) {
                         // no effect on the programmed tool-tip path at programmed feed
                     } else {
                         fail(line_no, text, unsupported_g(g));
@@ -443,6 +458,9 @@ private:
             }
         }
         if (new_plane) m_.plane = new_plane;
+        if (tcp_word && cancel_tcp) fail(line_no, word_text(line, *tcp_word), "tool-centre-point control and its cancel (G43/G44/G49) in one block");
+        if (cancel_tcp) m_.tcp = ToolCentrePoint::Off;
+        if (tcp_word) enter_tcp(line_no, word_text(line, *tcp_word), new_tcp);
         std::optional<double> inverse_f_per_min;   // G93: this block's F, 1/min
         if (f_word && m_.inverse_time) {
             // The block takes 1/F minutes: from 0.6 ms (F100000) to a day (F1/1440).
@@ -498,6 +516,9 @@ private:
             m_.cycle = new_cycle;
         }
         const NcWord* rot_word = rot[0] ? rot[0] : rot[1] ? rot[1] : rot[2];
+        if (m_.cycle && m_.tcp != ToolCentrePoint::Off)
+            fail(line_no, cycle_word ? word_text(line, *cycle_word) : fmt::format("G{}", m_.cycle),
+                 fmt::format("a canned cycle under tool-centre-point control ({}): cancel it with G49 first", tcp_code(m_.tcp)));
         if (m_.cycle) {
             if (rot_word) fail(line_no, word_text(line, *rot_word), "a rotary word in a canned cycle block");
             canned_cycle(p, std::move(b), line_no, line, axis, center, r_word, p_word, q_word, dwell, machine_coords);
@@ -519,6 +540,10 @@ private:
             return;
         }
         if (p_word) fail(line_no, word_text(line, *p_word), "P is supported only as a dwell time (G04, G82, G89)");
+        if (m_.tcp != ToolCentrePoint::Off) {
+            tcp_block(p, std::move(b), line_no, line, words, axis, rot, center, r_word, motion_word, machine_coords, inverse_f_per_min);
+            return;
+        }
 
         const bool has_axes = axis[0] || axis[1] || axis[2] || rot_word;
         const bool arc = !machine_coords && (m_.motion == NcMotion::ArcCw || m_.motion == NcMotion::ArcCcw);
@@ -555,6 +580,135 @@ private:
         }
         m_.pos_mm = target;
         m_.rot_deg = b.end_deg;
+        push(p, std::move(b), line_no);
+    }
+
+    // G43.4/G43.5: the tip and tool axis start where the machine's axes put them.
+    void enter_tcp(std::size_t line_no, const std::string& word, ToolCentrePoint mode) {
+        if (!opt_.tool_centre_point)
+            fail(line_no, word, fmt::format("tool-centre-point control ({}) needs the machine's kinematics to find its axes: give the "
+                                            "machine definition and the tool length (--machine FILE --tool-length-mm L in the CLI, "
+                                            "parts kinematics and tool_length_mm in the API)", tcp_code(mode)));
+        if (!(m_.known[0] && m_.known[1] && m_.known[2]))
+            fail(line_no, word, "tool-centre-point control before the machine's X, Y and Z positions are known (start with an absolute move)");
+        if (m_.tcp == ToolCentrePoint::Off) {
+            NcToolPose pose;
+            try {
+                pose = opt_.tool_centre_point->forward(NcAxes{m_.pos_mm, m_.rot_deg});
+            } catch (const std::exception& e) {
+                fail(line_no, word, fmt::format("the machine's pose at {} {}: {}", vec_text(m_.pos_mm), vec_text(m_.rot_deg), e.what()));
+            }
+            m_.tip_mm = pose.tip_mm;
+            m_.tool_axis = pose.axis;
+        }
+        m_.tcp = mode;
+    }
+
+    // A block under tool-centre-point control: X/Y/Z are the tip in workpiece coordinates (with the
+    // work offset, as a three-axis program's positions), A/B/C (G43.4) or I/J/K (G43.5) the
+    // orientation at the block's end. The machine's axes at the end come from its kinematics.
+    void tcp_block(NcProgram& p, NcBlock b, std::size_t line_no, const std::string& line, const std::vector<NcWord>& words,
+                   const NcWord* const axis[3], const NcWord* const rot[3], const NcWord* const center[3], const NcWord* r_word,
+                   const NcWord* motion_word, bool machine_coords, std::optional<double> inverse_f_per_min) {
+        const ToolCentrePoint mode = m_.tcp;
+        const std::string code = tcp_code(mode);
+        b.tcp = mode;
+        b.tip_start_mm = b.tip_end_mm = m_.tip_mm;
+        b.axis_start = b.axis_end = m_.tool_axis;
+        const NcWord* rot_word = rot[0] ? rot[0] : rot[1] ? rot[1] : rot[2];
+        const NcWord* center_word = center[0] ? center[0] : center[1] ? center[1] : center[2];
+        if (machine_coords) fail(line_no, "G53", fmt::format("G53 under tool-centre-point control ({}): cancel it with G49 first", code));
+        if (r_word) fail(line_no, word_text(line, *r_word), fmt::format("R under tool-centre-point control ({})", code));
+        if (mode == ToolCentrePoint::RotaryAngles && center_word)
+            fail(line_no, word_text(line, *center_word), "I/J/K under G43.4: the rotary words give the orientation (G43.5 takes the tool axis as I/J/K)");
+        if (mode == ToolCentrePoint::AxisVector && rot_word)
+            fail(line_no, word_text(line, *rot_word), "a rotary word under G43.5: give the tool axis as I/J/K (G43.4 takes rotary angles)");
+        const bool has_axes = axis[0] || axis[1] || axis[2] || rot_word || center_word;
+        if (!has_axes) {
+            push(p, std::move(b), line_no);
+            return;
+        }
+        if (m_.motion == NcMotion::ArcCw || m_.motion == NcMotion::ArcCcw)
+            fail(line_no, motion_word ? word_text(line, *motion_word) : (m_.motion == NcMotion::ArcCw ? "G02" : "G03"),
+                 fmt::format("circular interpolation under tool-centre-point control ({}) is not supported: program the tip path with G01", code));
+        const auto wcs = opt_.work_offsets_mm.find(m_.wcs);
+        if (wcs == opt_.work_offsets_mm.end()) fail(line_no, m_.wcs, "no offset is set for this work coordinate system");
+        std::array<double, 3> tip = m_.tip_mm;
+        for (std::size_t a = 0; a < 3; ++a) {
+            if (!axis[a]) continue;
+            const double v = bounded_length_mm(line_no, line, *axis[a]);
+            tip[a] = m_.incremental ? m_.tip_mm[a] + v : v + wcs->second[a];
+        }
+        check_position(line_no, culprit_, tip);
+        std::array<double, 3> tool_axis = m_.tool_axis;
+        std::array<double, 3> rot_end = m_.rot_deg;
+        if (mode == ToolCentrePoint::RotaryAngles) {
+            rot_end = rotary_target(line_no, line, rot, false);
+        } else if (center_word) {
+            // Omitted components are 0; the vector is a direction, always absolute.
+            const double v[3] = {center[0] ? center[0]->value : 0.0, center[1] ? center[1]->value : 0.0, center[2] ? center[2]->value : 0.0};
+            const double n = std::hypot(v[0], v[1], v[2]);
+            if (!(n > 1e-9)) fail(line_no, word_text(line, *center_word), "the tool axis I/J/K has no direction (all components 0)");
+            tool_axis = {v[0] / n, v[1] / n, v[2] / n};
+            const double dot = tool_axis[0] * m_.tool_axis[0] + tool_axis[1] * m_.tool_axis[1] + tool_axis[2] * m_.tool_axis[2];
+            if (dot < -1 + 1e-12)
+                fail(line_no, word_text(line, *center_word),
+                     fmt::format("the tool axis turns from {} to its opposite {}: no great circle between the two is defined (split the turn "
+                                 "into two blocks)", vec_text(m_.tool_axis), vec_text(tool_axis)));
+        }
+        const NcMotion motion = m_.motion;
+        if (motion != NcMotion::Rapid && m_.inverse_time) {
+            if (!inverse_f_per_min)
+                fail(line_no, word_text(line, words.front()), "in inverse time (G93) every feed move needs its own F (1/min: the block takes 1/F minutes)");
+        } else if (motion != NcMotion::Rapid && !(m_.feed_mm_min > 0)) {
+            fail(line_no, word_text(line, words.front()), "no feed rate (F) is in force for this move");
+        }
+        NcAxes q;
+        try {
+            if (mode == ToolCentrePoint::RotaryAngles) {
+                q = opt_.tool_centre_point->with_rotary(tip, rot_end);
+                q.rotary_deg = rot_end;   // as commanded, digit for digit
+                tool_axis = opt_.tool_centre_point->forward(q).axis;
+            } else {
+                q = opt_.tool_centre_point->inverse(NcToolPose{tip, tool_axis}, NcAxes{m_.pos_mm, m_.rot_deg});
+            }
+        } catch (const std::exception& e) {
+            fail(line_no, culprit_, fmt::format("block {}: the machine cannot reach the tip {} {}: {}", b.name, vec_text(tip),
+                                                mode == ToolCentrePoint::RotaryAngles ? "at the rotary angles " + vec_text(rot_end)
+                                                                                      : "with the tool axis " + vec_text(tool_axis),
+                                                e.what()));
+        }
+        b.motion = motion;
+        b.end_mm = q.linear_mm;
+        b.end_deg = q.rotary_deg;
+        b.tip_end_mm = tip;
+        b.axis_end = tool_axis;
+        check_position(line_no, culprit_, b.end_mm);
+        // The tip runs at F (G94) along its straight path; a block that only turns the tool reads
+        // F as deg/min over the turn (G43.4: the rotary angles' combined turn, G43.5: the angle
+        // between the axes). G93: 1/F minutes, as always.
+        const double tip_mm = std::hypot(tip[0] - b.tip_start_mm[0], tip[1] - b.tip_start_mm[1], tip[2] - b.tip_start_mm[2]);
+        double turn_deg = 0;
+        if (mode == ToolCentrePoint::RotaryAngles) {
+            turn_deg = std::hypot(rot_end[0] - b.start_deg[0], rot_end[1] - b.start_deg[1], rot_end[2] - b.start_deg[2]);
+        } else {
+            const double dot = b.axis_start[0] * tool_axis[0] + b.axis_start[1] * tool_axis[1] + b.axis_start[2] * tool_axis[2];
+            turn_deg = std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+        }
+        if (motion == NcMotion::Rapid) {
+            b.feed_time_s = std::hypot(tip_mm, turn_deg) / (opt_.rapid_mm_min / 60.0);
+        } else if (inverse_f_per_min) {
+            b.feed_time_s = 60.0 / *inverse_f_per_min;
+        } else {
+            const double unit_mm = b.inch ? kMmPerInch : 1.0;
+            b.feed_time_s = tip_mm > 1e-9 ? tip_mm / (b.feed_mm_min / 60.0) : turn_deg / (b.feed_mm_min / unit_mm / 60.0);
+        }
+        for (int k = 0; k < 3; ++k)
+            if (rotary_allowed_[k]) rotary_named_[k] = true;
+        m_.pos_mm = b.end_mm;
+        m_.rot_deg = b.end_deg;
+        m_.tip_mm = tip;
+        m_.tool_axis = tool_axis;
         push(p, std::move(b), line_no);
     }
 

@@ -8,7 +8,9 @@
 // F, S, M03/M04/M05, tools (T with M06), N numbers, (comments), ; comments, O numbers, %, block
 // skip '/', no-op codes (G40, G43/G44/G49, G61/G64/G09, M00/M01/M07/M08/M09), M02/M30 end.
 // With a machine's rotary axes (NcReadOptions::rotary_axes): A/B/C words in degrees in machine-axis
-// form (every axis moves linearly between block end points), and G93 inverse time.
+// form (every axis moves linearly between block end points), and G93 inverse time; with its
+// kinematics too (NcReadOptions::tool_centre_point), tool-centre-point control G43.4/G43.5 until
+// G49 (the tip in workpiece coordinates; NcBlock::tcp).
 // Anything else is an NcProgramError naming file, line and word, unless the word is listed in
 // NcReadOptions::ignore_words. Values outside physical ranges and programs whose path, duration
 // or commanded-motion size pass NcLimits are refused while reading (issue 19).
@@ -19,6 +21,7 @@
 #include <array>
 #include <cstddef>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -32,6 +35,10 @@ public:
 };
 
 enum class NcMotion { None, Rapid, Linear, ArcCw, ArcCcw, Dwell };
+
+// Tool-centre-point control in force for a block: off, G43.4 (tip and rotary angles) or G43.5
+// (tip and tool-axis vector I/J/K).
+enum class ToolCentrePoint { Off, RotaryAngles, AxisVector };
 
 // One word as written, with its place on the source line (for errors and for rewriting F).
 struct NcWord {
@@ -74,6 +81,15 @@ struct NcBlock {
     // rapids included. 0 otherwise: the time is block_length_mm / feed_mm_min, as always.
     double feed_time_s = 0;
     bool inverse_time = false;    // G93 in force: the block's F word is 1/minutes, not a feed
+    // Tool-centre-point blocks (G43.4/G43.5; docs/nc_program.md, "Tool-centre-point programs"):
+    // the tip moves on a straight line in workpiece coordinates (the frame that turns with the
+    // table) and the orientation is interpolated, so the machine axes run on a curve. start_mm /
+    // end_mm and start_deg / end_deg hold the machine axes at the block's ends (from the machine's
+    // kinematics, NcReadOptions::tool_centre_point), and feed_time_s the block's time at its
+    // programmed feed; app::machine_axis_program turns the block into machine-axis pieces.
+    ToolCentrePoint tcp = ToolCentrePoint::Off;
+    std::array<double, 3> tip_start_mm{}, tip_end_mm{};   // the tool tip, workpiece coordinates
+    std::array<double, 3> axis_start{}, axis_end{};       // the unit tool axis (tip toward spindle), workpiece coordinates
 };
 
 struct NcProgram {
@@ -82,6 +98,33 @@ struct NcProgram {
     bool final_newline = true;        // the source ended with '\n'
     std::vector<NcBlock> blocks;      // in program order; comment-only and empty lines are no blocks
     std::string rotary_axes;          // the rotary axes its words name, lower case in order: "", "c", "ac"
+};
+
+// Machine axes as a tool-centre-point program names them: X, Y, Z in mm and A, B, C in degrees
+// (0 for an axis the machine lacks).
+struct NcAxes {
+    std::array<double, 3> linear_mm{};
+    std::array<double, 3> rotary_deg{};
+};
+
+// The tool as a tool-centre-point program gives it, in workpiece coordinates.
+struct NcToolPose {
+    std::array<double, 3> tip_mm{};
+    std::array<double, 3> axis{0, 0, 1};   // unit, from the tip toward the spindle
+};
+
+// A machine's kinematics on its nominal chain (what a controller in tool-centre-point mode uses).
+// motion_io knows no machine definitions: the application implements this on machine/'s forward
+// and inverse kinematics (app/tool_centre_point.hpp). The methods throw an exception derived from
+// std::exception whose message names the axis and its limits when a target is out of reach.
+class ToolCentrePointKinematics {
+public:
+    virtual ~ToolCentrePointKinematics() = default;
+    virtual NcToolPose forward(const NcAxes& q) const = 0;
+    // The axes that put the tool at `pose`, nearest `previous` within the limits (G43.5).
+    virtual NcAxes inverse(const NcToolPose& pose, const NcAxes& previous) const = 0;
+    // The linear axes that put the tip at tip_mm with the rotary axes at rotary_deg (G43.4).
+    virtual NcAxes with_rotary(const std::array<double, 3>& tip_mm, const std::array<double, 3>& rotary_deg) const = 0;
 };
 
 enum class ArcCenters { Incremental, Absolute };   // I/J/K from the arc's start, or positions
@@ -154,6 +197,10 @@ struct NcReadOptions {
     RotaryFeed rotary_feed = RotaryFeed::Combined;
     // A, B, C before the first block (e.g. the log's first angles), degrees.
     std::array<double, 3> start_deg{};
+    // The machine's kinematics, for G43.4/G43.5 (tool-centre-point control). Null: those codes
+    // are an error naming the line and the word. Needs start_mm (the machine's position before
+    // the program) and rotary_axes.
+    std::shared_ptr<const ToolCentrePointKinematics> tool_centre_point;
 };
 
 // "combined" / "linear_only" (the CLI's and the API's spelling); nullopt for anything else.

@@ -4,6 +4,7 @@
 #include "app/library_tools.hpp"
 #include "app/predict_run.hpp"
 #include "app/program_source.hpp"
+#include "app/tool_centre_point.hpp"
 #include "app/work_bounds.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
@@ -262,6 +263,7 @@ struct UploadedProgram {
 // rather than a failed job later. Positions are checked again by the job, against the log.
 json store_nc_program(const httplib::Request& req, const fs::path& dir, const json& spec_json,
                       const std::optional<std::array<double, 3>>& start_mm, const std::string& rotary_axes,
+                      const std::shared_ptr<const motion_io::ToolCentrePointKinematics>& tool_centre_point,
                       std::optional<UploadedProgram>& read) {
     const auto f = req.get_file_value("nc_program");
     if (f.content.empty()) throw ApiError(400, "bad_program", "part 'nc_program' is empty");
@@ -282,6 +284,7 @@ json store_nc_program(const httplib::Request& req, const fs::path& dir, const js
     // With kinematics the program is in the machine's axes (A/B/C words); the job reads it again
     // from where the log's axes start, and turns it into the tip's path against the part.
     source.settings.rotary_axes = rotary_axes;
+    source.settings.tool_centre_point = tool_centre_point;
     source.name = name;
     source.text = text;
     const force_model::RunSpec spec = force_model::parse_run_spec(spec_json);
@@ -403,7 +406,9 @@ void create_run(Core& core, Ctx& x) {
     json nc_program;
     std::optional<UploadedProgram> program_read;
     if (req.has_file("nc_program"))
-        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm, rotary_axes, program_read);
+        nc_program = store_nc_program(req, tmp, r.spec, report.first_position_mm, rotary_axes,
+                                      machine ? app::tool_centre_point_kinematics(machine, kinematics.value("tool_length_mm", 0.0)) : nullptr,
+                                      program_read);
     else if (part(req, "nc_options"))
         bad_request("part nc_options: given without nc_program (the options are for reading the NC program)");
     std::size_t rows = 0;

@@ -1,7 +1,8 @@
 // Five-axis NC programs in machine-axis form (docs/nc_program.md, "Rotary axes"): A/B/C words read
 // with a machine's rotary axes, every axis linear between block end points, G93 inverse time and
 // the G94 rotary feed rules; the commanded motion's rotary channels; the generator's a/b/c columns;
-// and the clear refusals (no machine, an axis the machine lacks, tool-centre-point mode).
+// and the clear refusals (no machine, an axis the machine lacks, tool-centre-point mode without the
+// machine's kinematics).
 #include "nc_fixtures.hpp"
 #include "nc_read.hpp"
 
@@ -90,8 +91,9 @@ TEST_CASE("rotary program: refusals name the line, the word and why", "[parser][
     CHECK_THAT(error_of("N1 G93 G01 X1. F2.\n", three_axis), Catch::StartsWith("t.nc:1: word 'G93': inverse time feed (G93) is read only"));
     CHECK(error_of("N1 G00 X0 Y0 Z0 B10.\n", ac_options()) == "t.nc:1: word 'B10.': the machine has no rotary axis B (its rotary axes: AC)");
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G43.4 H1\n", ac_options()),
-               Catch::StartsWith("t.nc:2: word 'G43.4': tool-centre-point control (G43.4/G43.5) is not supported yet"));
-    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G43.5 H1\n", ac_options()), Catch::StartsWith("t.nc:2: word 'G43.5': tool-centre-point"));
+               Catch::StartsWith("t.nc:2: word 'G43.4': tool-centre-point control (G43.4) needs the machine's kinematics"));
+    CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G43.5 H1\n", ac_options()),
+               Catch::StartsWith("t.nc:2: word 'G43.5': tool-centre-point control (G43.5) needs the machine's kinematics"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G93 G01 C10.\n", ac_options()), Catch::StartsWith("t.nc:2: word 'N2': in inverse time (G93) every feed move needs its own F"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z0\nN2 G02 X10. I5. C10. F100\n", ac_options()), Catch::StartsWith("t.nc:2: word 'C10.': a rotary axis cannot move in an arc block"));
     CHECK_THAT(error_of("N1 G00 X0 Y0 Z10.\nN2 G81 X5. Z-1. R1. C10. F100\n", ac_options()), Catch::StartsWith("t.nc:2: word 'C10.': a rotary word in a canned cycle"));
