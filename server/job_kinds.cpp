@@ -70,7 +70,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         // and another claimed the run) finds the run no longer its own and stores nothing.
         db::Transaction tx(*s);
         if (!s->jobs().holds(db::kRunQueue, id, ctx.claim)) return std::nullopt;
-        const json kinematics = kinematics_summary(r.tool_axis, r.tool_lean_deg, r.fixed_tilt);
+        const json kinematics = kinematics_summary(r.tool_axis, r.tool_lean_deg, r.fixed_tilt, r.turning);
         alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
                               opt.limit_alerts, &ctx.cancel, forces ? &*forces : nullptr, in.machine ? &kinematics : nullptr);
         tx.commit();

@@ -346,8 +346,8 @@ int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionMod
                      kinematics);
 }
 
-json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt) {
-    return {{"tool_axis", tool_axis}, {"tool_lean_deg", tool_lean_deg}, {"fixed_tilt", fixed_tilt}};
+json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt, bool turning) {
+    return {{"tool_axis", tool_axis}, {"tool_lean_deg", tool_lean_deg}, {"fixed_tilt", fixed_tilt}, {"turning", turning}};
 }
 
 namespace {

@@ -59,8 +59,10 @@ int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionMod
                  ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr);
 
 // A run's summary.kinematics: the tool's axis where it cuts (stock axes), its lean from +Z in
-// degrees, and whether the engine ran in the tool's frame (a fixed tilt, docs/five_axis.md 2.5).
-json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt);
+// degrees, whether the engine ran in the tool's frame (a fixed tilt, docs/five_axis.md 2.5), and
+// whether the tool turned while it could cut (simultaneous five-axis work on the multi-direction
+// stock, section 3.4: then the axis is the log's first and the lean the largest).
+json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt, bool turning);
 
 // A live run's close (live_runs.cpp): the same rows as store_result, but its alerts were raised
 // block by block while it ran (`alerts_raised` of them, none now), `live` goes into the summary

@@ -57,17 +57,19 @@ std::string without_column(const std::string& csv, const std::string& name) {
 
 // A D8 flat end mill leaning 30 deg toward the feed (+X), 2 mm into a 40 x 30 x 20 block's top
 // face, logged through the AC machine with a 120 mm tool (docs/five_axis.md, section 2.5).
-std::string tilted_log_csv() {
+// With `final_lean_deg`, the lean turns linearly to it along the path (simultaneous five-axis).
+std::string tilted_log_csv(double final_lean_deg = 30) {
     const auto machine_def = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
     cutload::app::PathDryRunSpec p;
-    const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, lean = 30 * std::numbers::pi / 180;
+    const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, duration_s = 28 / feed_mm_s;
     p.path = [=](double u) {
+        const double lean = (30 + (final_lean_deg - 30) * u / duration_s) * std::numbers::pi / 180;
         cutload::app::PathPose pose;
         pose.tip_mm = {-358 + feed_mm_s * u, -275, -582};
         pose.axis = {std::sin(lean), 0, std::cos(lean)};
         return pose;
     };
-    p.duration_s = 28 / feed_mm_s;
+    p.duration_s = duration_s;
     p.tool_length_mm = 120;
     p.start_axes = {{'A', 0}, {'C', 0}};
     p.spindle_rpm = 8000;
@@ -172,6 +174,42 @@ TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says s
         }
     CHECK(cut > 100);
     CHECK(top > 1000);
+}
+
+TEST_CASE("kinematics: a tool whose lean turns while it cuts is predicted on the multi-direction stock and says so") {
+    // The same cut with the lean turning from 30 to 10 deg along the path: simultaneous five-axis
+    // work. The groove's section shrinks with the lean (8 x 2 + pi 4 (4 sin lean) / 2: 28.57 mm^2
+    // at 30 deg, 20.4 mm^2 at 10 deg).
+    const std::string log = tilted_log_csv(10);
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    auto r = upload_tilted(c, log);
+    REQUIRE(r->status == 202);
+    const auto id = body(r)["id"].get<std::int64_t>();
+    json run = wait_finished(c, id, 300);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    const json& k = run["summary"]["kinematics"];
+    CHECK(k["turning"] == true);
+    CHECK(k["fixed_tilt"] == false);
+    CHECK(k["tool_lean_deg"].get<double>() == Approx(30).margin(0.05));   // the largest lean
+    const auto section = [](double lean_deg) { return 16 + std::numbers::pi * 8 * std::sin(lean_deg * std::numbers::pi / 180) / 2; };
+    CHECK(run["summary"]["removed_mm3"].get<double>() > section(10) * 18);
+    CHECK(run["summary"]["removed_mm3"].get<double>() < section(30) * 24);
+    // The final stock comes back as a Z-map: seen from above, cut along the path.
+    auto v = c.Get("/api/v1/runs/" + std::to_string(id) + "/stock?max_cells=40000");
+    REQUIRE(v->status == 200);
+    const json f = body(v);
+    const double cell = f["cell_mm"].get<double>();
+    const int nx = f["nx"].get<int>();
+    std::size_t cut = 0;
+    for (int j = 0; j < f["ny"].get<int>(); ++j)
+        for (int i = 0; i < nx; ++i) {
+            const json& t = f["top_mm"][std::size_t(j * nx + i)];
+            const double x = (i + 0.5) * cell, y = -15 + (j + 0.5) * cell;
+            if (!t.is_null() && x > 2 && x < 18 && std::abs(y) < 3) cut += t.get<double>() < -1.9;
+        }
+    CHECK(cut > 100);
 }
 
 TEST_CASE("kinematics: a tilted run whose turned stock passes the cell limit is refused at upload with the job's figures, "

@@ -545,6 +545,7 @@ test('a five-axis run names its machine file, tool length and how the tool stood
   const run = await waitDone(id);
   assert.equal(run.state, 'done', run.error);
   assert.equal(run.summary.kinematics.fixed_tilt, false);
+  assert.equal(run.summary.kinematics.turning, false);
   const { page, errors } = await runPage(1400, id);
   const meta = page.locator('dl.meta');
   assert.match(await meta.innerText(), /Kinematics\s+ac_table_table\.json, tool length 0 mm; tool vertical to the stock/);
@@ -564,6 +565,7 @@ test('a 3+2 run (demo 4) names its tilt and tool axis on the Kinematics row', { 
   const run = await waitDone(id);
   assert.equal(run.state, 'done', run.error);
   assert.equal(run.summary.kinematics.fixed_tilt, true);
+  assert.equal(run.summary.kinematics.turning, false);
   const { page, errors } = await runPage(1400, id);
   const text = await page.locator('dl.meta').innerText();
   assert.match(text, /Kinematics\s+ac_table_table\.json, tool length 0 mm; tool tilted 20° from the stock's \+Z, axis \(0, 0\.342, 0\.94\), fixed while it cuts \(3\+2\)/);

@@ -29,9 +29,11 @@ function kinematicsText(run) {
   const k = run.inputs?.kinematics;
   if (!k) return '–';
   const o = run.summary?.kinematics;
-  const stand = !o ? '' : o.fixed_tilt
-    ? `; tool tilted ${num(o.tool_lean_deg)}° from the stock's +Z, axis (${o.tool_axis.map((v) => num(Math.abs(v) < 5e-7 ? 0 : v)).join(', ')}), fixed while it cuts (3+2)`
-    : '; tool vertical to the stock';
+  const stand = !o ? '' : o.turning
+    ? `; tool turning while it cuts (simultaneous five-axis), leaning up to ${num(o.tool_lean_deg)}° from the stock's +Z (its axis per row: FORCES.csv tool_axis_x, _y, _z)`
+    : o.fixed_tilt
+      ? `; tool tilted ${num(o.tool_lean_deg)}° from the stock's +Z, axis (${o.tool_axis.map((v) => num(Math.abs(v) < 5e-7 ? 0 : v)).join(', ')}), fixed while it cuts (3+2)`
+      : '; tool vertical to the stock';
   return `${k.filename}${k.errors ? ' with geometric errors' : ''}, tool length ${num(k.tool_length_mm)} mm${stand}`;
 }
 
