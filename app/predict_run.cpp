@@ -171,6 +171,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
                     throw InputError("nc_program", "the tool turns while it can reach the stock (simultaneous five-axis "
                                                    "work), and comparing such a run with its NC program is not built "
                                                    "yet: predict the log alone (docs/five_axis.md, section 3.4)");
+                if (in.spec.tools.size() > 1)
+                    throw InputError("spec", fmt::format("the tool turns while it can reach the stock (simultaneous "
+                                                         "five-axis work), which is predicted with one cutter so far, and "
+                                                         "the run spec's tool table has {} (docs/five_axis.md, section 3.4)",
+                                                         in.spec.tools.size()));
                 if (in.base_stock)
                     throw InputError("base_stock", "the tool turns while it can reach the stock (simultaneous five-axis "
                                                    "work), which cuts the multi-direction stock from the run spec's box: "
@@ -265,6 +270,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
         r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
+        if (turning) {
+            // The multi-direction stock: its three families' rays count as cells, all of them written.
+            const double zmap_cells = r.work.stock_cells;
+            r.work.stock_cells = force_model::multi_direction_stock_rays(in.spec.stock, in.spec.resolution.grid_mm);
+            r.work.memory_mb += (force_model::multi_direction_stock_bytes(in.spec.stock, in.spec.resolution.grid_mm) -
+                                 zmap_cells * double(force_model::stock_bytes_per_cell())) /
+                                (1024.0 * 1024.0);
+        }
         check_run_work(r.work, in.limits, orientation_of(frame));
     }
     motion_io::MotionModel logged_commanded;

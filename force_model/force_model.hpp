@@ -341,6 +341,10 @@ struct ToolPoses {
 // convex.
 Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec,
                            const PredictOptions& opt);
+// The rays of the multi-direction stock of this box (its X, Y and Z families) and the bytes it
+// holds while predict_turning runs (every ray written; plus the final Z-map it hands back).
+double multi_direction_stock_rays(const StockBox& box, double grid_mm);
+double multi_direction_stock_bytes(const StockBox& box, double grid_mm);
 
 // Optional columns of FORCES.csv and FORCES.bin (docs/formats.md). Without any, the files are
 // exactly as before these options existed.

@@ -11,6 +11,7 @@
 #include "engine/setup.hpp"
 #include "engine/tool_plan.hpp"
 #include "engine/turning_run.hpp"
+#include "kernels/tri_dexel.hpp"
 
 #include <fmt/format.h>
 
@@ -200,6 +201,16 @@ Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses
     Prediction p = run_turning(motion, poses, spec, plan, opt, check_rows);
     check_outputs(p);
     return p;
+}
+
+double multi_direction_stock_bytes(const StockBox& box, double grid_mm) {
+    const std::array<double, 3> lo{box.min_mm[0], box.min_mm[1], box.min_mm[2]}, hi{box.max_mm[0], box.max_mm[1], box.max_mm[2]};
+    return double(kernels::tri_dexel_bytes(lo, hi, grid_mm)) + stock_cells(box, grid_mm) * double(stock_bytes_per_cell());
+}
+
+double multi_direction_stock_rays(const StockBox& box, double grid_mm) {
+    const std::array<double, 3> lo{box.min_mm[0], box.min_mm[1], box.min_mm[2]}, hi{box.max_mm[0], box.max_mm[1], box.max_mm[2]};
+    return double(kernels::tri_dexel_bytes(lo, hi, grid_mm)) / double(kernels::kDexelFloats * sizeof(float));
 }
 
 }  // namespace cutload::force_model

@@ -128,7 +128,7 @@ ConvexToolSolid convex_tool_solid(const std::vector<std::array<double, 2>>& r_z_
                                         " does not rise above the one before (only the flat bottom may be horizontal)");
         }
         const double b = (r1 - r0) / dz;
-        if (b > last_slope * (1 + 1e-9) + 1e-12)
+        if (b > last_slope + 1e-9 * std::abs(last_slope) + 1e-12)
             throw std::invalid_argument("tool solid: the profile widens faster above point " + std::to_string(k) +
                                         " than below it (a neck or a step): the solid is not convex");
         last_slope = b;

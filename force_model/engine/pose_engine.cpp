@@ -43,28 +43,51 @@ PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernel
 void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin) {
     out.resize(steps.size());
     const double lag_mm = settings_.lag_cells * stock_.cell_mm;
-    for (std::size_t b0 = 0; b0 < steps.size(); b0 += settings_.batch_steps) {
-        const std::size_t n = std::min(settings_.batch_steps, steps.size() - b0);
-        kernels::engage_tri_dexel(steps.data() + b0, n, spin, tool_.edges, params_, stock_, out.data() + b0);
-        for (std::size_t i = b0; i < b0 + n; ++i) {
+    std::size_t b0 = 0;
+    while (b0 < steps.size()) {
+        // A batch ends at batch_steps or at half the lag of travel, whichever comes first: every step
+        // is engaged against a stock its own batch has not swept.
+        std::size_t b1 = b0 + 1;
+        double batch_travel = 0;
+        while (b1 < steps.size() && b1 - b0 < settings_.batch_steps) {
+            batch_travel += distance_mm(steps[b1 - 1].tip_mm, steps[b1].tip_mm) +
+                            turn_between_rad(steps[b1 - 1].rot, steps[b1].rot) * reach_mm_;
+            if (batch_travel > lag_mm / 2) break;
+            ++b1;
+        }
+        kernels::engage_tri_dexel(steps.data() + b0, b1 - b0, spin, tool_.edges, params_, stock_, out.data() + b0);
+        for (std::size_t i = b0; i < b1; ++i) {
             const kernels::PoseStep& s = steps[i];
-            double travel = 0;
-            if (!pending_.empty())
-                travel = travel_mm_.back() + distance_mm(pending_.back().tip_mm, s.tip_mm) +
-                         turn_between_rad(pending_.back().rot, s.rot) * reach_mm_;
+            if (pending_.empty()) {
+                pending_.push_back(s);
+                travel_mm_.push_back(0);
+                continue;
+            }
+            const double step = distance_mm(pending_.back().tip_mm, s.tip_mm) + turn_between_rad(pending_.back().rot, s.rot) * reach_mm_;
+            // A pose that has not moved (a dwell) adds nothing to the sweep: it replaces the last,
+            // so the pending path does not grow while the tool stands.
+            if (step <= 1e-9 && pending_.size() > 1) {
+                pending_.back() = s;
+                continue;
+            }
             pending_.push_back(s);
-            travel_mm_.push_back(travel);
+            travel_mm_.push_back(travel_mm_.back() + step);
         }
         // Remove up to the last pose at least a lag of travel behind the batch's end.
         const double upto = travel_mm_.back() - lag_mm;
         std::size_t last = 0;
         while (last + 1 < pending_.size() && travel_mm_[last + 1] <= upto) ++last;
         if (last > 0) remove_through(last);
+        b0 = b1;
     }
 }
 
 void PoseEngine::finish() {
     if (pending_.size() > 1) remove_through(pending_.size() - 1);
+    // The tool leaves (air, a stop, the session's end): the next path starts afresh, never swept
+    // to from here.
+    pending_.clear();
+    travel_mm_.clear();
 }
 
 void PoseEngine::remove_through(std::size_t last) {
@@ -74,8 +97,9 @@ void PoseEngine::remove_through(std::size_t last) {
     while (a < last) {
         // Extend the chord while its orientation (the start's) and its straight tip stay within the
         // tolerance of every pose it covers.
+        // At most 512 poses a chord: the straightness check looks at every pose it covers.
         std::size_t c = a + 1;
-        while (c + 1 <= last) {
+        while (c + 1 <= last && c + 1 - a <= 512) {
             const std::size_t next = c + 1;
             if (turn_between_rad(pending_[a].rot, pending_[next].rot) * reach_mm_ > tol_mm) break;
             bool straight = true;

@@ -20,7 +20,7 @@ struct PoseEngineSettings {
     // end mill lost 1.4 % of its axial force to the rays around its tip, at 8 none.
     double lag_cells = 8;
     double chord_tolerance_cells = 0.5; // a chord's fixed orientation and straight tip stay this close
-    std::size_t batch_steps = 256;      // steps engaged against one state of the stock
+    std::size_t batch_steps = 256;      // steps engaged against one state of the stock (fewer past half the lag)
 };
 
 class PoseEngine {
@@ -33,7 +33,9 @@ public:
     // Engages and removes along the steps, in order, with the spindle turning `spin` (+1 M03, -1
     // M04); out receives one result per step. Steps of successive calls continue one path.
     void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin);
-    // Removes what is still pending (the last lag of travel).
+    // Removes what is still pending (the last lag of travel) and ends the path: the next run()
+    // starts a new one, never swept to from this one's end (the tool left: air, a stop, a session's
+    // end).
     void finish();
 
     const kernels::TriDexel& stock() const { return stock_; }

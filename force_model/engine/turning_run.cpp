@@ -86,6 +86,7 @@ private:
     bool in_material(std::size_t i) const;
     void walk_interval(std::size_t i);
     void flush();
+    void leave();
     void hand_out(std::size_t keep);
     void check_progress(std::size_t i);
 
@@ -145,7 +146,7 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     params.holder_face_z_mm = tool_.stickout_mm;
     params.element_end = int(tool_.edges.size());
     engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, std::move(solid), params);
-    rows_.use_tool(0, plan.number_at(0), tool_.shank_diameter_mm);
+    rows_.use_tool(0, motion.size() > 0 ? plan.number_at(0) : -1, tool_.shank_diameter_mm);
     rows_.reserve(std::min<std::size_t>(expected_rows(motion, spec.resolution.angle_step_deg), kRowsOutPiece * 4));
     if (opt.rows_out) {
         std::vector<Limits> limits;
@@ -184,6 +185,16 @@ bool TurningWalk::in_material(std::size_t i) const {
     return false;
 }
 
+// The tool leaves the path (air, a stop, an unknown tool, the session's end): the batch is engaged
+// and the pending path removed; its volume goes to the last row written, as the driver books a
+// stop's.
+void TurningWalk::leave() {
+    flush();
+    const double before = engine_->removed_mm3();
+    engine_->finish();
+    rows_.attribute_removed(rows_.size(), 0, engine_->removed_mm3() - before);
+}
+
 void TurningWalk::flush() {
     if (chunk_.empty()) return;
     const double before = engine_->removed_mm3();
@@ -195,7 +206,7 @@ void TurningWalk::flush() {
     steps_ += chunk_.size();
     chunk_.clear();
     meta_.clear();
-    if (opt_.rows_out && rows_.size() > kRowsOutPiece) hand_out(1);
+    if (opt_.rows_out && rows_.size() >= kRowsOutPiece) hand_out(1);
 }
 
 // Hands the rows out but the last `keep` (the last row takes the volume removed at a stop).
@@ -228,8 +239,11 @@ void TurningWalk::check_progress(std::size_t i) {
 }
 
 void TurningWalk::walk_interval(std::size_t i) {
+    if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;   // as the driver: no time, no steps
+    // Rows already written are final; the last may still take a stop's volume.
+    if (opt_.rows_out && rows_.size() >= kRowsOutPiece) hand_out(1);
     if (plan_.slot_at(i) < 0) {   // a tool the run spec's table lacks: no forces, and said so
-        flush();
+        leave();
         rows_.append_unknown_tool(motion_, i, plan_.number_at(i));
         return;
     }
@@ -237,7 +251,7 @@ void TurningWalk::walk_interval(std::size_t i) {
     const double rpm0 = motion_.spindle_rpm[i], rpm1 = motion_.spindle_rpm[i + 1];
     const bool turning = std::abs(rpm0) >= 1 && std::abs(rpm1) >= 1 && (rpm0 > 0) == (rpm1 > 0);
     if (!turning || in_air(i)) {
-        flush();
+        leave();
         rows_.append_motion_sample(motion_, i, !turning && in_material(i));
         return;
     }
@@ -268,17 +282,15 @@ void TurningWalk::walk_interval(std::size_t i) {
 
 Prediction TurningWalk::run() {
     const auto wall0 = std::chrono::steady_clock::now();
-    for (const auto& [begin, end] : session_ranges(motion_)) {
+    for (const auto& [begin, end] : motion_.size() < 2 ? std::vector<std::pair<std::size_t, std::size_t>>{}
+                                                       : session_ranges(motion_)) {
         flush();
         if (opt_.session_begins) opt_.session_begins(begin, end, rows_taken_ + rows_.size());
         for (std::size_t i = begin; i + 1 < end; ++i) {
             check_progress(i);
             walk_interval(i);
         }
-        flush();
-        engine_->finish();   // the tool leaves: the pending path is removed
-        rows_.use_tool(0, plan_.number_at(end - 1), tool_.shank_diameter_mm);
-        rows_.append_motion_sample(motion_, end - 1, false);
+        leave();   // nothing is swept across the jump to the next session
     }
     Prediction p;
     p.block_names = motion_.block_names;

@@ -1,0 +1,145 @@
+// force_model::predict_turning (docs/five_axis.md section 3.4): the walk around the pose engine.
+// Two one-way passes through the same block at cutting depth, the tool leaving it sideways and
+// going round it through the air to enter again beside the first (the grooves, 4.2 mm each side
+// of y = 0 and y = 10, stay apart): the second pass must cut as the first did. A removal swept
+// straight from where the tool left the block (x 45, y 0) to where it could reach it again
+// (x -8, y 40) would cut a diagonal through the second pass's material (it did, before the pose
+// engine ended its path on leaving). The rows
+// handed out in pieces must be the rows, and what it cannot take is refused.
+#include "force_model/force_model.hpp"
+#include "force_model/motion_fixtures.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+using namespace cutload;
+
+namespace {
+
+// A D10 ball end mill leaning 20 deg toward +X, 2 mm into the top of the block x 0..40,
+// y -15..35, z -20..0; 0.2 mm cells and elements (the two passes are compared with each other).
+constexpr const char* kSpec = R"json({
+  "tool": {"shape": "ball", "diameter_mm": 10, "flutes": 2, "helix_deg": 30, "corner_radius_mm": 5,
+           "flute_length_mm": 20, "stickout_mm": 30},
+  "material": {"name": "test", "Ktc_N_mm2": 700, "Krc_N_mm2": 210, "Kac_N_mm2": 120,
+               "Kte_N_mm": 20, "Kre_N_mm": 28, "Kae_N_mm": 2},
+  "stock": {"box_mm": {"min": [0, -15, -20], "max": [40, 35, 0]}},
+  "resolution": {"angle_step_deg": 2, "axial_step_mm": 0.2, "grid_mm": 0.2}
+})json";
+
+constexpr double kFeed_mm_min = 2000;
+
+testref::Path two_passes() {
+    testref::Path p;
+    p.start_mm = {-8, 0, -2};
+    p.segments = {testref::line_to({48, 0, -2}, "N10"), testref::line_to({48, 45, -2}, "N20"),
+                  testref::line_to({-8, 45, -2}, "N30"), testref::line_to({-8, 10, -2}, "N40"),
+                  testref::line_to({48, 10, -2}, "N50")};
+    p.feed_mm_min = kFeed_mm_min;
+    p.spindle_rpm = 10000;
+    return p;
+}
+
+force_model::ToolPoses leaning_poses(std::size_t n) {
+    const double l = 20 * std::numbers::pi / 180;
+    force_model::Rotation3 r;
+    // Columns: tool x = (cos l, 0, -sin l), y = (0, 1, 0), z = (sin l, 0, cos l).
+    r.m = {std::cos(l), 0, std::sin(l), 0, 1, 0, -std::sin(l), 0, std::cos(l)};
+    force_model::ToolPoses poses;
+    poses.tool_to_stock.assign(n, r);
+    poses.omega_tool_rad_s.assign(n, {0, 0, 0});
+    return poses;
+}
+
+std::array<double, 3> mean_force(const std::vector<force_model::ForceSample>& rows, double t0, double t1) {
+    std::array<double, 3> sum{};
+    std::size_t n = 0;
+    for (const auto& r : rows)
+        if (r.t_s >= t0 && r.t_s <= t1) {
+            sum[0] += r.fx_N, sum[1] += r.fy_N, sum[2] += r.fz_N;
+            ++n;
+        }
+    REQUIRE(n > 1000);
+    return {sum[0] / n, sum[1] / n, sum[2] / n};
+}
+
+}  // namespace
+
+TEST_CASE("predict_turning: a second pass after an air move cuts as the first, rows in pieces are the rows",
+          "[tri_dexel][turning]") {
+    const testref::Path path = two_passes();
+    const motion_io::MotionModel motion = testref::uniform_motion(path);
+    const force_model::ToolPoses poses = leaning_poses(motion.size());
+    const force_model::RunSpec spec = force_model::parse_run_spec_text(kSpec, "turning.json");
+    force_model::PredictOptions opt;
+    opt.device = force_model::Device::Cpu;
+    const force_model::Prediction p = force_model::predict_turning(motion, poses, spec, opt);
+
+    // Pass windows: the tool 20 to 38 mm into the block, on each pass (the diagonal would cross the
+    // second at x 26 to 37).
+    const double v = kFeed_mm_min / 60;
+    const double pass2_start_s = (56 + 45 + 56 + 35) / v;
+    const auto f1 = mean_force(p.samples, 28 / v, 46 / v);
+    const auto f2 = mean_force(p.samples, pass2_start_s + 28 / v, pass2_start_s + 46 / v);
+    const double scale = std::hypot(f1[0], f1[1], f1[2]);
+    INFO("pass 1 (" << f1[0] << ", " << f1[1] << ", " << f1[2] << ") N, pass 2 (" << f2[0] << ", " << f2[1] << ", "
+                    << f2[2] << ") N");
+    CHECK(scale > 50);
+    for (int c = 0; c < 3; ++c) CHECK(std::abs(f1[c] - f2[c]) < 0.01 * scale);
+    // Both grooves are removed whole and booked on rows: the ball's circular segment, 40 mm long
+    // each, give or take the ends' shapes (its lowest point lies R (1 - cos 20 deg) below the tip,
+    // 2.30 mm deep; the shank stays 0.99 mm above the face). Nothing in the air moves cut.
+    double removed = 0;
+    for (const auto& r : p.samples) removed += r.removed_mm3;
+    const double h = 2 + 5 * (1 - std::cos(20 * std::numbers::pi / 180));
+    const double groove = 25 * std::acos((5 - h) / 5) - (5 - h) * std::sqrt(10 * h - h * h);
+    CHECK(removed > 2 * groove * 40 * 0.98);
+    CHECK(removed < 2 * groove * 48);
+    for (const auto& b : p.blocks)
+        if (b.block == "N20" || b.block == "N30" || b.block == "N40") CHECK(b.peak_force_N < 1e-6);
+    REQUIRE(p.final_stock);
+
+    // The same rows when they are handed out in pieces as they become final.
+    std::vector<force_model::ForceSample> streamed;
+    std::size_t pieces = 0;
+    opt.rows_out = [&](std::span<const force_model::ForceSample> rows) {
+        streamed.insert(streamed.end(), rows.begin(), rows.end());
+        ++pieces;
+    };
+    const force_model::Prediction q = force_model::predict_turning(motion, poses, spec, opt);
+    CHECK(q.samples.empty());
+    CHECK(pieces > 2);
+    REQUIRE(streamed.size() == p.samples.size());
+    for (std::size_t i = 0; i < streamed.size(); i += 97) {
+        CHECK(streamed[i].t_s == p.samples[i].t_s);
+        CHECK(streamed[i].fx_N == p.samples[i].fx_N);
+        CHECK(streamed[i].removed_mm3 == p.samples[i].removed_mm3);
+    }
+    REQUIRE(q.blocks.size() == p.blocks.size());
+    for (std::size_t b = 0; b < q.blocks.size(); ++b) CHECK(q.blocks[b].peak_force_N == p.blocks[b].peak_force_N);
+}
+
+TEST_CASE("predict_turning: poses that do not match the motion, and a table of two cutters, are refused",
+          "[tri_dexel][turning][errors]") {
+    const motion_io::MotionModel motion = testref::uniform_motion(two_passes());
+    const force_model::RunSpec spec = force_model::parse_run_spec_text(kSpec, "turning.json");
+    force_model::PredictOptions opt;
+    opt.device = force_model::Device::Cpu;
+    CHECK_THROWS_AS(force_model::predict_turning(motion, leaning_poses(motion.size() - 1), spec, opt), std::invalid_argument);
+    // A spec with two tools in its table is refused naming the key.
+    std::string two_tools(kSpec);
+    two_tools.replace(two_tools.find("\"material\""), 0,
+                      R"json("tools": [{"number": 1, "shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30},
+                                       {"number": 2, "shape": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30}],
+  )json");
+    try {
+        force_model::predict_turning(motion, leaning_poses(motion.size()), force_model::parse_run_spec_text(two_tools, "t.json"),
+                                     opt);
+        FAIL("two cutters were taken");
+    } catch (const force_model::SpecError& e) {
+        CHECK_THAT(e.what(), Catch::Contains("one cutter"));
+    }
+}
