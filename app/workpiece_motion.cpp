@@ -112,6 +112,26 @@ double reach_length_mm(double tool_length_mm, const ToolReach& reach) {
     return std::max({tool_length_mm, reach.length_mm, reach.radius_mm});
 }
 
+// The machine's errors may lean the tool by their microradians; more is a definition in the wrong
+// units, refused naming the time.
+void check_error_tilt(const machine::ToolPose& pose, const machine::ToolPose& nominal, double t_s) {
+    const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
+    if (!(error_tilt_rad <= kErrorTiltLimitRad))
+        throw WorkpieceMotionError(fmt::format(
+            "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from its commanded axis, "
+            "more than the {:.4g} deg a tool may lean by them (check the errors' units: micrometres per metre)",
+            t_s, error_tilt_rad * kDegPerRad, kErrorTiltLimitRad * kDegPerRad));
+}
+
+// The axes at sample i and +-h_s along their own rates (joint space), for central differences.
+void axes_around(const std::vector<AxisSource>& sources, std::size_t i, double h_s, machine::AxisPositions& q,
+                 machine::AxisPositions& q_lo, machine::AxisPositions& q_hi) {
+    for (std::size_t k = 0; k < sources.size(); ++k) {
+        const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
+        q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
+    }
+}
+
 }  // namespace
 
 double lean_from_z_rad(const Eigen::Vector3d& axis) { return std::atan2(std::hypot(axis.x(), axis.y()), axis.z()); }
@@ -256,18 +276,10 @@ TurningMotion turning_motion(const motion_io::MotionModel& axes, const machine::
     constexpr double h_s = 1e-4;   // as workpiece_motion's central difference
     machine::AxisPositions q, q_lo, q_hi;
     for (std::size_t i = 0; i < n; ++i) {
-        for (std::size_t k = 0; k < sources.size(); ++k) {
-            const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
-            q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
-        }
+        axes_around(sources, i, h_s, q, q_lo, q_hi);
         const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
         const machine::ToolPose nominal = machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
-        const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
-        if (!(error_tilt_rad <= kErrorTiltLimitRad))
-            throw WorkpieceMotionError(fmt::format(
-                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from its commanded axis, "
-                "more than the {:.4g} deg a tool may lean by them (check the errors' units: micrometres per metre)",
-                axes.t_s[i], error_tilt_rad * kDegPerRad, kErrorTiltLimitRad * kDegPerRad));
+        check_error_tilt(pose, nominal, axes.t_s[i]);
         const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
         const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
         const Eigen::Vector3d v = (hi.tip_mm() - lo.tip_mm()) / (2 * h_s);
@@ -320,10 +332,7 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
     double home_turn_deg = 0, last_turn_deg = 0, unwrapped_turn_deg = 0;
     bool turn_known = false;
     for (std::size_t i = 0; i < n; ++i) {
-        for (std::size_t k = 0; k < sources.size(); ++k) {
-            const double p = (*sources[k].position)[i], v = (*sources[k].rate)[i];
-            q.value[k] = p, q_lo.value[k] = p - h_s * v, q_hi.value[k] = p + h_s * v;
-        }
+        axes_around(sources, i, h_s, q, q_lo, q_hi);
         // The commanded orientation must be vertical; the machine's errors may lean it by their
         // microradians, which the vertical-tool engine then leaves out (their tip offset is kept).
         const machine::ToolPose pose = machine::forward(machine, q, tool_length_mm);
@@ -345,12 +354,7 @@ motion_io::MotionModel workpiece_motion(const motion_io::MotionModel& axes, cons
                 "stock through turning_motion() (docs/five_axis.md, sections 2.5 and 3.4)",
                 axes.t_s[i], tilt_rad * 180.0 / std::numbers::pi, most_rad * 180.0 / std::numbers::pi, most_t_s));
         }
-        const double error_tilt_rad = std::acos(std::clamp(pose.axis().dot(nominal.axis()), -1.0, 1.0));
-        if (!(error_tilt_rad <= kErrorTiltLimitRad))
-            throw WorkpieceMotionError(fmt::format(
-                "at t = {:.4f} s the machine's geometric errors lean the tool {:.4g} deg from its commanded axis, "
-                "more than the {:.4g} deg a tool may lean by them (check the errors' units: micrometres per metre)",
-                axes.t_s[i], error_tilt_rad * 180.0 / std::numbers::pi, kErrorTiltLimitRad * 180.0 / std::numbers::pi));
+        check_error_tilt(pose, nominal, axes.t_s[i]);
         const machine::ToolPose lo = machine::forward(machine, q_lo, tool_length_mm);
         const machine::ToolPose hi = machine::forward(machine, q_hi, tool_length_mm);
         // In the tool's frame for a fixed tilt (the identity otherwise).
