@@ -230,39 +230,54 @@ bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const V
     return true;
 }
 
+ChordReach chord_reach(const ConvexToolSolid& solid, const ToolChord& chord, double cell_mm) {
+    const double g = cell_mm;
+    const Vec axis{chord.rot[0][2], chord.rot[1][2], chord.rot[2][2]};
+    ChordReach r;
+    r.lo_mm = {kInf, kInf, kInf};
+    r.hi_mm = {-kInf, -kInf, -kInf};
+    for (const Vec& o : {chord.from_mm, chord.to_mm})
+        for (double z : {solid.z_lo_mm, solid.z_hi_mm})
+            for (int a = 0; a < 3; ++a) {
+                const double centre = o[a] + z * axis[a];
+                const double reach = solid.radius_mm * std::sqrt(std::max(0.0, 1 - axis[a] * axis[a])) + 1e-9;
+                r.lo_mm[a] = std::min(r.lo_mm[a], centre - reach);
+                r.hi_mm[a] = std::max(r.hi_mm[a], centre + reach);
+            }
+    // Samples along the chord: close enough that a ray crossing the sweep's flank catches the solid
+    // at one of them wherever it would take more than a twentieth of a cell off it.
+    const Vec d = sub(chord.to_mm, chord.from_mm);
+    const double chord_mm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double spacing_mm = std::max(g, 2 * std::sqrt(2 * std::max(solid.radius_mm, g) * g / 20));
+    r.samples = std::min(4096, 2 + int(std::ceil(chord_mm / spacing_mm)));
+    return r;
+}
+
+RayRect rays_in_reach(const TriDexel& stock, int f, const ChordReach& reach) {
+    const RayFamily& fam = stock.family[f];
+    const double g = stock.cell_mm;
+    const int u = (f + 1) % 3, v = (f + 2) % 3;
+    // Every ray whose line can meet the box; the kernel repeats these expressions per chord.
+    return {std::max(0, int(std::floor((reach.lo_mm[u] - fam.u0_mm) / g - 0.5))),
+            std::min(fam.nu - 1, int(std::ceil((reach.hi_mm[u] - fam.u0_mm) / g - 0.5))),
+            std::max(0, int(std::floor((reach.lo_mm[v] - fam.v0_mm) / g - 0.5))),
+            std::min(fam.nv - 1, int(std::ceil((reach.hi_mm[v] - fam.v0_mm) / g - 0.5)))};
+}
+
 std::array<double, 3> sweep_tri_dexel(TriDexel& stock, const ConvexToolSolid& solid, const ToolChord* chords,
                                       std::size_t n_chords) {
     std::array<double, 3> removed{};
     const double g = stock.cell_mm;
     for (std::size_t c = 0; c < n_chords; ++c) {
         const ToolChord& chord = chords[c];
-        const Vec axis{chord.rot[0][2], chord.rot[1][2], chord.rot[2][2]};
-        // Box around the sweep: the solid lies in the cylinder of its largest radius about the axis
-        // between z_lo and z_hi, at both ends of the chord.
-        Vec lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
-        for (const Vec& o : {chord.from_mm, chord.to_mm})
-            for (double z : {solid.z_lo_mm, solid.z_hi_mm})
-                for (int a = 0; a < 3; ++a) {
-                    const double centre = o[a] + z * axis[a];
-                    const double reach = solid.radius_mm * std::sqrt(std::max(0.0, 1 - axis[a] * axis[a])) + 1e-9;
-                    lo[a] = std::min(lo[a], centre - reach);
-                    hi[a] = std::max(hi[a], centre + reach);
-                }
-        // Samples along the chord: close enough that a ray crossing the sweep's flank catches the
-        // solid at one of them wherever it would take more than a twentieth of a cell off it.
-        const double chord_mm = std::sqrt([&] {
-            const Vec d = sub(chord.to_mm, chord.from_mm);
-            return d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        }());
-        const double spacing_mm = std::max(g, 2 * std::sqrt(2 * std::max(solid.radius_mm, g) * g / 20));
-        const int samples = std::min(4096, 2 + int(std::ceil(chord_mm / spacing_mm)));
+        const ChordReach reach = chord_reach(solid, chord, g);
+        const Vec& lo = reach.lo_mm;
+        const Vec& hi = reach.hi_mm;
+        const int samples = reach.samples;
         for (int f = 0; f < 3; ++f) {
             RayFamily& fam = stock.family[f];
             const int u = (f + 1) % 3, v = (f + 2) % 3;
-            const int i0 = std::max(0, int(std::floor((lo[u] - fam.u0_mm) / g - 0.5)));
-            const int i1 = std::min(fam.nu - 1, int(std::ceil((hi[u] - fam.u0_mm) / g - 0.5)));
-            const int j0 = std::max(0, int(std::floor((lo[v] - fam.v0_mm) / g - 0.5)));
-            const int j1 = std::min(fam.nv - 1, int(std::ceil((hi[v] - fam.v0_mm) / g - 0.5)));
+            const auto [i0, i1, j0, j1] = rays_in_reach(stock, f, reach);
             Vec dir{0, 0, 0};
             dir[f] = 1;
             for (int j = j0; j <= j1; ++j)

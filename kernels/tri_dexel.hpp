@@ -84,6 +84,21 @@ struct ToolChord {
 bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const std::array<double, 3>& p,
                    const std::array<double, 3>& u, int samples, double& t_in, double& t_out);
 
+// Where a chord's sweep can reach: a box around it (the solid lies in the cylinder of its largest
+// radius about the axis, at both ends of the chord) and the samples along the chord that
+// line_in_sweep takes there. The OpenCL removal gets these from the host, so both use this.
+struct ChordReach {
+    std::array<double, 3> lo_mm{}, hi_mm{};
+    int samples = 2;
+};
+ChordReach chord_reach(const ConvexToolSolid& solid, const ToolChord& chord, double cell_mm);
+// The rays of family f a reach can touch: [i0, i1] x [j0, j1] on its grid (empty when i1 < i0 or
+// j1 < j0).
+struct RayRect {
+    int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
+};
+RayRect rays_in_reach(const TriDexel& stock, int f, const ChordReach& reach);
+
 // Removes the sweep of the solid along each chord from all three families, in order. Returns the
 // material removed as each family measures it (mm^3; the three agree to the discretisation).
 std::array<double, 3> sweep_tri_dexel(TriDexel& stock, const ConvexToolSolid& solid, const ToolChord* chords,

@@ -33,16 +33,15 @@ double off_segment_mm(const std::array<double, 3>& p, const std::array<double, 3
 
 PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernels::ConvexToolSolid solid,
                        kernels::EngageParams params, PoseEngineSettings settings)
-    : stock_(std::move(stock)),
-      tool_(tool),
-      solid_(std::move(solid)),
-      params_(params),
+    : cell_mm_(stock.cell_mm),
+      backend_(settings.opencl ? make_opencl_pose_backend(std::move(stock), tool.edges, std::move(solid), params)
+                               : make_cpu_pose_backend(std::move(stock), tool.edges, std::move(solid), params)),
       settings_(settings),
       reach_mm_(std::hypot(tool.flute_length_mm, tool.radius_mm)) {}
 
 void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin) {
     out.resize(steps.size());
-    const double lag_mm = settings_.lag_cells * stock_.cell_mm;
+    const double lag_mm = settings_.lag_cells * cell_mm_;
     std::size_t b0 = 0;
     while (b0 < steps.size()) {
         // A batch ends at batch_steps or at half the lag of travel, whichever comes first: every step
@@ -55,7 +54,7 @@ void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<ke
             if (batch_travel > lag_mm / 2) break;
             ++b1;
         }
-        kernels::engage_tri_dexel(steps.data() + b0, b1 - b0, spin, tool_.edges, params_, stock_, out.data() + b0);
+        backend_->engage(steps.data() + b0, b1 - b0, spin, out.data() + b0);
         for (std::size_t i = b0; i < b1; ++i) {
             const kernels::PoseStep& s = steps[i];
             if (pending_.empty()) {
@@ -91,7 +90,7 @@ void PoseEngine::finish() {
 }
 
 void PoseEngine::remove_through(std::size_t last) {
-    const double tol_mm = settings_.chord_tolerance_cells * stock_.cell_mm;
+    const double tol_mm = settings_.chord_tolerance_cells * cell_mm_;
     std::vector<kernels::ToolChord> chords;
     std::size_t a = 0;
     while (a < last) {
@@ -115,7 +114,7 @@ void PoseEngine::remove_through(std::size_t last) {
         chords.push_back(chord);
         a = c;
     }
-    const auto removed = kernels::sweep_tri_dexel(stock_, solid_, chords.data(), chords.size());
+    const auto removed = backend_->sweep(chords.data(), chords.size());
     removed_mm3_ += removed[2];
     chords_ += chords.size();
     pending_.erase(pending_.begin(), pending_.begin() + std::ptrdiff_t(last));

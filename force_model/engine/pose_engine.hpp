@@ -1,14 +1,18 @@
 // Internal: the engine for a tool whose orientation changes while it cuts (simultaneous five-axis
 // work), on the tri-dexel stock (kernels/tri_dexel.hpp; docs/five_axis.md sections 3 and 4).
-// Scalar for now: engagement per step with the twist's chip, then the batch's sweep removed in
-// chords of fixed orientation, trailing the engagement by a lag of travel as the Z-map engine's
-// removal does (docs/force_model.md, "Stock lag").
+// Engagement per step with the twist's chip, then the batch's sweep removed in chords of fixed
+// orientation, trailing the engagement by a lag of travel as the Z-map engine's removal does
+// (docs/force_model.md, "Stock lag"). Both run on a PoseBackend: the OpenCL kernels of
+// kernels/tri_dexel.cl or their scalar twins.
 #pragma once
 
 #include "cutters/tool_geometry.hpp"
+#include "engine/pose_backend.hpp"
 #include "kernels/tri_dexel.hpp"
 
 #include <cstddef>
+#include <memory>
+#include <string>
 #include <vector>
 
 namespace cutload::force_model {
@@ -21,6 +25,7 @@ struct PoseEngineSettings {
     double lag_cells = 8;
     double chord_tolerance_cells = 0.5; // a chord's fixed orientation and straight tip stay this close
     std::size_t batch_steps = 256;      // steps engaged against one state of the stock (fewer past half the lag)
+    bool opencl = false;                // the OpenCL kernels (throws kernels::OpenClError when unusable), else the twins
 };
 
 class PoseEngine {
@@ -38,7 +43,9 @@ public:
     // end).
     void finish();
 
-    const kernels::TriDexel& stock() const { return stock_; }
+    // The stock as it stands (read back from the device when it changed there).
+    const kernels::TriDexel& stock() const { return backend_->stock(); }
+    std::string device() const { return backend_->name(); }
     // Material removed so far, as the Z family measures it, mm^3.
     double removed_mm3() const { return removed_mm3_; }
     std::size_t chords() const { return chords_; }
@@ -46,10 +53,8 @@ public:
 private:
     void remove_through(std::size_t last);   // pending poses [0, last] become chords
 
-    kernels::TriDexel stock_;
-    const ToolGeometry& tool_;
-    kernels::ConvexToolSolid solid_;
-    kernels::EngageParams params_;
+    double cell_mm_;
+    std::unique_ptr<PoseBackend> backend_;
     PoseEngineSettings settings_;
     double reach_mm_;
     std::vector<kernels::PoseStep> pending_;   // poses not yet removed; the first is the last chord's end

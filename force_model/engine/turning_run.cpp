@@ -8,6 +8,7 @@
 #include "engine/pose_engine.hpp"
 #include "engine/rows.hpp"
 #include "force_model/engine_settings.hpp"
+#include "kernels/opencl_runtime.hpp"
 #include "stock.hpp"
 
 #include <fmt/format.h>
@@ -107,6 +108,7 @@ private:
     double chunk_spin_ = 1;
     double last_progress_ = -1;
     std::size_t current_ = 0;
+    std::string device_note_;
 };
 
 TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec,
@@ -145,7 +147,16 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     set_kernel_law(cutting_law(spec.material, EngineSettings{}.min_chip_mm), params);
     params.holder_face_z_mm = tool_.stickout_mm;
     params.element_end = int(tool_.edges.size());
-    engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, std::move(solid), params);
+    PoseEngineSettings settings;
+    settings.opencl = opt.device == Device::OpenCL;
+    try {
+        engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, solid, params, settings);
+    } catch (const kernels::OpenClError& e) {
+        // A device without double precision (or none at all) still predicts, on the twins, and says so.
+        settings.opencl = false;
+        engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, std::move(solid), params, settings);
+        device_note_ = std::string(" (OpenCL not used: ") + e.what() + ")";
+    }
     rows_.use_tool(0, motion.size() > 0 ? plan.number_at(0) : -1, tool_.shank_diameter_mm);
     rows_.reserve(std::min<std::size_t>(expected_rows(motion, spec.resolution.angle_step_deg), kRowsOutPiece * 4));
     if (opt.rows_out) {
@@ -309,7 +320,7 @@ Prediction TurningWalk::run() {
     p.stats.unknown_tool_samples = plan_.unknown_samples;
     p.stats.unknown_tools = plan_.unknown_tools;
     p.stats.simulated_s = simulated_seconds(motion_);
-    p.stats.device = "cpu: multi-direction stock, scalar (a tool turning while it cuts)";
+    p.stats.device = engine_->device() + ", multi-direction stock (a tool turning while it cuts)" + device_note_;
     p.stats.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     if (opt_.progress) opt_.progress(1.0);
     return p;

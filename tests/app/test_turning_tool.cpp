@@ -16,6 +16,7 @@
 #include "app/path_dry_run.hpp"
 #include "app/predict_run.hpp"
 #include "app_fixtures.hpp"
+#include "force_model/engine_fixtures.hpp"
 #include "machine/kinematics.hpp"
 
 #include <catch2/catch.hpp>
@@ -124,7 +125,9 @@ TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while
     in.spec = force_model::parse_run_spec_text(kSpec, "turning.json");
     in.machine = machine;
     in.tool_length_mm = kToolLength_mm;
-    in.device = force_model::Device::Cpu;
+    // The OpenCL kernels where a device exists (their twins equal them step for step:
+    // tests/force_model/test_tri_dexel_opencl.cpp), so the reference below checks the device path.
+    in.device = enginetest::opencl_available() ? force_model::Device::OpenCL : force_model::Device::Cpu;
     const app::RunResult r = app::predict_run(in);
     CHECK(r.turning);
     CHECK_FALSE(r.fixed_tilt);
