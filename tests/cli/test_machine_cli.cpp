@@ -2,6 +2,7 @@
 // it; without one the rotary axes are said to be ignored, and a pose the engine cannot take is one
 // line and a non-zero exit.
 #include "cli/run_cli.hpp"
+#include "kernels/opencl_runtime.hpp"
 
 #include <fmt/format.h>
 
@@ -209,6 +210,34 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turni
     INFO(tilted.output);
     CHECK(tilted.exit_code == 0);
     CHECK_THAT(tilted.output, Catch::Contains("multi-direction stock"));
+    // On the OpenCL kernels, with the stock in host memory (PoCL) and on a GPU's path (the stock
+    // written to the device once, read back at the end: CUTLOAD_OPENCL_DISCRETE=1), the same bytes.
+    try {
+        kernels::OpenClRuntime::instance();
+        auto on_opencl = [&](const std::string& name) {
+            const clitest::Result r = clitest::run("predict " + (dir / "tilted.csv").string() + " --spec " +
+                                                   (dir / "near.json").string() + " --device opencl --out " +
+                                                   (dir / (name + ".csv")).string() + " --save-stock " +
+                                                   (dir / (name + ".stock")).string() + " --machine " + machine);
+            INFO(r.output);
+            CHECK(r.exit_code == 0);
+            CHECK_THAT(r.output, Catch::Contains("opencl: ") && Catch::Contains("multi-direction stock"));
+        };
+        on_opencl("host");
+        {
+            const clitest::Env discrete("CUTLOAD_OPENCL_DISCRETE", "1");
+            on_opencl("discrete");
+        }
+        const auto slurp = [](const fs::path& p) {
+            std::ifstream in(p, std::ios::binary);
+            return std::string(std::istreambuf_iterator<char>(in), {});
+        };
+        CHECK(slurp(dir / "host.csv").size() > 10000);
+        CHECK(slurp(dir / "discrete.csv") == slurp(dir / "host.csv"));
+        CHECK(slurp(dir / "discrete.stock") == slurp(dir / "host.stock"));
+    } catch (const kernels::OpenClError& e) {
+        WARN("no OpenCL device: " << e.what());
+    }
 
     const clitest::Result bad = predict("level.csv", " --machine " + spec);
     INFO(bad.output);
