@@ -333,8 +333,9 @@ struct ToolPoses {
     std::vector<Rotation3> tool_to_stock;
     std::vector<std::array<double, 3>> omega_tool_rad_s;
 };
-// Predicts such a motion on the multi-direction (tri-dexel) stock with the scalar pose engine,
-// whatever opt.device says (the OpenCL kernels are not written yet; stats.device says so). Rows,
+// Predicts such a motion on the multi-direction (tri-dexel) stock with the pose engine, on
+// kernels/tri_dexel.cl when opt.device is OpenCL (on its twins, saying why in stats.device, when the
+// device lacks double precision), else on the twins. Rows,
 // block summaries, progress, cancel, max_rows, rows_out and session_begins as predict's; the final
 // stock comes back as a Z-map of the box (the tri-dexel's Z family, ray for ray). SpecError for
 // what it cannot take yet: several cutters, a base stock, a cutter whose cutting part is not

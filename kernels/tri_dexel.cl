@@ -264,66 +264,73 @@ __kernel void engage_poses(const int n_steps, __global const double* steps, cons
 }
 
 // ---- Removal --------------------------------------------------------------------------------------
-// The solid: z_lo <= z <= z_hi and rho <= a + b z for every cone (cones: a, b pairs), tool frame.
-// Twin: line_in_solid.
-bool line_in_solid(__global const double* cones, const int n_cones, const double z_lo, const double z_hi, const double3 p,
-                   const double3 u, double* t_in, double* t_out) {
-    double lo = -INF_D, hi = INF_D;
-    if (fabs(u.z) < 1e-15) {
-        if (p.z < z_lo || p.z > z_hi) return false;
+// Narrows [lo, hi] to where the line p + t u lies inside the cone rho <= a + b z, given that
+// a + b z >= 0 on the stretch; false when nothing is left. Twin: clip_to_cone.
+bool clip_to_cone(const double a, const double b, const double3 p, const double3 u, const double uxy, double* lo,
+                  double* hi) {
+    const double w0 = a + b * p.z, w1 = b * u.z;
+    const double A = uxy - w1 * w1;
+    const double B = 2 * (p.x * u.x + p.y * u.y - w0 * w1);
+    const double C = p.x * p.x + p.y * p.y - w0 * w0;
+    if (fabs(A) <= 1e-12 * (uxy + w1 * w1)) {
+        if (fabs(B) < 1e-300) return C <= 0;
+        if (B > 0)
+            *hi = min(*hi, -C / B);
+        else
+            *lo = max(*lo, -C / B);
     } else {
-        const double ta = (z_lo - p.z) / u.z, tb = (z_hi - p.z) / u.z;
-        lo = min(ta, tb);
-        hi = max(ta, tb);
-    }
-    const double uxy = u.x * u.x + u.y * u.y;
-    for (int c = 0; c < n_cones; ++c) {
-        const double a = cones[2 * c], b = cones[2 * c + 1];
-        const double w0 = a + b * p.z, w1 = b * u.z;
-        const double A = uxy - w1 * w1;
-        const double B = 2 * (p.x * u.x + p.y * u.y - w0 * w1);
-        const double C = p.x * p.x + p.y * p.y - w0 * w0;
-        if (fabs(A) <= 1e-12 * (uxy + w1 * w1)) {
-            if (fabs(B) < 1e-300) {
-                if (C > 0) return false;
-                continue;
+        const double disc = B * B - 4 * A * C;
+        if (A > 0) {
+            if (disc < 0) return false;
+            const double q = -0.5 * (B + copysign(sqrt(disc), B));
+            double r1 = q / A, r2 = q != 0 ? C / q : r1;
+            if (r1 > r2) {
+                const double t = r1;
+                r1 = r2;
+                r2 = t;
             }
-            if (B > 0)
-                hi = min(hi, -C / B);
+            *lo = max(*lo, r1);
+            *hi = min(*hi, r2);
+        } else if (disc >= 0) {
+            const double q = -0.5 * (B + copysign(sqrt(disc), B));
+            double r1 = q / A, r2 = q != 0 ? C / q : r1;
+            if (r1 > r2) {
+                const double t = r1;
+                r1 = r2;
+                r2 = t;
+            }
+            const double left = min(*hi, r1) - *lo, right = *hi - max(*lo, r2);
+            if (left < 0 && right < 0) return false;
+            if (left >= right)
+                *hi = min(*hi, r1);
             else
-                lo = max(lo, -C / B);
-        } else {
-            const double disc = B * B - 4 * A * C;
-            if (A > 0) {
-                if (disc < 0) return false;
-                const double q = -0.5 * (B + copysign(sqrt(disc), B));
-                double r1 = q / A, r2 = q != 0 ? C / q : r1;
-                if (r1 > r2) {
-                    const double t = r1;
-                    r1 = r2;
-                    r2 = t;
-                }
-                lo = max(lo, r1);
-                hi = min(hi, r2);
-            } else if (disc >= 0) {
-                const double q = -0.5 * (B + copysign(sqrt(disc), B));
-                double r1 = q / A, r2 = q != 0 ? C / q : r1;
-                if (r1 > r2) {
-                    const double t = r1;
-                    r1 = r2;
-                    r2 = t;
-                }
-                const double left = min(hi, r1) - lo, right = hi - max(lo, r2);
-                if (left < 0 && right < 0) return false;
-                if (left >= right)
-                    hi = min(hi, r1);
-                else
-                    lo = max(lo, r2);
-            }
+                *lo = max(*lo, r2);
         }
-        if (lo > hi) return false;
     }
-    if (!(isfinite(lo) && isfinite(hi))) return false;
+    return *lo <= *hi;
+}
+
+// The solid: the union of its pieces, piece k the cone rho <= a + b z over heights [z0, z1]
+// (cones: a, b, z0, z1 per piece), tool frame. Twin: line_in_solid.
+bool line_in_solid(__global const double* cones, const int n_cones, const double3 p, const double3 u, double* t_in,
+                   double* t_out) {
+    const double uxy = u.x * u.x + u.y * u.y;
+    double lo = INF_D, hi = -INF_D;
+    for (int c = 0; c < n_cones; ++c) {
+        const double a = cones[4 * c], b = cones[4 * c + 1], z0 = cones[4 * c + 2], z1 = cones[4 * c + 3];
+        double plo = -INF_D, phi = INF_D;
+        if (fabs(u.z) < 1e-15) {
+            if (p.z < z0 || p.z > z1) continue;
+        } else {
+            const double ta = (z0 - p.z) / u.z, tb = (z1 - p.z) / u.z;
+            plo = min(ta, tb);
+            phi = max(ta, tb);
+        }
+        if (!clip_to_cone(a, b, p, u, uxy, &plo, &phi)) continue;
+        lo = min(lo, plo);
+        hi = max(hi, phi);
+    }
+    if (!(lo <= hi && isfinite(lo) && isfinite(hi))) return false;
     *t_in = lo;
     *t_out = hi;
     return true;
@@ -332,7 +339,6 @@ bool line_in_solid(__global const double* cones, const int n_cones, const double
 typedef struct {
     __global const double* cones;
     int n_cones;
-    double z_lo, z_hi;
     double3 p0, ut, d;   // the line's point and direction and the chord, tool frame
 } SweepLine;
 
@@ -340,7 +346,7 @@ typedef struct {
 // misses the solid there.
 double probe(const SweepLine* L, const double s, const bool want_exit) {
     double a, b;
-    if (!line_in_solid(L->cones, L->n_cones, L->z_lo, L->z_hi, L->p0 - s * L->d, L->ut, &a, &b)) return INF_D;
+    if (!line_in_solid(L->cones, L->n_cones, L->p0 - s * L->d, L->ut, &a, &b)) return INF_D;
     return want_exit ? -b : a;
 }
 
@@ -377,7 +383,7 @@ double golden_min(const SweepLine* L, const bool want_exit, double a, double b, 
 // removed: per work item, the length removed from its ray
 __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni, const int nj,
                            __global const double* chords, const int n_chords, __global const double* cones,
-                           const int n_cones, const double z_lo, const double z_hi, __constant double* grid,
+                           const int n_cones, __constant double* grid,
                            __constant int* dims, __global float* rays, __global double* removed) {
     const int gi = get_global_id(0);
     if (gi >= ni * nj) return;
@@ -407,8 +413,6 @@ __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni
         SweepLine L;
         L.cones = cones;
         L.n_cones = n_cones;
-        L.z_lo = z_lo;
-        L.z_hi = z_hi;
         L.p0 = to_tool(rot, (double3)(p[0], p[1], p[2]) - from);
         L.ut = to_tool(rot, (double3)(dir[0], dir[1], dir[2]));
         L.d = to_tool(rot, to - from);
@@ -418,7 +422,7 @@ __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni
         double best_in = INF_D, best_out = -INF_D;
         for (int k = 0; k < samples; ++k) {
             double a, b;
-            if (!line_in_solid(cones, n_cones, z_lo, z_hi, L.p0 - (k * step) * L.d, L.ut, &a, &b)) continue;
+            if (!line_in_solid(cones, n_cones, L.p0 - (k * step) * L.d, L.ut, &a, &b)) continue;
             if (a < best_in) {
                 best_in = a;
                 k_in = k;
@@ -430,8 +434,17 @@ __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni
         }
         if (k_in < 0) continue;
         const double s_in = k_in * step, s_out = k_out * step;
-        const double t0 = golden_min(&L, false, max(0.0, s_in - step), min(1.0, s_in + step), s_in, best_in);
-        const double t1 = -golden_min(&L, true, max(0.0, s_out - step), min(1.0, s_out + step), s_out, -best_out);
+        // An end is refined only where the ray holds material beyond the sampled one (line_in_sweep).
+        bool refine_in = false, refine_out = false;
+        for (int q = 0; q < K; ++q)
+            if (ray[K + q] > ray[q]) {
+                refine_in = refine_in || (double)ray[q] < best_in;
+                refine_out = refine_out || (double)ray[K + q] > best_out;
+            }
+        const double t0 =
+            refine_in ? golden_min(&L, false, max(0.0, s_in - step), min(1.0, s_in + step), s_in, best_in) : best_in;
+        const double t1 =
+            refine_out ? -golden_min(&L, true, max(0.0, s_out - step), min(1.0, s_out + step), s_out, -best_out) : best_out;
         if (t1 - t0 > SLIVER) gone += subtract_interval(ray, t0, t1);
     }
     removed[gi] = gone;

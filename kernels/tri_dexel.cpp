@@ -132,72 +132,85 @@ ConvexToolSolid convex_tool_solid(const std::vector<std::array<double, 2>>& r_z_
             throw std::invalid_argument("tool solid: the profile widens faster above point " + std::to_string(k) +
                                         " than below it (a neck or a step): the solid is not convex");
         last_slope = b;
-        s.cones.push_back({r0 - b * z0, b});
+        s.cones.push_back({r0 - b * z0, b, z0, z1});
     }
     if (s.cones.empty()) throw std::invalid_argument("tool solid: the profile has no flank");
     return s;
 }
 
-bool line_in_solid(const ConvexToolSolid& solid, const Vec& p, const Vec& u, double& t_in, double& t_out) {
-    double lo = -kInf, hi = kInf;
-    if (std::abs(u[2]) < 1e-15) {
-        if (p[2] < solid.z_lo_mm || p[2] > solid.z_hi_mm) return false;
+namespace {
+
+// Narrows [lo, hi] to where the line p + t u lies inside the cone rho <= a + b z, given that
+// a + b z >= 0 on the stretch; false when nothing is left.
+bool clip_to_cone(double a, double b, const Vec& p, const Vec& u, double uxy, double& lo, double& hi) {
+    // rho^2 - (a + b z)^2 <= 0 along the line: A t^2 + B t + C <= 0. Within the piece's slab
+    // a + b z >= 0, so the other nappe (where it is negative) never enters.
+    const double w0 = a + b * p[2], w1 = b * u[2];
+    const double A = uxy - w1 * w1;
+    const double B = 2 * (p[0] * u[0] + p[1] * u[1] - w0 * w1);
+    const double C = p[0] * p[0] + p[1] * p[1] - w0 * w0;
+    if (std::abs(A) <= 1e-12 * (uxy + w1 * w1)) {
+        // The line runs along the cone's surface direction: one linear bound.
+        if (std::abs(B) < 1e-300) return C <= 0;
+        if (B > 0)
+            hi = std::min(hi, -C / B);
+        else
+            lo = std::max(lo, -C / B);
     } else {
-        const double ta = (solid.z_lo_mm - p[2]) / u[2], tb = (solid.z_hi_mm - p[2]) / u[2];
-        lo = std::min(ta, tb);
-        hi = std::max(ta, tb);
-    }
-    const double uxy = u[0] * u[0] + u[1] * u[1];
-    for (const auto& [a, b] : solid.cones) {
-        // rho^2 - (a + b z)^2 <= 0 along the line: A t^2 + B t + C <= 0. Within the slab a + b z >= 0,
-        // so the other nappe (where it is negative) never enters.
-        const double w0 = a + b * p[2], w1 = b * u[2];
-        const double A = uxy - w1 * w1;
-        const double B = 2 * (p[0] * u[0] + p[1] * u[1] - w0 * w1);
-        const double C = p[0] * p[0] + p[1] * p[1] - w0 * w0;
-        if (std::abs(A) <= 1e-12 * (uxy + w1 * w1)) {
-            // The line runs along the cone's surface direction: one linear bound.
-            if (std::abs(B) < 1e-300) {
-                if (C > 0) return false;
-                continue;
-            }
-            if (B > 0)
-                hi = std::min(hi, -C / B);
+        const double disc = B * B - 4 * A * C;
+        if (A > 0) {
+            if (disc < 0) return false;
+            const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+            double r1 = q / A, r2 = q != 0 ? C / q : r1;
+            if (r1 > r2) std::swap(r1, r2);
+            lo = std::max(lo, r1);
+            hi = std::min(hi, r2);
+        } else if (disc >= 0) {
+            // A < 0: inside outside the roots, two half-lines; only one meets the slab's nappe.
+            const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+            double r1 = q / A, r2 = q != 0 ? C / q : r1;
+            if (r1 > r2) std::swap(r1, r2);
+            const double left = std::min(hi, r1) - lo, right = hi - std::max(lo, r2);
+            if (left < 0 && right < 0) return false;
+            if (left >= right)
+                hi = std::min(hi, r1);
             else
-                lo = std::max(lo, -C / B);
-        } else {
-            const double disc = B * B - 4 * A * C;
-            if (A > 0) {
-                if (disc < 0) return false;
-                const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-                double r1 = q / A, r2 = q != 0 ? C / q : r1;
-                if (r1 > r2) std::swap(r1, r2);
-                lo = std::max(lo, r1);
-                hi = std::min(hi, r2);
-            } else if (disc >= 0) {
-                // A < 0: inside outside the roots, two half-lines; only one meets the slab's nappe.
-                const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-                double r1 = q / A, r2 = q != 0 ? C / q : r1;
-                if (r1 > r2) std::swap(r1, r2);
-                const double left = std::min(hi, r1) - lo, right = hi - std::max(lo, r2);
-                if (left < 0 && right < 0) return false;
-                if (left >= right)
-                    hi = std::min(hi, r1);
-                else
-                    lo = std::max(lo, r2);
-            }
-            // A < 0 with no real root: the whole line is inside the double cone.
+                lo = std::max(lo, r2);
         }
-        if (lo > hi) return false;
+        // A < 0 with no real root: the whole line is inside the double cone.
     }
-    if (!(std::isfinite(lo) && std::isfinite(hi))) return false;
+    return lo <= hi;
+}
+
+}  // namespace
+
+bool line_in_solid(const ConvexToolSolid& solid, const Vec& p, const Vec& u, double& t_in, double& t_out) {
+    // The solid is the union of its pieces, each its own cone within its own slab of heights (on a
+    // piece's slab every other extended cone lies outside it), so a line meets only the cones of
+    // the slabs it crosses: one or two for a line across the axis, instead of all of them.
+    const double uxy = u[0] * u[0] + u[1] * u[1];
+    double lo = kInf, hi = -kInf;
+    for (const auto& [a, b, z0, z1] : solid.cones) {
+        double plo = -kInf, phi = kInf;
+        if (std::abs(u[2]) < 1e-15) {
+            if (p[2] < z0 || p[2] > z1) continue;
+        } else {
+            const double ta = (z0 - p[2]) / u[2], tb = (z1 - p[2]) / u[2];
+            plo = std::min(ta, tb);
+            phi = std::max(ta, tb);
+        }
+        if (!clip_to_cone(a, b, p, u, uxy, plo, phi)) continue;
+        lo = std::min(lo, plo);
+        hi = std::max(hi, phi);
+    }
+    if (!(lo <= hi && std::isfinite(lo) && std::isfinite(hi))) return false;
     t_in = lo;
     t_out = hi;
     return true;
 }
 
 bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const Vec& p, const Vec& u, int samples,
-                   double& t_in, double& t_out) {
+                   double& t_in, double& t_out, const float* ray) {
     const Vec p0 = to_tool(chord.rot, sub(p, chord.from_mm));
     const Vec ut = to_tool(chord.rot, u);
     const Vec d = to_tool(chord.rot, sub(chord.to_mm, chord.from_mm));
@@ -225,8 +238,22 @@ bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const V
         return at(s, a, b) ? -b : kInf;
     };
     const double s_in = k_in * step, s_out = k_out * step;
-    t_in = golden_min(entry, std::max(0.0, s_in - step), std::min(1.0, s_in + step), s_in, best_in, iterations);
-    t_out = -golden_min(exit_neg, std::max(0.0, s_out - step), std::min(1.0, s_out + step), s_out, -best_out, iterations);
+    // Refining an end moves it outward, into the ray's material only where there is some beyond
+    // the sampled end; elsewhere what is removed is the same without it.
+    bool refine_in = true, refine_out = true;
+    if (ray) {
+        refine_in = refine_out = false;
+        for (int k = 0; k < kDexelIntervals; ++k)
+            if (ray[kDexelIntervals + k] > ray[k]) {
+                refine_in = refine_in || ray[k] < best_in;
+                refine_out = refine_out || ray[kDexelIntervals + k] > best_out;
+            }
+    }
+    t_in = refine_in ? golden_min(entry, std::max(0.0, s_in - step), std::min(1.0, s_in + step), s_in, best_in, iterations)
+                     : best_in;
+    t_out = refine_out ? -golden_min(exit_neg, std::max(0.0, s_out - step), std::min(1.0, s_out + step), s_out, -best_out,
+                                     iterations)
+                       : best_out;
     return true;
 }
 
@@ -289,7 +316,7 @@ std::array<double, 3> sweep_tri_dexel(TriDexel& stock, const ConvexToolSolid& so
                     p[u] = fam.u0_mm + (i + 0.5) * g;
                     p[v] = fam.v0_mm + (j + 0.5) * g;
                     double t0, t1;
-                    if (!line_in_sweep(solid, chord, p, dir, samples, t0, t1)) continue;
+                    if (!line_in_sweep(solid, chord, p, dir, samples, t0, t1, ray)) continue;
                     if (t1 - t0 > kSliverMm) removed[f] += subtract_interval(ray, t0, t1);
                 }
         }

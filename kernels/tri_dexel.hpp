@@ -52,10 +52,12 @@ TriDexel make_tri_dexel_box(const std::array<double, 3>& lo_mm, const std::array
 // +z along the axis toward the spindle): z_lo <= z <= z_hi and, for every cone, rho <= a + b z with
 // rho the distance from the axis. A concave radius profile r(z) (flat, ball, bull, cone tip, barrel,
 // a taper widening upward) is the intersection of its pieces' extended cones; on [z_lo, z_hi] each
-// extension lies outside the profile, so a + b z >= 0 there and each constraint is one nappe.
+// extension lies outside the profile, so a + b z >= 0 there and each constraint is one nappe. It is
+// also the union of its pieces, each its own cone over its own heights [z0, z1], which is how
+// line_in_solid meets it.
 struct ConvexToolSolid {
     double z_lo_mm = 0, z_hi_mm = 20;
-    std::vector<std::array<double, 2>> cones;   // {a_mm, b}
+    std::vector<std::array<double, 4>> cones;   // {a_mm, b, z0_mm, z1_mm}, from the tip up
     double radius_mm = 4;                       // the largest radius: bounds the solid
 };
 
@@ -81,8 +83,11 @@ struct ToolChord {
 // of a convex solid along a segment is convex). `samples` positions along the chord find the
 // stretch where the line meets the solid, then golden-section search refines the ends (the entry
 // is convex and the exit concave along the chord).
+// `ray`, when given, is the material along the line (positions t, a family's ray with p at its 0):
+// an end is then refined only where the ray holds material beyond the sampled end, since elsewhere
+// refining it cannot change what subtracting [t_in, t_out] removes.
 bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const std::array<double, 3>& p,
-                   const std::array<double, 3>& u, int samples, double& t_in, double& t_out);
+                   const std::array<double, 3>& u, int samples, double& t_in, double& t_out, const float* ray = nullptr);
 
 // Where a chord's sweep can reach: a box around it (the solid lies in the cylinder of its largest
 // radius about the axis, at both ends of the chord) and the samples along the chord that

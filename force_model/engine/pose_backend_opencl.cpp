@@ -77,10 +77,7 @@ public:
         grid_ = upload(grid);
         dims_ = upload(dims);
         std::vector<double> cones;
-        for (const auto& [a, b] : solid_.cones) {
-            cones.push_back(a);
-            cones.push_back(b);
-        }
+        for (const auto& piece : solid_.cones) cones.insert(cones.end(), piece.begin(), piece.end());
         cones_ = upload(cones);
         check_cl(clFinish(queue_.get()), "clFinish (upload)");
     }
@@ -173,8 +170,6 @@ public:
             arg(k, a++, cl_int(n));
             arg(k, a++, cones_.get());
             arg(k, a++, cl_int(solid_.cones.size()));
-            arg(k, a++, solid_.z_lo_mm);
-            arg(k, a++, solid_.z_hi_mm);
             arg(k, a++, grid_.get());
             arg(k, a++, dims_.get());
             arg(k, a++, rays(f));

@@ -382,7 +382,7 @@ TEST_CASE("doc000 case: cutload predict --machine predicts the log on the multi-
 })json");
     const clitest::Result r = clitest::run("predict " + (dir / "case.csv").string() + " --spec " + (dir / "case.json").string() +
                                            " --machine " + apptest::source_path("data/machines/ac_table_table.json") +
-                                           " --tool-length-mm 120 --device cpu --out " + (dir / "forces.csv").string());
+                                           " --tool-length-mm 120 --device auto --out " + (dir / "forces.csv").string());
     INFO(r.output);
     REQUIRE(r.exit_code == 0);
     CHECK_THAT(r.output, Catch::Contains("multi-direction stock"));
