@@ -6,6 +6,7 @@
 // agree to float rounding (tests require 0.5 % on forces).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -169,6 +170,62 @@ struct StepResult {
     float engaged = 0;                   // number of engaged elements
 };
 static_assert(sizeof(StepResult) == 12 * sizeof(float), "StepResult mirrors the kernel's 12 floats");
+
+// One step's sums over its engaged elements, in the tool's own frame (x, y across the axis, z up
+// it): the twins' one place for how an element's cutting force becomes the step's forces, moments
+// and engaged extents (engage.cl and tri_dexel.cl repeat it in their own types).
+struct StepSums {
+    double Fx = 0, Fy = 0, Fz = 0, T = 0, Mx = 0, My = 0, chip = 0;
+    double qmin = 1e30, qmax = -1e30, zmin = 1e30, zmax = -1e30;
+    int engaged = 0;
+
+    // An element at radius r_mm and z_mm above the tip whose edge points along (cu, su), outward
+    // normal (nr, nz), cutting a chip h_mm over db_mm; (px, py) is across the feed; [z_lo, z_hi]
+    // its engaged part, heights above the tip.
+    void add(const CuttingCoefficients& k, double spin, double h_mm, double db_mm, double r_mm, double z_mm,
+             double cu, double su, double nr, double nz, double holder_face_z_mm, double px, double py,
+             double z_lo_mm, double z_hi_mm) {
+        const ElementForce f = element_force(k, h_mm, db_mm);
+        const double dFt = f.tangential_N, dFr = f.radial_N, dFa = f.axial_N;
+        const double normal = dFr * nr + dFa * nz;
+        const double ex = -spin * dFt * su - normal * cu;
+        const double ey = spin * dFt * cu - normal * su;
+        const double ez = -dFr * nz + dFa * nr;
+        Fx += ex;
+        Fy += ey;
+        Fz += ez;
+        T += r_mm * dFt;
+        const double lz = z_mm - holder_face_z_mm;
+        Mx += r_mm * su * ez - lz * ey;
+        My += lz * ex - r_mm * cu * ez;
+        chip = std::max(chip, h_mm);
+        const double q = r_mm * (cu * px + su * py);
+        qmin = std::min(qmin, q);
+        qmax = std::max(qmax, q);
+        zmin = std::min(zmin, z_lo_mm);
+        zmax = std::max(zmax, z_hi_mm);
+        ++engaged;
+    }
+
+    // The result with the forces (fx, fy, fz) as given (already turned into the stock frame where
+    // the tool's frame is not the stock's); the rest as summed.
+    StepResult result(double fx_N, double fy_N, double fz_N) const {
+        StepResult o;
+        o.fx_N = float(fx_N);
+        o.fy_N = float(fy_N);
+        o.fz_N = float(fz_N);
+        o.torque_Nmm = float(T);
+        o.mx_Nmm = float(Mx);
+        o.my_Nmm = float(My);
+        o.chip_mm = float(chip);
+        o.q_min_mm = engaged ? float(qmin) : 0.0f;
+        o.q_max_mm = engaged ? float(qmax) : 0.0f;
+        o.z_min_mm = engaged ? float(zmin) : 0.0f;
+        o.z_max_mm = engaged ? float(zmax) : 0.0f;
+        o.engaged = float(engaged);
+        return o;
+    }
+};
 
 struct EngageParams {
     CuttingCoefficients k;

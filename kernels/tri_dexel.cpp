@@ -389,9 +389,7 @@ void engage_tri_dexel(const PoseStep* steps, std::size_t n, double spin, const E
         const double s = spin;
         const double fxy = std::hypot(st.feed_mm[0], st.feed_mm[1]);
         const double px = fxy > 1e-12 ? -st.feed_mm[1] / fxy : 1.0, py = fxy > 1e-12 ? st.feed_mm[0] / fxy : 0.0;
-        double Fx = 0, Fy = 0, Fz = 0, T = 0, Mx = 0, My = 0, chip = 0;
-        double qmin = 1e30, qmax = -1e30, zmin = 1e30, zmax = -1e30;
-        int engaged = 0;
+        StepSums sums;
         for (int j = 0; j < tool.flutes; ++j) {
             for (int e = 0; e < p.element_end; ++e) {
                 const double alpha = std::numbers::pi / 2 - st.theta_rad - j * pitch + s * tool.lag_rad[e];
@@ -444,43 +442,12 @@ void engage_tri_dexel(const PoseStep* steps, std::size_t n, double spin, const E
                     if (h_cut > p.min_chip_mm) weight = 1;
                 }
                 if (weight <= 0) continue;
-                const double db = tool.db_mm[e] * weight;
-                const ElementForce f = element_force(k, h_cut, db);
-                const double dFt = f.tangential_N, dFr = f.radial_N, dFa = f.axial_N;
-                const double normal = dFr * nr + dFa * nz;
-                const double ex = -s * dFt * su - normal * cu;
-                const double ey = s * dFt * cu - normal * su;
-                const double ez = -dFr * nz + dFa * nr;
-                Fx += ex;
-                Fy += ey;
-                Fz += ez;
-                T += r * dFt;
-                const double lz = tool.z_mm[e] - p.holder_face_z_mm;
-                Mx += r * su * ez - lz * ey;
-                My += lz * ex - r * cu * ez;
-                chip = std::max(chip, h_cut);
-                const double q = r * (cu * px + su * py);
-                qmin = std::min(qmin, q);
-                qmax = std::max(qmax, q);
-                zmin = std::min(zmin, clip_lo);
-                zmax = std::max(zmax, clip_hi);
-                ++engaged;
+                sums.add(k, s, h_cut, tool.db_mm[e] * weight, r, tool.z_mm[e], cu, su, nr, nz, p.holder_face_z_mm, px, py,
+                         clip_lo, clip_hi);
             }
         }
-        const Vec F = turn(st.rot, {Fx, Fy, Fz});
-        StepResult& o = out[i];
-        o.fx_N = float(F[0]);
-        o.fy_N = float(F[1]);
-        o.fz_N = float(F[2]);
-        o.torque_Nmm = float(T);
-        o.mx_Nmm = float(Mx);
-        o.my_Nmm = float(My);
-        o.chip_mm = float(chip);
-        o.q_min_mm = engaged ? float(qmin) : 0.0f;
-        o.q_max_mm = engaged ? float(qmax) : 0.0f;
-        o.z_min_mm = engaged ? float(zmin) : 0.0f;
-        o.z_max_mm = engaged ? float(zmax) : 0.0f;
-        o.engaged = float(engaged);
+        const Vec F = turn(st.rot, {sums.Fx, sums.Fy, sums.Fz});
+        out[i] = sums.result(F[0], F[1], F[2]);
     }
 }
 
