@@ -53,6 +53,13 @@ void check_cl(cl_int err, const char* what) {
         throw OpenClError(std::string(what) + ": " + error_name(err) + " (" + std::to_string(err) + ")");
 }
 
+void launch_1d(cl_command_queue queue, cl_kernel k, std::size_t n, std::size_t group) {
+    const std::size_t pad = std::max<std::size_t>(64, group);
+    const std::size_t global = (n + pad - 1) / pad * pad;
+    check_cl(clEnqueueNDRangeKernel(queue, k, 1, nullptr, &global, group ? &group : nullptr, 0, nullptr, nullptr),
+             "clEnqueueNDRangeKernel");
+}
+
 OpenClRuntime& OpenClRuntime::instance() {
     // Constructed once; a failure is remembered so every caller gets the same clear message.
     static std::unique_ptr<OpenClRuntime> rt;

@@ -26,6 +26,15 @@ public:
 // Throws OpenClError "<what>: <error name> (<code>)" when err != CL_SUCCESS.
 void check_cl(cl_int err, const char* what);
 
+// Sets argument i of kernel k to v (a cl_mem, a scalar or an OpenCL vector type).
+template <typename T>
+void set_arg(cl_kernel k, int i, const T& v) {
+    check_cl(clSetKernelArg(k, cl_uint(i), sizeof(T), &v), "clSetKernelArg");
+}
+// Queues n work items of a 1-D kernel in groups of `group` (0: the runtime chooses, as on GPUs),
+// the global size padded to whole groups (at least 64): the kernels ignore the padding items.
+void launch_1d(cl_command_queue queue, cl_kernel k, std::size_t n, std::size_t group);
+
 // Owning handles for OpenCL objects.
 template <typename T, cl_int (*Release)(T)>
 class ClHandle {

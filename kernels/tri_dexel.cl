@@ -280,25 +280,16 @@ bool clip_to_cone(const double a, const double b, const double3 p, const double3
             *lo = max(*lo, -C / B);
     } else {
         const double disc = B * B - 4 * A * C;
+        // A > 0: inside between the roots. A < 0: inside outside them, two half-lines, of which only
+        // one meets the slab's nappe; with no real root the whole line is inside the double cone.
+        if (disc < 0) return A < 0 && *lo <= *hi;
+        const double q = -0.5 * (B + copysign(sqrt(disc), B));
+        const double ra = q / A, rb = q != 0 ? C / q : ra;
+        const double r1 = min(ra, rb), r2 = max(ra, rb);
         if (A > 0) {
-            if (disc < 0) return false;
-            const double q = -0.5 * (B + copysign(sqrt(disc), B));
-            double r1 = q / A, r2 = q != 0 ? C / q : r1;
-            if (r1 > r2) {
-                const double t = r1;
-                r1 = r2;
-                r2 = t;
-            }
             *lo = max(*lo, r1);
             *hi = min(*hi, r2);
-        } else if (disc >= 0) {
-            const double q = -0.5 * (B + copysign(sqrt(disc), B));
-            double r1 = q / A, r2 = q != 0 ? C / q : r1;
-            if (r1 > r2) {
-                const double t = r1;
-                r1 = r2;
-                r2 = t;
-            }
+        } else {
             const double left = min(*hi, r1) - *lo, right = *hi - max(*lo, r2);
             if (left < 0 && right < 0) return false;
             if (left >= right)

@@ -158,18 +158,16 @@ bool clip_to_cone(double a, double b, const Vec& p, const Vec& u, double uxy, do
             lo = std::max(lo, -C / B);
     } else {
         const double disc = B * B - 4 * A * C;
+        // A > 0: inside between the roots. A < 0: inside outside them, two half-lines, of which only
+        // one meets the slab's nappe; with no real root the whole line is inside the double cone.
+        if (disc < 0) return A < 0 && lo <= hi;
+        const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+        const double ra = q / A, rb = q != 0 ? C / q : ra;
+        const double r1 = std::min(ra, rb), r2 = std::max(ra, rb);
         if (A > 0) {
-            if (disc < 0) return false;
-            const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-            double r1 = q / A, r2 = q != 0 ? C / q : r1;
-            if (r1 > r2) std::swap(r1, r2);
             lo = std::max(lo, r1);
             hi = std::min(hi, r2);
-        } else if (disc >= 0) {
-            // A < 0: inside outside the roots, two half-lines; only one meets the slab's nappe.
-            const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-            double r1 = q / A, r2 = q != 0 ? C / q : r1;
-            if (r1 > r2) std::swap(r1, r2);
+        } else {
             const double left = std::min(hi, r1) - lo, right = hi - std::max(lo, r2);
             if (left < 0 && right < 0) return false;
             if (left >= right)
@@ -177,7 +175,6 @@ bool clip_to_cone(double a, double b, const Vec& p, const Vec& u, double uxy, do
             else
                 lo = std::max(lo, r2);
         }
-        // A < 0 with no real root: the whole line is inside the double cone.
     }
     return lo <= hi;
 }

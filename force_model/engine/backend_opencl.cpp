@@ -120,27 +120,27 @@ public:
         const float spin = float(steps.spin);
         cl_kernel k = engage_.get();
         int a = 0;
-        arg(k, a++, n_steps);
-        arg(k, a++, steps_buf_.get());
-        arg(k, a++, spin);
-        arg(k, a++, t.elems.get());
-        arg(k, a++, t.rot.get());
-        arg(k, a++, n_elems);
-        arg(k, a++, n_flutes);
-        arg(k, a++, bottom);
-        arg(k, a++, end);
-        arg(k, a++, cells());
-        arg(k, a++, walls());
-        arg(k, a++, base_lo_);
-        arg(k, a++, base_hi_);
-        arg(k, a++, x0);
-        arg(k, a++, y0);
-        arg(k, a++, inv);
-        arg(k, a++, nx);
-        arg(k, a++, ny);
-        arg(k, a++, coef_.get());
-        arg(k, a++, out_buf_.get());
-        launch(k, n);
+        kernels::set_arg(k, a++, n_steps);
+        kernels::set_arg(k, a++, steps_buf_.get());
+        kernels::set_arg(k, a++, spin);
+        kernels::set_arg(k, a++, t.elems.get());
+        kernels::set_arg(k, a++, t.rot.get());
+        kernels::set_arg(k, a++, n_elems);
+        kernels::set_arg(k, a++, n_flutes);
+        kernels::set_arg(k, a++, bottom);
+        kernels::set_arg(k, a++, end);
+        kernels::set_arg(k, a++, cells());
+        kernels::set_arg(k, a++, walls());
+        kernels::set_arg(k, a++, base_lo_);
+        kernels::set_arg(k, a++, base_hi_);
+        kernels::set_arg(k, a++, x0);
+        kernels::set_arg(k, a++, y0);
+        kernels::set_arg(k, a++, inv);
+        kernels::set_arg(k, a++, nx);
+        kernels::set_arg(k, a++, ny);
+        kernels::set_arg(k, a++, coef_.get());
+        kernels::set_arg(k, a++, out_buf_.get());
+        kernels::launch_1d(queue_.get(), k, n, group_);
         check_cl(clEnqueueReadBuffer(queue_.get(), out_buf_.get(), CL_FALSE, 0, n * sizeof(kernels::StepResult), out, 0,
                                      nullptr, nullptr),
                  "read step results");
@@ -172,28 +172,28 @@ public:
             const cl_int i0 = c.i0, j0 = c.j0, w = c.width, h = c.height, seg_first = cl_int(c.first_segment),
                          n_segs = cl_int(c.segments), first = cl_int(out_first);
             int a = 0;
-            arg(k, a++, cells());
-            arg(k, a++, base_.get());
-            arg(k, a++, nx);
-            arg(k, a++, x0);
-            arg(k, a++, y0);
-            arg(k, a++, cell);
-            arg(k, a++, i0);
-            arg(k, a++, j0);
-            arg(k, a++, w);
-            arg(k, a++, h);
-            arg(k, a++, segs_buf_.get());
-            arg(k, a++, seg_first);
-            arg(k, a++, n_segs);
-            arg(k, a++, tool_->lower.get());
-            arg(k, a++, n_lower);
-            arg(k, a++, radius);
-            arg(k, a++, cut);
-            arg(k, a++, sweep_buf_.get());
-            arg(k, a++, first);
-            arg(k, a++, walls());
-            arg(k, a++, band);
-            launch(k, c.cells());
+            kernels::set_arg(k, a++, cells());
+            kernels::set_arg(k, a++, base_.get());
+            kernels::set_arg(k, a++, nx);
+            kernels::set_arg(k, a++, x0);
+            kernels::set_arg(k, a++, y0);
+            kernels::set_arg(k, a++, cell);
+            kernels::set_arg(k, a++, i0);
+            kernels::set_arg(k, a++, j0);
+            kernels::set_arg(k, a++, w);
+            kernels::set_arg(k, a++, h);
+            kernels::set_arg(k, a++, segs_buf_.get());
+            kernels::set_arg(k, a++, seg_first);
+            kernels::set_arg(k, a++, n_segs);
+            kernels::set_arg(k, a++, tool_->lower.get());
+            kernels::set_arg(k, a++, n_lower);
+            kernels::set_arg(k, a++, radius);
+            kernels::set_arg(k, a++, cut);
+            kernels::set_arg(k, a++, sweep_buf_.get());
+            kernels::set_arg(k, a++, first);
+            kernels::set_arg(k, a++, walls());
+            kernels::set_arg(k, a++, band);
+            kernels::launch_1d(queue_.get(), k, c.cells(), group_);
             out_first += c.cells();
         }
         check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
@@ -356,20 +356,6 @@ private:
         buf = rt_.lease_buffer(want, flags);
     }
 
-    template <typename T>
-    static void arg(cl_kernel k, int i, const T& v) {
-        check_cl(clSetKernelArg(k, cl_uint(i), sizeof(T), &v), "clSetKernelArg");
-    }
-
-    void launch(cl_kernel k, std::size_t n) {
-        // Pad the global size to whole groups; the kernels ignore the padding items. On GPUs the
-        // runtime chooses the group size.
-        const std::size_t pad = std::max<std::size_t>(64, group_);
-        const std::size_t global = (n + pad - 1) / pad * pad;
-        check_cl(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, group_ ? &group_ : nullptr, 0, nullptr,
-                                        nullptr),
-                 "clEnqueueNDRangeKernel");
-    }
 
     kernels::OpenClRuntime& rt_;
     Stock& stock_;

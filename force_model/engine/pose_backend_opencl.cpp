@@ -107,18 +107,18 @@ public:
         write(steps_buf_.get(), host_steps_.data(), host_steps_.size() * sizeof(double));
         cl_kernel k = engage_.get();
         int a = 0;
-        arg(k, a++, cl_int(n));
-        arg(k, a++, steps_buf_.get());
-        arg(k, a++, spin);
-        arg(k, a++, elems_.get());
-        arg(k, a++, cl_int(flutes_));
-        arg(k, a++, cl_int(element_end_));
-        arg(k, a++, coef_.get());
-        arg(k, a++, grid_.get());
-        arg(k, a++, dims_.get());
-        for (int f = 0; f < 3; ++f) arg(k, a++, rays(f));
-        arg(k, a++, out_buf_.get());
-        launch(k, n, engage_group_);
+        kernels::set_arg(k, a++, cl_int(n));
+        kernels::set_arg(k, a++, steps_buf_.get());
+        kernels::set_arg(k, a++, spin);
+        kernels::set_arg(k, a++, elems_.get());
+        kernels::set_arg(k, a++, cl_int(flutes_));
+        kernels::set_arg(k, a++, cl_int(element_end_));
+        kernels::set_arg(k, a++, coef_.get());
+        kernels::set_arg(k, a++, grid_.get());
+        kernels::set_arg(k, a++, dims_.get());
+        for (int f = 0; f < 3; ++f) kernels::set_arg(k, a++, rays(f));
+        kernels::set_arg(k, a++, out_buf_.get());
+        kernels::launch_1d(queue_.get(), k, n, engage_group_);
         check_cl(clEnqueueReadBuffer(queue_.get(), out_buf_.get(), CL_TRUE, 0, n * sizeof(kernels::StepResult), out, 0,
                                      nullptr, nullptr),
                  "read step results");
@@ -161,20 +161,20 @@ public:
             grow(removed_buf_[f], items[f] * sizeof(double), CL_MEM_READ_WRITE);
             cl_kernel k = sweep_.get();
             int a = 0;
-            arg(k, a++, cl_int(f));
-            arg(k, a++, cl_int(r.i0));
-            arg(k, a++, cl_int(r.j0));
-            arg(k, a++, ni);
-            arg(k, a++, nj);
-            arg(k, a++, chords_buf_.get());
-            arg(k, a++, cl_int(n));
-            arg(k, a++, cones_.get());
-            arg(k, a++, cl_int(solid_.cones.size()));
-            arg(k, a++, grid_.get());
-            arg(k, a++, dims_.get());
-            arg(k, a++, rays(f));
-            arg(k, a++, removed_buf_[f].get());
-            launch(k, items[f], sweep_group_);
+            kernels::set_arg(k, a++, cl_int(f));
+            kernels::set_arg(k, a++, cl_int(r.i0));
+            kernels::set_arg(k, a++, cl_int(r.j0));
+            kernels::set_arg(k, a++, ni);
+            kernels::set_arg(k, a++, nj);
+            kernels::set_arg(k, a++, chords_buf_.get());
+            kernels::set_arg(k, a++, cl_int(n));
+            kernels::set_arg(k, a++, cones_.get());
+            kernels::set_arg(k, a++, cl_int(solid_.cones.size()));
+            kernels::set_arg(k, a++, grid_.get());
+            kernels::set_arg(k, a++, dims_.get());
+            kernels::set_arg(k, a++, rays(f));
+            kernels::set_arg(k, a++, removed_buf_[f].get());
+            kernels::launch_1d(queue_.get(), k, items[f], sweep_group_);
         }
         const double cell_area_mm2 = stock_.cell_mm * stock_.cell_mm;
         for (int f = 0; f < 3; ++f) {
@@ -238,19 +238,6 @@ private:
         buf = rt_.lease_buffer(std::max(bytes, 2 * buf.bytes()), flags);
     }
 
-    template <typename T>
-    static void arg(cl_kernel k, int i, const T& v) {
-        check_cl(clSetKernelArg(k, cl_uint(i), sizeof(T), &v), "clSetKernelArg");
-    }
-
-    void launch(cl_kernel k, std::size_t n, std::size_t group) {
-        // The kernels ignore the padding items; on GPUs the runtime chooses the group size.
-        const std::size_t pad = std::max<std::size_t>(64, group);
-        const std::size_t global = (n + pad - 1) / pad * pad;
-        check_cl(clEnqueueNDRangeKernel(queue_.get(), k, 1, nullptr, &global, group ? &group : nullptr, 0, nullptr,
-                                        nullptr),
-                 "clEnqueueNDRangeKernel");
-    }
 
     kernels::OpenClRuntime& rt_;
     kernels::TriDexel stock_;
