@@ -189,7 +189,10 @@ cl_program OpenClRuntime::program(const std::string& cl_file, const std::string&
     if (auto it = programs_.find(key); it != programs_.end()) return it->second.get();
     const char* src = embedded_source(cl_file);
     if (!src) throw OpenClError("no embedded OpenCL source named " + cl_file);
-    const std::string opts = "-cl-fast-relaxed-math " + options;
+    // Fast, relaxed math for the float kernels; tri_dexel.cl keeps IEEE semantics: it computes in
+    // double to keep the twins' precision and marks misses with infinities.
+    const bool exact_math = cl_file == "tri_dexel.cl";
+    const std::string opts = (exact_math ? std::string() : std::string("-cl-fast-relaxed-math ")) + options;
     const std::optional<std::string> cache = program_cache_dir();
     const std::string entry_key = cache ? cache_key(src, opts) : std::string();
     cl_int e = CL_SUCCESS;

@@ -2,6 +2,9 @@
 // (engage_poses) and removal of a convex tool solid swept along chords (sweep_chords). Twins:
 // engage_tri_dexel and sweep_tri_dexel in tri_dexel.cpp, which this file follows line for line.
 //
+// Built without -cl-fast-relaxed-math (opencl_runtime.cpp): misses and empty bounds are infinities,
+// compared and kept exactly as the twins keep them, and fmin/fmax (min/max are undefined for them).
+//
 // Double precision throughout, unlike engage.cl and remove.cl. The removal intersects lines with
 // cones at any angle: a ray almost along a cone's surface makes the quadratic's leading term a
 // difference of nearly equal squares, which float loses. The twins are double, so this file gives
@@ -33,11 +36,11 @@ double ray_overlap(__global const float* ray, const double a_mm, const double b_
     *lo_mm = INF_D;
     *hi_mm = -INF_D;
     for (int k = 0; k < K; ++k) {
-        const double a = max(a_mm, (double)ray[k]), b = min(b_mm, (double)ray[K + k]);
+        const double a = fmax(a_mm, (double)ray[k]), b = fmin(b_mm, (double)ray[K + k]);
         if (!(b - a > SLIVER)) continue;
         len += b - a;
-        *lo_mm = min(*lo_mm, a);
-        *hi_mm = max(*hi_mm, b);
+        *lo_mm = fmin(*lo_mm, a);
+        *hi_mm = fmax(*hi_mm, b);
     }
     return len;
 }
@@ -119,7 +122,7 @@ bool tri_dexel_inside(const Families* fam, __constant double* grid, __constant i
         if (ray) {
             for (int k = 0; k < K; ++k)
                 if (ray[K + k] > ray[k])
-                    boundary = min(boundary, min(fabs(pa[f] - (double)ray[k]), fabs(pa[f] - (double)ray[K + k])));
+                    boundary = fmin(boundary, fmin(fabs(pa[f] - (double)ray[k]), fabs(pa[f] - (double)ray[K + k])));
             in = ray_contains(ray, pa[f]);
         }
         if (f == 0 || boundary < nearest) {
@@ -198,7 +201,7 @@ __kernel void engage_poses(const int n_steps, __global const double* steps, cons
                 const double3 b = tip + turn(rot, (double3)(r_tool.x, r_tool.y, zhi));
                 const double aa[3] = {a.x, a.y, a.z}, ba[3] = {b.x, b.y, b.z};
                 __global const float* ray = nearest_ray(&fam, grid, dims, f_axis, P);
-                const double lo = min(aa[f_axis], ba[f_axis]), hi = max(aa[f_axis], ba[f_axis]);
+                const double lo = fmin(aa[f_axis], ba[f_axis]), hi = fmax(aa[f_axis], ba[f_axis]);
                 double m_lo = 0, m_hi = 0;
                 const double overlap = ray && hi > lo ? ray_overlap(ray, lo, hi, &m_lo, &m_hi) : 0;
                 if (overlap > 0) {
@@ -238,12 +241,12 @@ __kernel void engage_poses(const int n_steps, __global const double* steps, cons
             const double lz = ez_mm - face_z;
             Mx += r * su * ez - lz * ey;
             My += lz * ex - r * cu * ez;
-            chip = max(chip, h_cut);
+            chip = fmax(chip, h_cut);
             const double q = r * (cu * px + su * py);
-            qmin = min(qmin, q);
-            qmax = max(qmax, q);
-            zmin = min(zmin, clip_lo);
-            zmax = max(zmax, clip_hi);
+            qmin = fmin(qmin, q);
+            qmax = fmax(qmax, q);
+            zmin = fmin(zmin, clip_lo);
+            zmax = fmax(zmax, clip_hi);
             ++engaged;
         }
     }
@@ -275,9 +278,9 @@ bool clip_to_cone(const double a, const double b, const double3 p, const double3
     if (fabs(A) <= 1e-12 * (uxy + w1 * w1)) {
         if (fabs(B) < 1e-300) return C <= 0;
         if (B > 0)
-            *hi = min(*hi, -C / B);
+            *hi = fmin(*hi, -C / B);
         else
-            *lo = max(*lo, -C / B);
+            *lo = fmax(*lo, -C / B);
     } else {
         const double disc = B * B - 4 * A * C;
         // A > 0: inside between the roots. A < 0: inside outside them, two half-lines, of which only
@@ -285,17 +288,17 @@ bool clip_to_cone(const double a, const double b, const double3 p, const double3
         if (disc < 0) return A < 0 && *lo <= *hi;
         const double q = -0.5 * (B + copysign(sqrt(disc), B));
         const double ra = q / A, rb = q != 0 ? C / q : ra;
-        const double r1 = min(ra, rb), r2 = max(ra, rb);
+        const double r1 = fmin(ra, rb), r2 = fmax(ra, rb);
         if (A > 0) {
-            *lo = max(*lo, r1);
-            *hi = min(*hi, r2);
+            *lo = fmax(*lo, r1);
+            *hi = fmin(*hi, r2);
         } else {
-            const double left = min(*hi, r1) - *lo, right = *hi - max(*lo, r2);
+            const double left = fmin(*hi, r1) - *lo, right = *hi - fmax(*lo, r2);
             if (left < 0 && right < 0) return false;
             if (left >= right)
-                *hi = min(*hi, r1);
+                *hi = fmin(*hi, r1);
             else
-                *lo = max(*lo, r2);
+                *lo = fmax(*lo, r2);
         }
     }
     return *lo <= *hi;
@@ -314,12 +317,12 @@ bool line_in_solid(__global const double* cones, const int n_cones, const double
             if (p.z < z0 || p.z > z1) continue;
         } else {
             const double ta = (z0 - p.z) / u.z, tb = (z1 - p.z) / u.z;
-            plo = min(ta, tb);
-            phi = max(ta, tb);
+            plo = fmin(ta, tb);
+            phi = fmax(ta, tb);
         }
         if (!clip_to_cone(a, b, p, u, uxy, &plo, &phi)) continue;
-        lo = min(lo, plo);
-        hi = max(hi, phi);
+        lo = fmin(lo, plo);
+        hi = fmax(hi, phi);
     }
     if (!(lo <= hi && isfinite(lo) && isfinite(hi))) return false;
     *t_in = lo;
@@ -362,9 +365,9 @@ double golden_min(const SweepLine* L, const bool want_exit, double a, double b, 
             x2 = a + phi * (b - a);
             f2 = probe(L, x2, want_exit);
         }
-        best = min(best, min(f1, f2));
+        best = fmin(best, fmin(f1, f2));
     }
-    return min(best, min(f1, f2));
+    return fmin(best, fmin(f1, f2));
 }
 
 // One work item per ray of family f in the rectangle [i0, i0 + ni) x [j0, j0 + nj); it removes the
@@ -433,9 +436,9 @@ __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni
                 refine_out = refine_out || (double)ray[K + q] > best_out;
             }
         const double t0 =
-            refine_in ? golden_min(&L, false, max(0.0, s_in - step), min(1.0, s_in + step), s_in, best_in) : best_in;
+            refine_in ? golden_min(&L, false, fmax(0.0, s_in - step), fmin(1.0, s_in + step), s_in, best_in) : best_in;
         const double t1 =
-            refine_out ? -golden_min(&L, true, max(0.0, s_out - step), min(1.0, s_out + step), s_out, -best_out) : best_out;
+            refine_out ? -golden_min(&L, true, fmax(0.0, s_out - step), fmin(1.0, s_out + step), s_out, -best_out) : best_out;
         if (t1 - t0 > SLIVER) gone += subtract_interval(ray, t0, t1);
     }
     removed[gi] = gone;

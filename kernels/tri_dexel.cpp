@@ -184,7 +184,8 @@ bool clip_to_cone(double a, double b, const Vec& p, const Vec& u, double uxy, do
 bool line_in_solid(const ConvexToolSolid& solid, const Vec& p, const Vec& u, double& t_in, double& t_out) {
     // The solid is the union of its pieces, each its own cone within its own slab of heights (on a
     // piece's slab every other extended cone lies outside it), so a line meets only the cones of
-    // the slabs it crosses: one or two for a line across the axis, instead of all of them.
+    // the slabs it crosses: one or two for a line across the axis, all of them only for a line
+    // along it (a slab test costs far less than a cone's quadratic).
     const double uxy = u[0] * u[0] + u[1] * u[1];
     double lo = kInf, hi = -kInf;
     for (const auto& [a, b, z0, z1] : solid.cones) {
@@ -236,7 +237,9 @@ bool line_in_sweep(const ConvexToolSolid& solid, const ToolChord& chord, const V
     };
     const double s_in = k_in * step, s_out = k_out * step;
     // Refining an end moves it outward, into the ray's material only where there is some beyond
-    // the sampled end; elsewhere what is removed is the same without it.
+    // the sampled end; elsewhere what is removed is the same without it. (An unrefined interval the
+    // sliver gate drops holds under kSliverMm of material, since beyond its unrefined ends there is
+    // none: dust either way, and refining every such grazing ray cost 40 % of a turning run.)
     bool refine_in = true, refine_out = true;
     if (ray) {
         refine_in = refine_out = false;

@@ -187,11 +187,12 @@ public:
             for (double l : host_removed_) len += l;
             removed[f] = len * cell_area_mm2;
         }
-        host_stale_ = !wrap_host_;
+        host_stale_ = true;
         return removed;
     }
 
     const kernels::TriDexel& stock() override {
+        if (!host_stale_) return stock_;
         if (wrap_host_) {
             // Mapping makes the host arrays current; PoCL maps a USE_HOST_PTR buffer in place.
             for (int f = 0; f < 3; ++f) {
@@ -205,15 +206,15 @@ public:
                          "unmap stock rays");
             }
             check_cl(clFinish(queue_.get()), "clFinish (stock)");
-        } else if (host_stale_) {
+        } else {
             for (int f = 0; f < 3; ++f) {
                 std::vector<float>& rays = stock_.family[f].rays;
                 check_cl(clEnqueueReadBuffer(queue_.get(), leased_[f].get(), CL_TRUE, 0, rays.size() * sizeof(float),
                                              rays.data(), 0, nullptr, nullptr),
                          "read stock rays");
             }
-            host_stale_ = false;
         }
+        host_stale_ = false;
         return stock_;
     }
 

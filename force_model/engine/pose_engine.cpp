@@ -42,6 +42,7 @@ PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernel
 void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin) {
     out.resize(steps.size());
     const double lag_mm = settings_.lag_cells * cell_mm_;
+    const double keep_mm = cell_mm_ / 20;
     std::size_t b0 = 0;
     while (b0 < steps.size()) {
         // A batch ends at batch_steps or at half the lag of travel, whichever comes first: every step
@@ -62,18 +63,35 @@ void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<ke
                 travel_mm_.push_back(0);
                 continue;
             }
-            const double step = distance_mm(pending_.back().tip_mm, s.tip_mm) + turn_between_rad(pending_.back().rot, s.rot) * reach_mm_;
-            // A pose that has not moved (a dwell) adds nothing to the sweep: it replaces the last,
-            // so the pending path does not grow while the tool stands.
-            if (step <= 1e-9 && pending_.size() > 1) {
-                pending_.back() = s;
-                continue;
+            // Where both the last pose and this one lie within a twentieth of a cell of the one
+            // before the last, this one replaces the last: the sweep keeps its shape (chords are
+            // good to half a cell; a turning point dropped lies that close to a kept pose), and the
+            // pending path holds about 20 poses a cell of travel however slowly the tool moves, or
+            // while it dwells.
+            const std::size_t n = pending_.size();
+            if (n > 1) {
+                const auto apart_mm = [&](const kernels::PoseStep& a, const kernels::PoseStep& b) {
+                    return distance_mm(a.tip_mm, b.tip_mm) + turn_between_rad(a.rot, b.rot) * reach_mm_;
+                };
+                const double from_before = apart_mm(pending_[n - 2], s);
+                if (from_before <= keep_mm && apart_mm(pending_[n - 2], pending_.back()) <= keep_mm) {
+                    pending_.back() = s;
+                    travel_mm_.back() = travel_mm_[n - 2] + from_before;
+                    continue;
+                }
             }
+            const double step = distance_mm(pending_.back().tip_mm, s.tip_mm) + turn_between_rad(pending_.back().rot, s.rot) * reach_mm_;
             pending_.push_back(s);
             travel_mm_.push_back(travel_mm_.back() + step);
         }
         // Remove up to the last pose at least a lag of travel behind the batch's end.
         const double upto = travel_mm_.back() - lag_mm;
+        // Each removal re-sweeps the tool's whole reach, whatever the travel it covers: it waits
+        // until it covers removal_cells of travel.
+        if (upto < settings_.removal_cells * cell_mm_) {
+            b0 = b1;
+            continue;
+        }
         std::size_t last = 0;
         while (last + 1 < pending_.size() && travel_mm_[last + 1] <= upto) ++last;
         if (last > 0) remove_through(last);

@@ -23,6 +23,9 @@ struct PoseEngineSettings {
     // small, and with no sub-cell walls yet the rays need the margin: at 4 cells a vertical ball
     // end mill lost 1.4 % of its axial force to the rays around its tip, at 8 none.
     double lag_cells = 8;
+    // A removal covers at least this much travel (and the lag behind it), so the stock trails the
+    // engagement by lag_cells to lag_cells + removal_cells (plus half a lag within a batch).
+    double removal_cells = 8;
     double chord_tolerance_cells = 0.5; // a chord's fixed orientation and straight tip stay this close
     std::size_t batch_steps = 256;      // steps engaged against one state of the stock (fewer past half the lag)
     bool opencl = false;                // the OpenCL kernels (throws kernels::OpenClError when unusable), else the twins
