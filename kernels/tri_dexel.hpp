@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace cutload::kernels {
@@ -121,6 +122,35 @@ bool tri_dexel_contains(const TriDexel& stock, int f, const std::array<double, 3
 bool tri_dexel_inside(const TriDexel& stock, const std::array<double, 3>& p_mm);
 // The family whose rays are most nearly along the direction n (largest |n_f|).
 int best_family(const std::array<double, 3>& n);
+
+// ---- Shank and holder against the stock, for any orientation (docs/five_axis.md section 6) ----------
+// The tool's body above its flutes, in the tool frame: the shank rho <= shank_radius_mm for z in
+// [flute_length_mm, stickout_mm], the holder rho <= holder_radius_mm for z in [stickout_mm,
+// stickout_mm + holder_length_mm] (its face at the stickout).
+struct ToolBody {
+    double flute_length_mm = 20, stickout_mm = 30, holder_length_mm = 40;
+    double shank_radius_mm = 4, holder_radius_mm = 16;
+};
+// What one check found. contact: material inside the shank or the holder (document 004's (5)).
+// clearance_mm: without contact, the distance from the holder to the nearest material within the
+// clearance shell (document 004's V_sh, (6)); infinity where none is that near, or with contact.
+struct BodyClearance {
+    bool contact = false;
+    double clearance_mm = std::numeric_limits<double>::infinity();
+};
+// One ray's material against the body: the ray is the tool-frame line p + t u, t its positions
+// (the family's coordinate), `ray` its intervals. Contact needs an overlap above a micrometre at the
+// flutes' top and the holder's face, and the shank is taken 2 % narrower, so material the flutes
+// have just cut to their length or radius does not read as contact (as the Z-map engine's check).
+// The clearance is the exact distance from the holder's cylinder to the material's nearest point
+// on the ray, which is convex along it (golden section between the ends of the part in the shell).
+BodyClearance ray_body_clearance(const float* ray, const std::array<double, 3>& p, const std::array<double, 3>& u,
+                                 const ToolBody& body, double shell_mm);
+// Every ray of the three families that can reach the shank or the holder grown by the shell, at
+// the tool's pose (tip, rot: columns the tool's axes in stock coordinates). shell_mm 0: contact only.
+BodyClearance tri_dexel_body_clearance(const TriDexel& stock, const std::array<double, 3>& tip_mm,
+                                       const std::array<std::array<double, 3>, 3>& rot, const ToolBody& body,
+                                       double shell_mm);
 
 // ---- Engagement for any orientation (docs/five_axis.md section 4) ---------------------------------
 // One engine step: the tool's pose in the stock frame and its motion per tooth in its own frame

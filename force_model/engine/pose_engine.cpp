@@ -37,10 +37,38 @@ PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernel
       backend_(settings.opencl ? make_opencl_pose_backend(std::move(stock), tool.edges, std::move(solid), params)
                                : make_cpu_pose_backend(std::move(stock), tool.edges, std::move(solid), params)),
       settings_(settings),
-      reach_mm_(std::hypot(tool.flute_length_mm, tool.radius_mm)) {}
+      reach_mm_(std::hypot(tool.flute_length_mm, tool.radius_mm)) {
+    body_.flute_length_mm = tool.flute_length_mm;
+    body_.stickout_mm = tool.stickout_mm;
+    // A spec without a holder ("no holder beyond the shank") still has something above the face
+    // up to the spindle: taken as the shank's width for another stickout, as the Z-map engine's
+    // check takes everything above the face.
+    body_.holder_length_mm = tool.holder_length_mm > 0 ? tool.holder_length_mm : tool.stickout_mm;
+    body_.shank_radius_mm = tool.shank_diameter_mm / 2;
+    body_.holder_radius_mm = tool.holder_radius_mm;
+    shell_mm_ = std::max(tool.holder_clearance_mm, 0.0);
+    body_reach_mm_ = std::hypot(tool.stickout_mm + tool.holder_length_mm, tool.holder_radius_mm);
+}
 
-void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin) {
+void PoseEngine::check_body(const std::vector<kernels::PoseStep>& steps, std::size_t b0, std::size_t b1,
+                            std::vector<kernels::BodyClearance>& body) {
+    const double every_mm = shell_mm_ > 0 ? std::min(settings_.holder_check_mm, shell_mm_ / 4) : settings_.holder_check_mm;
+    for (std::size_t i = b0; i < b1; ++i) {
+        const kernels::PoseStep& s = steps[i];
+        if (!checked_at_ || distance_mm(checked_at_->tip_mm, s.tip_mm) +
+                                    turn_between_rad(checked_at_->rot, s.rot) * body_reach_mm_ >= every_mm) {
+            last_check_ = backend_->body_clearance(s.tip_mm, s.rot, body_, shell_mm_);
+            checked_at_ = s;
+            ++body_checks_;
+        }
+        body[i] = last_check_;
+    }
+}
+
+void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin,
+                     std::vector<kernels::BodyClearance>* body) {
     out.resize(steps.size());
+    if (body) body->assign(steps.size(), {});
     const double lag_mm = settings_.lag_cells * cell_mm_;
     const double keep_mm = cell_mm_ / 20;
     std::size_t b0 = 0;
@@ -55,6 +83,9 @@ void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<ke
             if (batch_travel > lag_mm / 2) break;
             ++b1;
         }
+        // Against the stock the batch's engagement sees: the removal trails, so material the
+        // flutes are still cutting is there, as it is for the Z-map engine's check.
+        if (body) check_body(steps, b0, b1, *body);
         backend_->engage(steps.data() + b0, b1 - b0, spin, out.data() + b0);
         for (std::size_t i = b0; i < b1; ++i) {
             const kernels::PoseStep& s = steps[i];
@@ -105,6 +136,7 @@ void PoseEngine::finish() {
     // to from here.
     pending_.clear();
     travel_mm_.clear();
+    checked_at_.reset();
 }
 
 void PoseEngine::remove_through(std::size_t last) {

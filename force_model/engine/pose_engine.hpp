@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,11 @@ struct PoseEngineSettings {
     double chord_tolerance_cells = 0.5; // a chord's fixed orientation and straight tip stay this close
     std::size_t batch_steps = 256;      // steps engaged against one state of the stock (fewer past half the lag)
     bool opencl = false;                // the OpenCL kernels (throws kernels::OpenClError when unusable), else the twins
+    // The shank and holder are checked against the stock at a path's first step and again whenever
+    // the holder has moved this far (its farthest point: tip travel plus turn times its reach), or a
+    // quarter of the clearance shell if that is less, so no near miss is stepped over; the steps
+    // in between take the last check's result.
+    double holder_check_mm = 0.25;
 };
 
 class PoseEngine {
@@ -40,7 +46,9 @@ public:
 
     // Engages and removes along the steps, in order, with the spindle turning `spin` (+1 M03, -1
     // M04); out receives one result per step. Steps of successive calls continue one path.
-    void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin);
+    // `body`, when given, receives the shank and holder check that holds for each step.
+    void run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin,
+             std::vector<kernels::BodyClearance>* body = nullptr);
     // Removes what is still pending (the last lag of travel) and ends the path: the next run()
     // starts a new one, never swept to from this one's end (the tool left: air, a stop, a session's
     // end).
@@ -52,9 +60,12 @@ public:
     // Material removed so far, as the Z family measures it, mm^3.
     double removed_mm3() const { return removed_mm3_; }
     std::size_t chords() const { return chords_; }
+    std::size_t body_checks() const { return body_checks_; }
 
 private:
     void remove_through(std::size_t last);   // pending poses [0, last] become chords
+    void check_body(const std::vector<kernels::PoseStep>& steps, std::size_t b0, std::size_t b1,
+                    std::vector<kernels::BodyClearance>& body);
 
     double cell_mm_;
     std::unique_ptr<PoseBackend> backend_;
@@ -64,6 +75,13 @@ private:
     std::vector<double> travel_mm_;            // cumulative travel over pending_
     double removed_mm3_ = 0;
     std::size_t chords_ = 0;
+    // Shank and holder checks (ToolGeometry's holder; the shell is its holder_clearance_mm).
+    kernels::ToolBody body_;
+    double shell_mm_ = 0;
+    double body_reach_mm_ = 0;
+    std::optional<kernels::PoseStep> checked_at_;   // the pose of the last check; none: the path is new
+    kernels::BodyClearance last_check_;
+    std::size_t body_checks_ = 0;
 };
 
 }  // namespace cutload::force_model

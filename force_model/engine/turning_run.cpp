@@ -105,6 +105,7 @@ private:
     std::vector<kernels::PoseStep> chunk_;
     std::vector<StepMeta> meta_;
     std::vector<kernels::StepResult> results_;
+    std::vector<kernels::BodyClearance> body_;   // the shank and holder check per step
     double chunk_spin_ = 1;
     double last_progress_ = -1;
     std::size_t current_ = 0;
@@ -127,6 +128,7 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
                         "run spec's box so far: a base stock (a Z-map) cannot be its start (docs/five_axis.md, section 3.4)");
     const Cutter& cutter = plan.tools[0].cutter;
     tool_ = build_tool_geometry(cutter, spec.resolution.axial_step_mm);
+    tool_.holder_clearance_mm = plan.tools[0].limits.holder_clearance_mm;
     const double grid_mm = spec.resolution.grid_mm;
     std::vector<std::array<double, 2>> rz;
     for (const ProfilePoint& p : profile_polyline(cutter.profile, grid_mm / 64)) rz.push_back({p.r_mm, p.z_mm});
@@ -209,9 +211,14 @@ void TurningWalk::leave() {
 void TurningWalk::flush() {
     if (chunk_.empty()) return;
     const double before = engine_->removed_mm3();
-    engine_->run(chunk_, results_, chunk_spin_);
+    engine_->run(chunk_, results_, chunk_spin_, &body_);
     const std::size_t first = rows_.size();
     rows_.append_steps(meta_, results_);
+    for (std::size_t k = 0; k < body_.size(); ++k) {
+        rows_.samples[first + k].holder_contact = body_[k].contact;
+        if (body_[k].clearance_mm < tool_.holder_clearance_mm)
+            rows_.extra[first + k].holder_clearance_mm = float(body_[k].clearance_mm);
+    }
     rows_.attribute_removed(first, meta_.size(), engine_->removed_mm3() - before);
     for (const kernels::StepResult& r : results_) cutting_steps_ += r.engaged > 0 ? 1 : 0;
     steps_ += chunk_.size();
