@@ -443,3 +443,117 @@ __kernel void sweep_chords(const int f, const int i0, const int j0, const int ni
     }
     removed[gi] = gone;
 }
+
+// ---- Shank and holder ------------------------------------------------------------------------------
+// The part of the line p + t u inside the cylinder rho <= r, z0 <= z <= z1 (tool frame): the solid's
+// line test with one piece of slope 0. Twin: line_in_cylinder (tri_dexel_body.cpp).
+bool line_in_cylinder(const double r, const double z0, const double z1, const double3 p, const double3 u, double* lo,
+                      double* hi) {
+    double plo = -INF_D, phi = INF_D;
+    if (fabs(u.z) < 1e-15) {
+        if (p.z < z0 || p.z > z1) return false;
+    } else {
+        const double ta = (z0 - p.z) / u.z, tb = (z1 - p.z) / u.z;
+        plo = fmin(ta, tb);
+        phi = fmax(ta, tb);
+    }
+    if (!clip_to_cone(r, 0.0, p, u, u.x * u.x + u.y * u.y, &plo, &phi)) return false;
+    if (!(plo <= phi && isfinite(plo) && isfinite(phi))) return false;
+    *lo = plo;
+    *hi = phi;
+    return true;
+}
+
+// Whether a material interval overlaps [lo, hi] by more than a micrometre (kContactOverlapMm).
+bool body_overlaps(__global const float* ray, const double lo, const double hi) {
+    for (int k = 0; k < K; ++k) {
+        const double a = ray[k], b = ray[K + k];
+        if (b > a && fmin(b, hi) - fmax(a, lo) > 1e-3) return true;
+    }
+    return false;
+}
+
+// Distance from q (tool frame) to the holder's solid cylinder. body: see body_rays.
+double to_holder(__constant double* body, const double3 q) {
+    const double rho = hypot(q.x, q.y);
+    const double top = body[1] + body[2];
+    const double dr = fmax(rho - body[4], 0.0);
+    const double dz = fmax(fmax(body[1] - q.z, q.z - top), 0.0);
+    return hypot(dr, dz);
+}
+
+// One work item per ray of family f in the rectangle [i0, i0 + ni) x [j0, j0 + nj): contact with the
+// shank or the holder, else the holder's distance to the ray's nearest material within the shell.
+// Twins: tri_dexel_body_clearance's loop over a family, ray_body_clearance.
+// pose: tip x, y, z; rot[9]; the box's lo and hi along f
+// body: flute length, stickout, holder length, shank radius, holder radius, shell (all mm)
+// out:  2 doubles per work item: contact (1 or 0), clearance (infinity: none within the shell)
+__kernel void body_rays(const int f, const int i0, const int j0, const int ni, const int nj, __constant double* pose,
+                        __constant double* body, __constant double* grid, __constant int* dims,
+                        __global const float* rays, __global double* out) {
+    const int gi = get_global_id(0);
+    if (gi >= ni * nj) return;
+    const int i = i0 + gi % ni, j = j0 + gi / ni;
+    const int u = (f + 1) % 3, v = (f + 2) % 3;
+    const double g = grid[0], u0 = grid[1 + 2 * f], v0 = grid[2 + 2 * f];
+    const int nu = dims[2 * f];
+    __global const float* ray = rays + (size_t)(((long)j * nu + i) * 8);
+    out[2 * gi] = 0;
+    out[2 * gi + 1] = INF_D;
+    const double box_lo = pose[12], box_hi = pose[13];
+    bool near = false;
+    for (int k = 0; k < K && !near; ++k)
+        near = ray[K + k] > ray[k] && ray[K + k] >= box_lo && ray[k] <= box_hi;
+    if (!near) return;
+    double rot[9];
+    for (int k = 0; k < 9; ++k) rot[k] = pose[3 + k];
+    double w[3];
+    w[f] = -pose[f];
+    w[u] = u0 + (i + 0.5) * g - pose[u];
+    w[v] = v0 + (j + 0.5) * g - pose[v];
+    const double3 p = to_tool(rot, (double3)(w[0], w[1], w[2]));
+    const double3 d = (double3)(rot[3 * f], rot[3 * f + 1], rot[3 * f + 2]);
+    const double flute = body[0], stickout = body[1], top = body[1] + body[2];
+    const double r_shank = body[3], r_holder = body[4], shell = body[5];
+    double lo, hi;
+    if (stickout > flute && line_in_cylinder(r_shank * 0.98, flute, stickout, p, d, &lo, &hi) && body_overlaps(ray, lo, hi)) {
+        out[2 * gi] = 1;
+        return;
+    }
+    if (line_in_cylinder(r_holder, stickout, top, p, d, &lo, &hi) && body_overlaps(ray, lo, hi)) {
+        out[2 * gi] = 1;
+        return;
+    }
+    if (!(shell > 0)) return;
+    double g0, g1;
+    if (!line_in_cylinder(r_holder + shell, stickout - shell, top + shell, p, d, &g0, &g1)) return;
+    double best_all = INF_D;
+    for (int k = 0; k < K; ++k) {
+        const double s0 = fmax((double)ray[k], g0), s1 = fmin((double)ray[K + k], g1);
+        if (!(s1 >= s0)) continue;
+        // Convex along the line: the ends and a golden-section search between them.
+        double best = fmin(to_holder(body, p + s0 * d), to_holder(body, p + s1 * d));
+        const double phi = 0.6180339887498949;
+        double a = s0, c = s1;
+        double x1 = c - phi * (c - a), x2 = a + phi * (c - a);
+        double f1 = to_holder(body, p + x1 * d), f2 = to_holder(body, p + x2 * d);
+        for (int it = 0; it < 60 && c - a > 1e-9; ++it) {
+            if (f1 <= f2) {
+                c = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = c - phi * (c - a);
+                f1 = to_holder(body, p + x1 * d);
+            } else {
+                a = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = a + phi * (c - a);
+                f2 = to_holder(body, p + x2 * d);
+            }
+        }
+        best = fmin(best, fmin(f1, f2));
+        if (best <= shell) best_all = fmin(best_all, best);
+    }
+    out[2 * gi + 1] = best_all;
+}

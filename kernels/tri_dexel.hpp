@@ -146,6 +146,11 @@ struct BodyClearance {
 // on the ray, which is convex along it (golden section between the ends of the part in the shell).
 BodyClearance ray_body_clearance(const float* ray, const std::array<double, 3>& p, const std::array<double, 3>& u,
                                  const ToolBody& body, double shell_mm);
+// The box around the shank and the holder grown by the shell at a pose, cut to the stock's box
+// (false: they do not meet). The OpenCL check gets it from the host, so both use this.
+bool body_reach(const TriDexel& stock, const std::array<double, 3>& tip_mm,
+                const std::array<std::array<double, 3>, 3>& rot, const ToolBody& body, double shell_mm,
+                ChordReach& box);
 // Every ray of the three families that can reach the shank or the holder grown by the shell, at
 // the tool's pose (tip, rot: columns the tool's axes in stock coordinates). shell_mm 0: contact only.
 BodyClearance tri_dexel_body_clearance(const TriDexel& stock, const std::array<double, 3>& tip_mm,

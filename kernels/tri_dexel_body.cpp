@@ -92,12 +92,10 @@ BodyClearance ray_body_clearance(const float* ray, const Vec& p, const Vec& u, c
     return r;
 }
 
-BodyClearance tri_dexel_body_clearance(const TriDexel& stock, const Vec& tip_mm, const std::array<Vec, 3>& rot,
-                                       const ToolBody& b, double shell_mm) {
+bool body_reach(const TriDexel& stock, const Vec& tip_mm, const std::array<Vec, 3>& rot, const ToolBody& b,
+                double shell_mm, ChordReach& box) {
     const Vec axis{rot[0][2], rot[1][2], rot[2][2]};
     const double c = std::max(shell_mm, 0.0);
-    // A box around the shank and the grown holder (each a cylinder about the axis), within the stock.
-    ChordReach box;
     box.lo_mm = {kInf, kInf, kInf};
     box.hi_mm = {-kInf, -kInf, -kInf};
     const double top = b.stickout_mm + b.holder_length_mm;
@@ -110,12 +108,20 @@ BodyClearance tri_dexel_body_clearance(const TriDexel& stock, const Vec& tip_mm,
                 box.lo_mm[a] = std::min(box.lo_mm[a], centre - reach);
                 box.hi_mm[a] = std::max(box.hi_mm[a], centre + reach);
             }
-    BodyClearance out;
     for (int a = 0; a < 3; ++a) {
         box.lo_mm[a] = std::max(box.lo_mm[a], stock.lo_mm[a]);
         box.hi_mm[a] = std::min(box.hi_mm[a], stock.hi_mm[a]);
-        if (box.lo_mm[a] > box.hi_mm[a]) return out;   // the body is outside the stock's box
+        if (box.lo_mm[a] > box.hi_mm[a]) return false;
     }
+    return true;
+}
+
+BodyClearance tri_dexel_body_clearance(const TriDexel& stock, const Vec& tip_mm, const std::array<Vec, 3>& rot,
+                                       const ToolBody& b, double shell_mm) {
+    BodyClearance out;
+    ChordReach box;
+    if (!body_reach(stock, tip_mm, rot, b, shell_mm, box)) return out;   // the body is outside the stock's box
+    const double c = std::max(shell_mm, 0.0);
     const double g = stock.cell_mm;
     for (int f = 0; f < 3; ++f) {
         const RayFamily& fam = stock.family[f];

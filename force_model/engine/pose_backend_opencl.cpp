@@ -1,7 +1,8 @@
 // The OpenCL pose backend: kernels/tri_dexel.cl on the runtime's device. The tri-dexel stock stays
 // on the device for the whole run: on CPU devices (PoCL) its buffers wrap the host families (no
 // copy at all); on a GPU it is written once when the run starts and read back only when the walk
-// asks for it (a stopped spindle's "in material?" and the final stock). The queue, kernels and
+// asks for it (a stopped spindle's "in material?" and the final stock); the shank and holder check
+// runs on the device too. The queue, kernels and
 // staging buffers are leased from the runtime's pool, so a later run in the process creates none.
 // Each call waits for its own results: the walk books a batch's rows and removed volume before it
 // builds the next.
@@ -9,6 +10,7 @@
 #include "kernels/opencl_runtime.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 namespace cutload::force_model {
@@ -21,6 +23,7 @@ using kernels::ClMem;
 constexpr int kStepDoubles = 20;    // tri_dexel.cl, engage_poses: steps
 constexpr int kChordDoubles = 24;   // tri_dexel.cl, sweep_chords: chords
 constexpr int kElemDoubles = 8;     // tri_dexel.cl, engage_poses: elems
+constexpr int kPoseDoubles = 14;    // tri_dexel.cl, body_rays: pose
 
 class OpenClPoseBackend final : public PoseBackend {
 public:
@@ -38,6 +41,7 @@ public:
         drain_.queue = &queue_;
         engage_ = rt_.lease_kernel("tri_dexel.cl", "engage_poses");
         sweep_ = rt_.lease_kernel("tri_dexel.cl", "sweep_chords");
+        body_ = rt_.lease_kernel("tri_dexel.cl", "body_rays");
         wrap_host_ = rt_.host_unified_memory();
         engage_group_ = rt_.is_gpu() ? 0 : 8;   // a batch is at most a few hundred steps: small groups use every core
         sweep_group_ = rt_.is_gpu() ? 0 : 32;
@@ -191,6 +195,57 @@ public:
         return removed;
     }
 
+    // On the device, so a GPU's stock is never read back for it.
+    kernels::BodyClearance body_clearance(const std::array<double, 3>& tip_mm,
+                                          const std::array<std::array<double, 3>, 3>& rot, const kernels::ToolBody& body,
+                                          double shell_mm) override {
+        kernels::BodyClearance result;
+        kernels::ChordReach box;
+        if (!kernels::body_reach(stock_, tip_mm, rot, body, shell_mm, box)) return result;
+        const std::vector<double> b{body.flute_length_mm, body.stickout_mm,     body.holder_length_mm,
+                                    body.shank_radius_mm, body.holder_radius_mm, std::max(shell_mm, 0.0)};
+        if (!body_buf_) body_buf_ = rt_.lease_buffer(b.size() * sizeof(double), CL_MEM_READ_ONLY);
+        write(body_buf_.get(), b.data(), b.size() * sizeof(double));
+        for (int f = 0; f < 3; ++f) {
+            const kernels::RayRect r = kernels::rays_in_reach(stock_, f, box);
+            if (r.i1 < r.i0 || r.j1 < r.j0) continue;
+            double pose[kPoseDoubles];
+            for (int c = 0; c < 3; ++c) pose[c] = tip_mm[c];
+            for (int row = 0; row < 3; ++row)
+                for (int c = 0; c < 3; ++c) pose[3 + 3 * row + c] = rot[row][c];
+            pose[12] = box.lo_mm[f];
+            pose[13] = box.hi_mm[f];
+            grow(pose_buf_[f], sizeof pose, CL_MEM_READ_ONLY);
+            write(pose_buf_[f].get(), pose, sizeof pose);
+            const cl_int ni = r.i1 - r.i0 + 1, nj = r.j1 - r.j0 + 1;
+            const std::size_t items = std::size_t(ni) * std::size_t(nj);
+            grow(body_out_[f], items * 2 * sizeof(double), CL_MEM_WRITE_ONLY);
+            cl_kernel k = body_.get();
+            int a = 0;
+            kernels::set_arg(k, a++, cl_int(f));
+            kernels::set_arg(k, a++, cl_int(r.i0));
+            kernels::set_arg(k, a++, cl_int(r.j0));
+            kernels::set_arg(k, a++, ni);
+            kernels::set_arg(k, a++, nj);
+            kernels::set_arg(k, a++, pose_buf_[f].get());
+            kernels::set_arg(k, a++, body_buf_.get());
+            kernels::set_arg(k, a++, grid_.get());
+            kernels::set_arg(k, a++, dims_.get());
+            kernels::set_arg(k, a++, rays(f));
+            kernels::set_arg(k, a++, body_out_[f].get());
+            kernels::launch_1d(queue_.get(), k, items, sweep_group_);
+            host_body_.resize(items * 2);
+            check_cl(clEnqueueReadBuffer(queue_.get(), body_out_[f].get(), CL_TRUE, 0, items * 2 * sizeof(double),
+                                         host_body_.data(), 0, nullptr, nullptr),
+                     "read body clearances");
+            for (std::size_t it = 0; it < items; ++it) {
+                if (host_body_[2 * it] != 0) return {true, std::numeric_limits<double>::infinity()};
+                result.clearance_mm = std::min(result.clearance_mm, host_body_[2 * it + 1]);
+            }
+        }
+        return result;
+    }
+
     const kernels::TriDexel& stock() override {
         if (!host_stale_) return stock_;
         if (wrap_host_) {
@@ -247,12 +302,14 @@ private:
     bool wrap_host_ = false, host_stale_ = false;
     std::size_t engage_group_ = 0, sweep_group_ = 0;
     kernels::QueueLease queue_;
-    kernels::KernelLease engage_, sweep_;
+    kernels::KernelLease engage_, sweep_, body_;
     std::array<ClMem, 3> wrapped_;                   // CPU devices: the host families themselves
     std::array<kernels::BufferLease, 3> leased_;     // otherwise: the families on the device
     kernels::BufferLease elems_, coef_, grid_, dims_, cones_;
     kernels::BufferLease steps_buf_, out_buf_, chords_buf_;
-    std::array<kernels::BufferLease, 3> removed_buf_;
+    std::array<kernels::BufferLease, 3> removed_buf_, pose_buf_, body_out_;
+    kernels::BufferLease body_buf_;
+    std::vector<double> host_body_;
     std::vector<double> host_steps_, host_chords_, host_removed_;
     struct Drain {
         kernels::QueueLease* queue = nullptr;
