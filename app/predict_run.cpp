@@ -176,10 +176,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
                                                          "five-axis work), which is predicted with one cutter so far, and "
                                                          "the run spec's tool table has {} (docs/five_axis.md, section 3.4)",
                                                          in.spec.tools.size()));
-                if (in.base_stock)
-                    throw InputError("base_stock", "the tool turns while it can reach the stock (simultaneous five-axis "
-                                                   "work), which cuts the multi-direction stock from the run spec's box: "
-                                                   "a base stock cannot be its start yet (docs/five_axis.md, section 3.4)");
                 turns = true;
             }
             if (turns) {

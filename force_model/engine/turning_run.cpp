@@ -76,6 +76,97 @@ StockPtr z_map_of(const kernels::TriDexel& tri) {
     return s;
 }
 
+// Appends the run of cells [k0, k1) (positions lo + k g along the ray) to a ray being built, as
+// the box clips it; past kDexelIntervals runs the narrowest gap closes (as the removal does).
+void append_run(float* ray, int& used, double lo_mm, double hi_mm, double g, int k0, int k1) {
+    const float a = float(std::max(lo_mm, lo_mm + k0 * g)), b = float(std::min(hi_mm, lo_mm + k1 * g));
+    if (!(b > a)) return;
+    if (used == kernels::kDexelIntervals) {
+        int narrowest = 0;
+        for (int k = 1; k + 1 < used; ++k)
+            if (ray[k + 1] - ray[kernels::kDexelIntervals + k] <
+                ray[narrowest + 1] - ray[kernels::kDexelIntervals + narrowest])
+                narrowest = k;
+        ray[kernels::kDexelIntervals + narrowest] = ray[kernels::kDexelIntervals + narrowest + 1];
+        for (int k = narrowest + 1; k + 1 < used; ++k) {
+            ray[k] = ray[k + 1];
+            ray[kernels::kDexelIntervals + k] = ray[kernels::kDexelIntervals + k + 1];
+        }
+        --used;
+    }
+    ray[used] = a;
+    ray[kernels::kDexelIntervals + used] = b;
+    ++used;
+}
+
+// A three-axis run's stock (a Z-map) as the start of the multi-direction stock. The Z family is its
+// rays as they are; an X or Y ray holds a cell where the Z ray of that cell's column holds the ray's
+// height, so its walls lie on cell boundaries, half a cell at most from where the Z-map's sub-cell
+// walls place them (not carried over yet), and its intervals are whole cells.
+kernels::TriDexel tri_dexel_of(const Stock& base) {
+    if (!base.grid_from_stock.is_identity())
+        throw SpecError("base_stock: it was cut with the tool tilted at a fixed orientation and is kept in that tool's "
+                        "frame; a tool that turns while it cuts needs a stock in the part's axes (docs/five_axis.md, "
+                        "section 3.4)");
+    const std::array<double, 3> lo{base.box.min_mm[0], base.box.min_mm[1], base.box.min_mm[2]};
+    const std::array<double, 3> hi{base.box.max_mm[0], base.box.max_mm[1], base.box.max_mm[2]};
+    kernels::TriDexel t = kernels::make_tri_dexel_box(lo, hi, base.grid.cell_mm);
+    const int nx = base.grid.nx, ny = base.grid.ny;
+    kernels::RayFamily &fx = t.family[0], &fy = t.family[1], &fz = t.family[2];
+    if (fz.nu != nx || fz.nv != ny || base.grid.x0_mm != lo[0] || base.grid.y0_mm != lo[1] || fx.nu != ny || fy.nv != nx)
+        throw std::logic_error("predict_turning: the base stock's grid and the multi-direction stock of its box differ");
+    const double g = t.cell_mm;
+    const int nz = fx.nv;   // X rays: u = y (nu = ny), v = z; Y rays: u = z (nu = nz), v = x
+    // Runs of material cells along X for each (y, z), along Y for each (z, x): where each began (-1: none).
+    std::vector<int> x_run(std::size_t(ny) * std::size_t(nz), -1), x_used(x_run.size(), 0);
+    std::vector<int> y_run(std::size_t(nz) * std::size_t(nx), -1), y_used(y_run.size(), 0);
+    for (std::size_t r = 0; r < fx.count(); ++r) std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), fx.ray(r));
+    for (std::size_t r = 0; r < fy.count(); ++r) std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), fy.ray(r));
+    std::vector<char> solid(static_cast<std::size_t>(nz), 0);
+    for (int j = 0; j < ny; ++j) {
+        for (int i = 0; i <= nx; ++i) {
+            // Which heights of column (i, j) hold material (none past the last column: runs close).
+            std::fill(solid.begin(), solid.end(), 0);
+            if (i < nx) {
+                const kernels::Ray ray = base.ray(i, j);
+                // Its intervals as they are (a wall mark in the last slot is no interval and stays behind).
+                float* z_ray = fz.ray(std::size_t(j) * std::size_t(nx) + std::size_t(i));
+                std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), z_ray);
+                int z_used = 0;
+                for (int k = 0; k < kernels::kDexelIntervals; ++k) {
+                    const double a = ray[k], b = ray[kernels::kDexelIntervals + k];
+                    if (!(b > a)) continue;
+                    z_ray[z_used] = ray[k];
+                    z_ray[kernels::kDexelIntervals + z_used] = ray[kernels::kDexelIntervals + k];
+                    ++z_used;
+                    // Cells whose centre lies in [a, b).
+                    const int c0 = std::max(0, int(std::ceil((a - lo[2]) / g - 0.5)));
+                    const int c1 = std::min(nz, int(std::ceil((b - lo[2]) / g - 0.5)));
+                    for (int c = c0; c < c1; ++c) solid[std::size_t(c)] = 1;
+                }
+            }
+            for (int c = 0; c < nz; ++c) {
+                const std::size_t xr = std::size_t(c) * std::size_t(ny) + std::size_t(j);   // X ray (u = j, v = c)
+                if (solid[std::size_t(c)] && x_run[xr] < 0) x_run[xr] = i;
+                if (!solid[std::size_t(c)] && x_run[xr] >= 0) {
+                    append_run(fx.ray(xr), x_used[xr], lo[0], hi[0], g, x_run[xr], i);
+                    x_run[xr] = -1;
+                }
+                if (i == nx) continue;
+                const std::size_t yr = std::size_t(i) * std::size_t(nz) + std::size_t(c);   // Y ray (u = c, v = i)
+                if (solid[std::size_t(c)] && y_run[yr] < 0) y_run[yr] = j;
+                if (!solid[std::size_t(c)] && y_run[yr] >= 0) {
+                    append_run(fy.ray(yr), y_used[yr], lo[1], hi[1], g, y_run[yr], j);
+                    y_run[yr] = -1;
+                }
+            }
+        }
+    }
+    for (std::size_t yr = 0; yr < y_run.size(); ++yr)
+        if (y_run[yr] >= 0) append_run(fy.ray(yr), y_used[yr], lo[1], hi[1], g, y_run[yr], ny);
+    return t;
+}
+
 class TurningWalk {
 public:
     TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec, const ToolPlan& plan,
@@ -98,6 +189,7 @@ private:
     const PredictOptions& opt_;
     const std::function<void(std::span<const ForceSample>)>& check_rows_;
     ToolGeometry tool_;
+    StockBox stock_box_;   // the box the stock covers: the spec's, or the base stock's
     std::optional<PoseEngine> engine_;
     RowTable rows_;
     std::optional<BlockSummaries> blocks_;   // with rows_out: the rows leave, their summaries stay
@@ -123,9 +215,7 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
         throw SpecError(fmt::format("tools: a tool that turns while it cuts (simultaneous five-axis work) is predicted "
                                     "with one cutter so far, and this run plans {} (docs/five_axis.md, section 3.4)",
                                     plan.tools.size()));
-    if (opt.base_stock || opt.own_stock)
-        throw SpecError("base_stock: a tool that turns while it cuts cuts the multi-direction stock, which starts from the "
-                        "run spec's box so far: a base stock (a Z-map) cannot be its start (docs/five_axis.md, section 3.4)");
+    const Stock* base = opt.own_stock && *opt.own_stock ? opt.own_stock->get() : opt.base_stock;
     const Cutter& cutter = plan.tools[0].cutter;
     tool_ = build_tool_geometry(cutter, spec.resolution.axial_step_mm);
     tool_.holder_clearance_mm = plan.tools[0].limits.holder_clearance_mm;
@@ -138,13 +228,17 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     } catch (const std::invalid_argument& e) {
         throw SpecError(std::string("tool: a tool that turns while it cuts needs a convex cutting part: ") + e.what());
     }
-    const std::array<double, 3> lo{spec.stock.min_mm[0], spec.stock.min_mm[1], spec.stock.min_mm[2]};
-    const std::array<double, 3> hi{spec.stock.max_mm[0], spec.stock.max_mm[1], spec.stock.max_mm[2]};
-    const double rays = double(kernels::tri_dexel_bytes(lo, hi, grid_mm)) / (kernels::kDexelFloats * sizeof(float));
+    const StockBox& box = base ? base->box : spec.stock;
+    const double cell_mm = base ? base->grid.cell_mm : grid_mm;
+    stock_box_ = box;
+    const std::array<double, 3> lo{box.min_mm[0], box.min_mm[1], box.min_mm[2]};
+    const std::array<double, 3> hi{box.max_mm[0], box.max_mm[1], box.max_mm[2]};
+    const double rays = double(kernels::tri_dexel_bytes(lo, hi, cell_mm)) / (kernels::kDexelFloats * sizeof(float));
     if (rays > kMaxStockRays)
         throw SpecError(fmt::format("resolution.grid_mm: the multi-direction stock of this box at {} mm takes {:.3g} rays, "
                                     "more than {:.3g}",
-                                    grid_mm, rays, kMaxStockRays));
+                                    cell_mm, rays, kMaxStockRays));
+    const auto start = [&] { return base ? tri_dexel_of(*base) : kernels::make_tri_dexel_box(lo, hi, cell_mm); };
     kernels::EngageParams params;
     set_kernel_law(cutting_law(spec.material, EngineSettings{}.min_chip_mm), params);
     params.holder_face_z_mm = tool_.stickout_mm;
@@ -152,11 +246,11 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     PoseEngineSettings settings;
     settings.opencl = opt.device == Device::OpenCL;
     try {
-        engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, solid, params, settings);
+        engine_.emplace(start(), tool_, solid, params, settings);
     } catch (const kernels::OpenClError& e) {
         // A device without double precision (or none at all) still predicts, on the twins, and says so.
         settings.opencl = false;
-        engine_.emplace(kernels::make_tri_dexel_box(lo, hi, grid_mm), tool_, std::move(solid), params, settings);
+        engine_.emplace(start(), tool_, std::move(solid), params, settings);
         device_note_ = std::string(" (OpenCL not used: ") + e.what() + ")";
     }
     rows_.use_tool(0, motion.size() > 0 ? plan.number_at(0) : -1, tool_.shank_diameter_mm);
@@ -179,7 +273,7 @@ bool TurningWalk::in_air(std::size_t i) const {
         bool overlaps = true;
         for (int a = 0; a < 3 && overlaps; ++a) {
             const double top = tip[a] + tool_.flute_length_mm * R[a][2];
-            overlaps = std::min(tip[a], top) - r <= spec_.stock.max_mm[a] && std::max(tip[a], top) + r >= spec_.stock.min_mm[a];
+            overlaps = std::min(tip[a], top) - r <= stock_box_.max_mm[a] && std::max(tip[a], top) + r >= stock_box_.min_mm[a];
         }
         if (overlaps) return false;
     }

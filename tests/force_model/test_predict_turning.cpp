@@ -184,3 +184,59 @@ TEST_CASE("predict_turning on the OpenCL device gives the scalar twins' rows, bl
     REQUIRE(twin.final_stock);
     CHECK(force_model::stock_volume_mm3(*cl.final_stock) == Approx(force_model::stock_volume_mm3(*twin.final_stock)).epsilon(1e-9));
 }
+
+// A base stock (a Z-map, as a three-axis run or an earlier turning run leaves it) as the start of
+// the multi-direction stock: pass A, then pass B from A's final stock, against A and B in one run.
+// B overlaps A's groove by 2.4 mm, so it cuts into the groove's wall, which the X and Y rays of the
+// converted stock hold to the cell (the Z rays exactly).
+TEST_CASE("predict_turning from a base stock cuts as the same passes in one run", "[tri_dexel][turning][base_stock]") {
+    const auto path_of = [](const testref::Vec3& start, std::vector<testref::PathSegment> legs) {
+        testref::Path p;
+        p.start_mm = start;
+        p.segments = std::move(legs);
+        p.feed_mm_min = kFeed_mm_min;
+        p.spindle_rpm = 10000;
+        return p;
+    };
+    const testref::Path both = path_of({-8, 0, -2}, {testref::line_to({48, 0, -2}, "N10"), testref::line_to({48, 45, -2}, "N20"),
+                                                     testref::line_to({-8, 45, -2}, "N30"), testref::line_to({-8, 6, -2}, "N40"),
+                                                     testref::line_to({48, 6, -2}, "N50")});
+    const testref::Path a = path_of({-8, 0, -2}, {testref::line_to({48, 0, -2}, "N10")});
+    const testref::Path b = path_of({-8, 6, -2}, {testref::line_to({48, 6, -2}, "N50")});
+    const force_model::RunSpec spec = force_model::parse_run_spec_text(kSpec, "turning.json");
+    for (const force_model::Device d : testref::devices_under_test()) {
+        INFO(testref::device_name(d));
+        force_model::PredictOptions opt;
+        opt.device = d;
+        const auto m_both = testref::uniform_motion(both), m_a = testref::uniform_motion(a), m_b = testref::uniform_motion(b);
+        const force_model::Prediction one = force_model::predict_turning(m_both, leaning_poses(m_both.size()), spec, opt);
+        opt.keep_final_stock = true;
+        const force_model::Prediction first = force_model::predict_turning(m_a, leaning_poses(m_a.size()), spec, opt);
+        REQUIRE(first.final_stock);
+        opt.keep_final_stock = false;
+        opt.base_stock = first.final_stock.get();
+        const force_model::Prediction second = force_model::predict_turning(m_b, leaning_poses(m_b.size()), spec, opt);
+
+        const double v = kFeed_mm_min / 60;
+        const double b_in_one_s = (56 + 45 + 56 + 39) / v;
+        const auto f_one = mean_force(one.samples, b_in_one_s + 28 / v, b_in_one_s + 46 / v);
+        const auto f_two = mean_force(second.samples, 28 / v, 46 / v);
+        // Without the base stock pass B would cut a full groove: the wall it meets is A's.
+        opt.base_stock = nullptr;
+        const force_model::Prediction fresh = force_model::predict_turning(m_b, leaning_poses(m_b.size()), spec, opt);
+        const auto f_fresh = mean_force(fresh.samples, 28 / v, 46 / v);
+        const double scale = std::hypot(f_one[0], f_one[1], f_one[2]);
+        INFO("one run (" << f_one[0] << ", " << f_one[1] << ", " << f_one[2] << ") N, from the base (" << f_two[0] << ", "
+                         << f_two[1] << ", " << f_two[2] << ") N, fresh (" << f_fresh[0] << ", " << f_fresh[1] << ", "
+                         << f_fresh[2] << ") N");
+        CHECK(scale > 30);
+        for (int c = 0; c < 3; ++c) CHECK(std::abs(f_one[c] - f_two[c]) < 0.01 * scale);
+        CHECK(std::hypot(f_one[0] - f_fresh[0], f_one[1] - f_fresh[1], f_one[2] - f_fresh[2]) > 0.1 * scale);
+        double removed_one = 0, removed_two = 0;
+        for (const auto& r : one.samples)
+            if (r.t_s >= b_in_one_s) removed_one += r.removed_mm3;
+        for (const auto& r : second.samples) removed_two += r.removed_mm3;
+        INFO("pass B removed " << removed_one << " mm3 in one run, " << removed_two << " from the base");
+        CHECK(removed_two == Approx(removed_one).epsilon(0.01));
+    }
+}
