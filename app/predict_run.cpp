@@ -181,6 +181,9 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             if (turns) {
                 TurningMotion t = turning_motion(axes, *in.machine, in.tool_length_mm);
                 r.motion = std::move(t.motion);
+                r.motion_tool_axis.reserve(t.poses.tool_to_stock.size());
+                for (const force_model::Rotation3& R : t.poses.tool_to_stock)   // row-major: the axis is column 2
+                    r.motion_tool_axis.push_back({float(R.m[2]), float(R.m[5]), float(R.m[8])});
                 turning = std::move(t.poses);
                 r.tool_lean_deg = t.max_lean_deg;
                 r.turning = true;

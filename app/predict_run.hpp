@@ -136,6 +136,11 @@ struct RunResult {
     // multi-direction stock (force_model::predict_turning); tool_axis is then the log's first
     // sample's and tool_lean_deg the largest lean over the log. FORCES rows carry the axis per row.
     bool turning = false;
+    // A turning tool's axis at each sample of `motion` (unit, tip to spindle, stock axes: the poses
+    // the engine cut with, forward kinematics with the machine's errors); empty for any other run,
+    // whose axis is tool_axis throughout. The service stores it beside the motion (/motion's
+    // tool_axis_x, _y, _z) for the web page's 3-D view.
+    std::vector<std::array<float, 3>> motion_tool_axis;
 };
 
 // Phases: Ingest, then with a program Program and Mapping, Predict, with a commanded path

@@ -34,6 +34,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <stdexcept>
 #include <sstream>
 
 namespace cutload::server {
@@ -773,12 +774,35 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
     const auto id = x.id();
     if (s == SeriesId::Forces && x.param("source") == "commanded") s = SeriesId::CommandedForces;
     const auto max_points = *x.param_int("max_points");
-    const auto& ch = series_channels(s);
+    // /motion also answers a turning tool's axis per sample (SeriesId::ToolAxis, stored on the
+    // motion's times): three more channels after the motion's own, for runs that stored it.
+    std::vector<std::string> ch = series_channels(s);
+    const std::size_t own_channels = ch.size();
+    if (s == SeriesId::Motion) {
+        const auto& axis = series_channels(SeriesId::ToolAxis);
+        ch.insert(ch.end(), axis.begin(), axis.end());
+    }
     std::vector<bool> wanted = wanted_channels(x, ch);
     auto session = core.session();
     db::Session& c = *session;
     const RunRef run = require_done(c, id);
     if (s == SeriesId::CommandedForces) require_program(c, id);
+    bool with_axis = false;
+    if (ch.size() > own_channels) {
+        double t0 = 0, t1 = 0;
+        with_axis = series_extent(c, core.series_cache, run, SeriesId::ToolAxis, &t0, &t1);
+        if (!with_axis) {
+            // Asked for by name from a run without them: said, not answered empty.
+            if (x.param("channels") && std::find(wanted.begin() + std::ptrdiff_t(own_channels), wanted.end(), true) != wanted.end())
+                throw ApiError(404, "no_tool_axis",
+                               fmt::format("run {} has no tool axis per sample: only a run whose tool turned while it "
+                                           "cut (summary.kinematics.turning) stores one; any other stands at "
+                                           "summary.kinematics.tool_axis, or along +Z without a machine",
+                                           id));
+            ch.resize(own_channels);
+            wanted.resize(own_channels);
+        }
+    }
     const bool csv = x.wants_csv();
     const bool gzip = accepts_gzip(x.req);
     const bool whole_run = !x.given("from_s") && !x.given("to_s");
@@ -798,8 +822,18 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
         const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
         std::vector<bool> read = wanted;
         read[block_col] = true;
-        const Window w =
-            query_window(c, core.series_cache, run, s, from_s, to_s, static_cast<std::size_t>(max_points), read);
+        Window w = query_window(c, core.series_cache, run, s, from_s, to_s, static_cast<std::size_t>(max_points),
+                                std::vector<bool>(read.begin(), read.begin() + std::ptrdiff_t(own_channels)));
+        if (with_axis) {
+            const Window a = query_window(c, core.series_cache, run, SeriesId::ToolAxis, from_s, to_s,
+                                          static_cast<std::size_t>(max_points),
+                                          std::vector<bool>(read.begin() + std::ptrdiff_t(own_channels), read.end()));
+            // Stored on the motion's times with the motion's chunking: the windows are the same buckets.
+            if (a.t_s != w.t_s || a.t_end_s != w.t_end_s || a.decimated != w.decimated)
+                throw std::logic_error(fmt::format("run {}: the tool axis series does not line up with the motion", id));
+            w.lo.insert(w.lo.end(), a.lo.begin(), a.lo.end());
+            w.hi.insert(w.hi.end(), a.hi.begin(), a.hi.end());
+        }
         const auto names = block_names(c, core.series_cache, run);
         std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
                                : series_json(id, from_s, to_s, static_cast<std::size_t>(max_points), w, ch, wanted,
@@ -820,8 +854,9 @@ void series_route(Core& core, Ctx& x, SeriesId s) {
     x.res.set_header("Content-Type", csv ? "text/csv" : "application/json");
 }
 
-// The window and shape parameters /forces and /motion share.
-std::vector<Param> series_params(const Core& core) {
+// The window and shape parameters /forces and /motion share; `channels`: what that parameter
+// names there.
+std::vector<Param> series_params(const Core& core, const std::string& channels) {
     return {path_id(),
             query_number("from_s", "window start (default: first sample)"),
             query_number("to_s", "window end (default: last sample)"),
@@ -829,7 +864,7 @@ std::vector<Param> series_params(const Core& core) {
                                     "min/max-envelope decimated")
                 .range(2, core.opt.max_points)
                 .or_else(2000),
-            query_string("channels", "comma-separated channels to return (default: all)"),
+            query_string("channels", "comma-separated channels to return (default: all): " + channels),
             query_string("format", "csv: same as Accept: text/csv").one_of({"json", "csv"})};
 }
 
@@ -865,7 +900,8 @@ void add_run_routes(Core& core) {
                  query_int("limit", "page size").range(1, 10000).or_else(1000),
                  query_bool("flagged", "only blocks with flags")}},
                [&core](Ctx& x) { list_blocks(core, x); });
-    std::vector<Param> forces = series_params(core);
+    std::vector<Param> forces = series_params(core, "spindle_angle_deg, block, fx_N, fy_N, fz_N, f_N, torque_Nm, power_kW, "
+                                                    "chip_mm, bending_MPa, radial_engagement_mm, axial_engagement_mm");
     forces.push_back(query_string("source",
                                   "commanded: forces predicted from the NC program's path at programmed feed (runs uploaded "
                                   "with nc_program; 404 no_program otherwise). Same channels and block_names as actual.")
@@ -873,7 +909,10 @@ void add_run_routes(Core& core) {
                          .or_else("actual"));
     core.route({"GET", "/api/v1/runs/{id}/forces", Role::Read, forces},
                [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
-    std::vector<Param> motion = series_params(core);
+    std::vector<Param> motion = series_params(
+        core, "x_mm, y_mm, z_mm, feed_mm_min, spindle_rpm, block, and for a run whose tool turned while it cut "
+              "(summary.kinematics.turning) tool_axis_x, tool_axis_y, tool_axis_z: its axis per sample (unit, tip to "
+              "spindle, stock axes); asked for by name from any other run, 404 no_tool_axis");
     motion.push_back(query_string("source", "actual only (the logged motion): only /forces has a commanded counterpart")
                          .one_of({"actual"})
                          .refused_as("actual (only /forces has a commanded counterpart; /motion is the log's)")

@@ -72,7 +72,8 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         if (!s->jobs().holds(db::kRunQueue, id, ctx.claim)) return std::nullopt;
         const json kinematics = kinematics_summary(r.tool_axis, r.tool_lean_deg, r.fixed_tilt, r.turning);
         alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
-                              opt.limit_alerts, &ctx.cancel, forces ? &*forces : nullptr, in.machine ? &kinematics : nullptr);
+                              opt.limit_alerts, &ctx.cancel, forces ? &*forces : nullptr, in.machine ? &kinematics : nullptr,
+                              r.motion_tool_axis);
         tx.commit();
         // Spools of earlier claims of this run whose process died: the run is stored, they are not needed.
         std::error_code ec;

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <stdexcept>
 
 namespace cutload::server {
 namespace fs = std::filesystem;
@@ -77,6 +78,17 @@ SeriesData motion_series(const motion_io::MotionModel& m) {
                              static_cast<float>(m.block[i])};
         d.values.insert(d.values.end(), std::begin(row), std::end(row));
     }
+    return d;
+}
+
+// A turning tool's axis per motion sample, on the motion's times.
+SeriesData tool_axis_series(const motion_io::MotionModel& m, std::span<const std::array<float, 3>> axis) {
+    if (axis.size() != m.size())
+        throw std::invalid_argument(fmt::format("a tool axis for {} motion samples, not {}", axis.size(), m.size()));
+    SeriesData d;
+    d.t_s = m.t_s;
+    d.values.reserve(3 * axis.size());
+    for (const auto& a : axis) d.values.insert(d.values.end(), a.begin(), a.end());
     return d;
 }
 
@@ -281,7 +293,8 @@ namespace {
 int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion, const force_model::Prediction& p,
               const std::string* stock_bytes, const ProgramResult* program, bool limit_alerts,
               std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel,
-              ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr) {
+              ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr,
+              std::span<const std::array<float, 3>> tool_axis = {}) {
     db::Transaction tx(s);
     // Cancelled or deleted while computing: nothing to store.
     const auto status = s.runs().status(run_id);
@@ -300,6 +313,7 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
     }
     else write_series(runs, run_id, SeriesId::Forces, force_series(p));
     write_series(runs, run_id, SeriesId::Motion, motion_series(motion));
+    if (!tool_axis.empty()) write_series(runs, run_id, SeriesId::ToolAxis, tool_axis_series(motion, tool_axis));
     if (stock_bytes) runs.set_final_stock(run_id, *stock_bytes);
     const int alerts = alerts_raised ? *alerts_raised : raise_alerts(s, run_id, p, limit_alerts);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0,
@@ -341,9 +355,10 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
 
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces, const json* kinematics) {
+                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces, const json* kinematics,
+                 std::span<const std::array<float, 3>> tool_axis) {
     return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel, forces,
-                     kinematics);
+                     kinematics, tool_axis);
 }
 
 json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean_deg, bool fixed_tilt, bool turning) {

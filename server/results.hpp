@@ -52,11 +52,14 @@ private:
 // `limit_alerts`: flagged blocks raise an alert without a threshold (ServerOptions::limit_alerts).
 // `forces`: the forces series built while predicting (p.samples is then empty), else built from p.
 // `kinematics`: for a run with a machine definition, what the summary says of the tool's
-// orientation (kinematics_summary), else null.
+// orientation (kinematics_summary), else null. `tool_axis`: a turning tool's axis per motion
+// sample (app::RunResult::motion_tool_axis), stored as SeriesId::ToolAxis when not empty; it must
+// then be as long as `motion` (std::invalid_argument).
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
                  const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
                  bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr,
-                 ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr);
+                 ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr,
+                 std::span<const std::array<float, 3>> tool_axis = {});
 
 // A run's summary.kinematics: the tool's axis where it cuts (stock axes), its lean from +Z in
 // degrees, whether the engine ran in the tool's frame (a fixed tilt, docs/five_axis.md 2.5), and

@@ -22,7 +22,8 @@ const std::vector<std::string>& series_channels(SeriesId s) {
         "spindle_angle_deg", "block", "fx_N", "fy_N", "fz_N", "f_N", "torque_Nm", "power_kW",
         "chip_mm", "bending_MPa", "radial_engagement_mm", "axial_engagement_mm"};
     static const std::vector<std::string> motion{"x_mm", "y_mm", "z_mm", "feed_mm_min", "spindle_rpm", "block"};
-    return s == SeriesId::Motion ? motion : forces;
+    static const std::vector<std::string> tool_axis{"tool_axis_x", "tool_axis_y", "tool_axis_z"};
+    return s == SeriesId::Motion ? motion : s == SeriesId::ToolAxis ? tool_axis : forces;
 }
 
 // Level L holds the chunk being filled and the group of up to kFanout elements that becomes one

@@ -22,8 +22,11 @@
 
 namespace cutload::server {
 
-// CommandedForces: forces predicted from a run's NC program (same channels as Forces).
-enum class SeriesId : int { Forces = 0, Motion = 1, CommandedForces = 2 };
+// CommandedForces: forces predicted from a run's NC program (same channels as Forces). ToolAxis:
+// the axis of a tool that turned while it cut (app::RunResult::motion_tool_axis), one row per
+// motion sample at the motion's times, so its chunks and envelopes line up with Motion's and
+// /motion answers it as three more channels; other runs store none.
+enum class SeriesId : int { Forces = 0, Motion = 1, CommandedForces = 2, ToolAxis = 3 };
 
 constexpr std::size_t kChunkElems = 4096;
 // Small enough that the level a query reads holds at most kFanout x max_points elements.

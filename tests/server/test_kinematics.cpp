@@ -174,6 +174,16 @@ TEST_CASE("kinematics: a tool tilted at a fixed orientation is predicted, says s
         }
     CHECK(cut > 100);
     CHECK(top > 1000);
+
+    // A fixed tilt stores no axis per sample (summary.kinematics.tool_axis is its axis): /motion
+    // answers as for any run, and the axis asked for by name is 404, saying where the axis is.
+    const json motion = body(c.Get("/api/v1/runs/" + std::to_string(id) + "/motion?max_points=20000"));
+    CHECK(motion.contains("x_mm"));
+    CHECK(!motion.contains("tool_axis_x"));
+    require_error(c.Get("/api/v1/runs/" + std::to_string(id) + "/motion?channels=x_mm,tool_axis_z"), 404, "no_tool_axis",
+                  "summary.kinematics.tool_axis");
+    require_error(c.Get("/api/v1/runs/" + std::to_string(id) + "/motion?channels=tool_axis_w"), 400, "bad_request",
+                  "unknown channel 'tool_axis_w'");
 }
 
 TEST_CASE("kinematics: a tool whose lean turns while it cuts is predicted on the multi-direction stock and says so") {
@@ -211,6 +221,51 @@ TEST_CASE("kinematics: a tool whose lean turns while it cuts is predicted on the
             if (!t.is_null() && x > 2 && x < 18 && std::abs(y) < 3) cut += t.get<double>() < -1.9;
         }
     CHECK(cut > 100);
+
+    // The tool's axis per motion sample comes with /motion (the web page's 3-D view stands the tool
+    // on it): unit, in the plane of the lean (y = 0), the log's first sample's the summary's, the
+    // lean turning from 30 to 10 deg and never back, in the same rows as the path.
+    const std::string motion_url = "/api/v1/runs/" + std::to_string(id) + "/motion";
+    const json m = body(c.Get(motion_url + "?max_points=20000"));
+    REQUIRE(!m["decimated"].get<bool>());
+    const std::size_t n = m["t_s"].size();
+    REQUIRE(n > 100);
+    REQUIRE(m["tool_axis_x"].size() == n);
+    REQUIRE(m["tool_axis_z"].size() == n);
+    REQUIRE(m["x_mm"].size() == n);
+    double lean_before = 90, worst_unit = 0, worst_y = 0, worst_back = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double ax = m["tool_axis_x"][i], ay = m["tool_axis_y"][i], az = m["tool_axis_z"][i];
+        worst_unit = std::max(worst_unit, std::abs(std::hypot(ax, ay, az) - 1));
+        worst_y = std::max(worst_y, std::abs(ay));
+        const double lean = std::atan2(ax, az) * 180 / std::numbers::pi;
+        worst_back = std::max(worst_back, lean - lean_before);
+        lean_before = lean;
+        if (i == 0) {
+            CHECK(ax == Approx(k["tool_axis"][0].get<double>()).margin(1e-6));
+            CHECK(ay == Approx(k["tool_axis"][1].get<double>()).margin(1e-6));
+            CHECK(az == Approx(k["tool_axis"][2].get<double>()).margin(1e-6));
+            CHECK(lean == Approx(30).margin(0.05));
+        }
+    }
+    CHECK(lean_before == Approx(10).margin(0.05));
+    CHECK(worst_unit < 1e-6);
+    CHECK(worst_y < 1e-4);   // the C reading's 0.001 deg steps
+    CHECK(worst_back < 2e-3);
+    // Only the axis, as asked; decimated, each bucket's range like any channel's; and in the CSV.
+    const json only = body(c.Get(motion_url + "?max_points=20000&channels=tool_axis_z"));
+    CHECK(only["tool_axis_z"] == m["tool_axis_z"]);
+    CHECK(!only.contains("tool_axis_x"));
+    CHECK(!only.contains("x_mm"));
+    const json coarse = body(c.Get(motion_url + "?max_points=20"));
+    REQUIRE(coarse["decimated"].get<bool>());
+    REQUIRE(coarse["tool_axis_x"]["min"].size() == coarse["t_s"].size());
+    CHECK(coarse["tool_axis_x"]["max"][0].get<double>() >= coarse["tool_axis_x"]["min"][0].get<double>());
+    CHECK(coarse["tool_axis_x"]["max"][0].get<double>() == Approx(0.5).margin(0.02));
+    const auto csv = c.Get(motion_url + "?max_points=20000&format=csv");
+    REQUIRE(csv->status == 200);
+    CHECK_THAT(csv->body.substr(0, csv->body.find('\n')),
+               Catch::Equals("t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,block,tool_axis_x,tool_axis_y,tool_axis_z"));
 }
 
 TEST_CASE("kinematics: a tilted run whose turned stock passes the cell limit is refused at upload with the job's figures, "

@@ -16,7 +16,7 @@ import { problemsPanel, worstLoad } from './problems.js';
 import { Listing, programRows, blockRows } from './listing.js';
 import { flagLabel, warningText, QUANTITIES } from './labels.js';
 import { setTitle } from './title.js';
-import { toolAxisText } from './tool_axis.js';
+import { toolAxisText, motionAxes } from './tool_axis.js';
 
 const POLL_MS = 250;   // the server updates progress at most every 250 ms
 const MIN_BLOCK_SPAN_S = 1e-3;
@@ -190,7 +190,8 @@ function pathLoad(points, plot, limits) {
   return { ratio, relative };
 }
 
-// Motion window answer -> {t, x, y, z} in stock coordinates; buckets of a decimated answer
+// Motion window answer -> {t, x, y, z} in stock coordinates, and axis (a turning tool's axis
+// per point, tool_axis.js motionAxes) where the answer carries it; buckets of a decimated answer
 // are taken at their midpoints (a few thousand buckets are finer than the screen).
 export function pathPoints(w, offset = [0, 0, 0]) {
   const n = w.t_s.length;
@@ -204,7 +205,8 @@ export function pathPoints(w, offset = [0, 0, 0]) {
       p[a][i] = v + offset[k];
     }
   }
-  return { t, ...p };
+  const axis = motionAxes(w);
+  return axis ? { t, ...p, axis } : { t, ...p };
 }
 
 // The 3-D view section: loads three.js and the stock only now, so the plot never waits for them.
@@ -235,7 +237,7 @@ function view3dSection(run, disposers, blocks = []) {
   async function load({ plot, onPick }) {
     try {
       const loadStarted = performance.now();
-      const [{ View3D, webglAvailable, fieldHeights, LOAD_CLASSES, CONTINUOUS_STOPS }, motion, field, baseField] = await Promise.all([
+      const [{ View3D, webglAvailable, fieldHeights, LOAD_CLASSES, CONTINUOUS_STOPS, TOOL_AXIS_COLOUR }, motion, field, baseField] = await Promise.all([
         import('./view3d.js'),
         api.motion(run.id, { max_points: PATH_POINTS }),
         api.stock(run.id, { max_cells: STOCK_CELLS }),
@@ -283,7 +285,7 @@ function view3dSection(run, disposers, blocks = []) {
         h('span', { class: 'sep' }), mode, measure,
         btn('Final stock', () => view.setTime(null), { title: 'Show the final stock without the tool' }));
       const limitWord = relative ? 'of the peak force (no limit set)' : 'of the limit';
-      const axisText = toolAxisText(run.summary?.kinematics);
+      const axisText = toolAxisText(run.summary?.kinematics, { perSample: Boolean(points.axis) });
       const showLegend = (m) => {
         if (m === 'continuous') {
           clear(legend, h('span', {}, '0 %'),
@@ -296,6 +298,11 @@ function view3dSection(run, disposers, blocks = []) {
             c.key === 'air' ? c.label : c.label.replace('of the limit', limitWord))));
         }
         legend.append(h('span', { class: 'muted' }, ` Stock ${num(field.box_mm.max[0] - field.box_mm.min[0])} × ${num(field.box_mm.max[1] - field.box_mm.min[1])} × ${num(field.box_mm.max[2] - field.box_mm.min[2])} mm, shown in ${num(field.cell_mm)} mm cells.`));
+        // A turning tool's axis along the path: its strokes' key.
+        if (points.axis) {
+          legend.append(h('span', { class: 'key' },
+            h('span', { class: 'swatch', style: `border-top: 2px solid ${TOOL_AXIS_COLOUR}` }), 'tool axis along the path'));
+        }
         // A tilted tool reads wrong against the X, Y, Z of the view unless its axis is said too.
         if (axisText) legend.append(h('span', { class: 'tool-axis', id: 'tool-axis' }, axisText));
       };

@@ -1,7 +1,9 @@
 // How the tool stands in the 3-D view. A run whose tool was tilted at one fixed orientation while
 // it cut (3+2 machining, docs/five_axis.md §2.5) reports that orientation as summary.kinematics;
-// every other run cut with the tool along the stock's +Z. No three.js and no DOM here, so node's
-// test runner loads this module as it is.
+// a run whose tool turned while it cut (simultaneous five-axis, §3.4: kinematics.turning) carries
+// its axis per sample in its /motion answer (tool_axis_x, _y, _z); every other run cut with the
+// tool along the stock's +Z. No three.js and no DOM here, so node's test runner loads this module
+// as it is.
 import { num } from './dom.js';
 
 // The fixed tilt's axis (unit, tip to spindle, stock axes), or null where the tool stands along
@@ -23,8 +25,75 @@ export function axisQuaternion(axis) {
   return [-ay / n, ax / n, 0, w / n];
 }
 
-// The legend's words for a tilted run (null otherwise), in the stock axes the view labels.
-export function toolAxisText(kinematics) {
+// The tool's axis per sample of a /motion answer (unit, tip to spindle, stock axes) as x, y, z
+// triples in one Float32Array, or null where the answer carries none (every run but a turning
+// tool's, and a turning run stored before the axis was). A decimated answer's bucket gives the
+// middle of each component's range, made unit again: the axis turns little within a bucket.
+export function motionAxes(w) {
+  const cols = [w?.tool_axis_x, w?.tool_axis_y, w?.tool_axis_z];
+  if (!cols.every(Boolean)) return null;
+  const n = w.t_s.length;
+  const out = new Float32Array(3 * n);
+  const at = (c, i) => (w.decimated ? (c.min[i] + c.max[i]) / 2 : c[i]);
+  for (let i = 0; i < n; i++) {
+    const v = cols.map((c) => at(c, i));
+    const len = Math.hypot(v[0], v[1], v[2]);
+    // A missing value (null) or a zero vector: the one before, else +Z.
+    if (!(len > 0)) {
+      if (i > 0) out.copyWithin(3 * i, 3 * (i - 1), 3 * i);
+      else out[2] = 1;
+      continue;
+    }
+    for (let k = 0; k < 3; k++) out[3 * i + k] = v[k] / len;
+  }
+  return out;
+}
+
+// The axis at path point i ([x, y, z]) of a path that carries one per point (path.axis, as
+// motionAxes gives it), else null.
+export function pointAxis(path, i) {
+  const a = path?.axis;
+  if (!a || i == null || i < 0 || 3 * i + 2 >= a.length) return null;
+  return [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+}
+
+// Short strokes up the tool's axis from path points about `spacing_mm` apart along the path (the
+// first point, then the first one at least that far on, ...), each `length_mm` long: how the tool leans along the path, for the 3-D view. At most
+// `max` strokes (the spacing grows to fit). Returns {segments: Float32Array of x0 y0 z0 x1 y1 z1
+// per stroke, points: the path indices}; none for a path without an axis per point.
+export function axisTicks(path, { spacing_mm, length_mm, max = 400 }) {
+  if (!path?.axis) return { segments: new Float32Array(0), points: [] };
+  const { x, y, z } = path;
+  const n = x.length;
+  let total = 0;
+  for (let i = 1; i < n; i++) total += Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
+  const spacing = Math.max(spacing_mm, total / Math.max(1, max - 1), 1e-9);
+  const points = [];
+  let since = Infinity;
+  for (let i = 0; i < n; i++) {
+    if (i > 0) since += Math.hypot(x[i] - x[i - 1], y[i] - y[i - 1], z[i] - z[i - 1]);
+    if (since >= spacing && points.length < max) {
+      points.push(i);
+      since = 0;
+    }
+  }
+  const segments = new Float32Array(6 * points.length);
+  points.forEach((i, k) => {
+    const a = pointAxis(path, i);
+    segments.set([x[i], y[i], z[i], x[i] + length_mm * a[0], y[i] + length_mm * a[1], z[i] + length_mm * a[2]], 6 * k);
+  });
+  return { segments, points };
+}
+
+// The legend's words for a tilted or turning run (null otherwise), in the stock axes the view
+// labels. `perSample`: the path carries the turning tool's axis per point (motionAxes).
+export function toolAxisText(kinematics, { perSample = false } = {}) {
+  if (kinematics?.turning) {
+    const lean = Number.isFinite(kinematics.tool_lean_deg) ? `, leaning up to ${num(kinematics.tool_lean_deg)}° from +Z` : '';
+    return perSample
+      ? `Tool turning while it cuts (simultaneous five-axis)${lean}: drawn on its axis at the cursor, its axis along the path as short strokes; the stock shown is the final stock`
+      : `Tool turning while it cuts (simultaneous five-axis)${lean}: this run was stored without its axis per sample, so the tool is drawn along +Z`;
+  }
   const a = toolAxis(kinematics);
   if (!a) return null;
   // The server's unit vector carries float noise (6e-17 for a nought): shown as 0, not 6e-17.

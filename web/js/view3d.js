@@ -10,12 +10,17 @@
 //
 // The tool stands along the stock's +Z, or along the run's fixed tilt (summary.kinematics, 3+2
 // machining): the path points are its tip, and the tilted tool is drawn and swept turned about it.
+// A tool that turned while it cut (simultaneous five-axis) comes with its axis per path point
+// (path.axis, from /motion): the tool is drawn on the axis of the point it stands at, and short
+// strokes up the axis along the path show how it leans. Its in-process stock is not swept: the
+// sweep's table of a tilted cutter's lowest points (tiltedLift) holds for one orientation only, so
+// the view shows the engine's final stock at every time, see-through before the end.
 //
 // Three.js renders on demand (a changed view or cursor), never in a loop.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { h, lowerBound, num } from './dom.js';
-import { toolAxis, axisQuaternion, tiltedLift } from './tool_axis.js';
+import { toolAxis, axisQuaternion, tiltedLift, pointAxis, axisTicks } from './tool_axis.js';
 
 // Load classes against the limit: colour, dash and markers (pixels), so colour alone never tells.
 export const LOAD_CLASSES = [
@@ -26,6 +31,8 @@ export const LOAD_CLASSES = [
 ];
 // Continuous scale, 0 to 120 % of the limit; every stop at 3:1 or more against the stock's grey.
 export const CONTINUOUS_STOPS = ['#08306b', '#6a3d9a', '#b35806', '#a50f15'];
+// The strokes up a turning tool's axis along the path: none of the load colours, dark on the stock.
+export const TOOL_AXIS_COLOUR = '#1f2937';
 const CONTINUOUS_MAX = 1.2;
 const STOCK_COLOUR = 0xc8cdd4;
 const SELECT_COLOUR = '#1d4ed8';
@@ -227,6 +234,7 @@ export class View3D {
   // field: /stock answer (final stock); startTop: Float32Array of the starting heights on the same
   // grid (null: the box top); path: {t, x, y, z} in stock coordinates; ratio: load / limit per
   // path point (Float32Array), relative: true when no limit was set (ratio is load / peak);
+  // path.axis (optional): a turning tool's axis per point (tool_axis.js motionAxes);
   // tool: the run spec's tool; toolAt(t): the tool in the spindle at time t (runs with a tool
   // table), null where none is known (the default tool is shown); kinematics: the run's
   // summary.kinematics (a fixed tilt turns the tool; absent: along +Z); onPick(t).
@@ -244,6 +252,8 @@ export class View3D {
     this.startTop = startTop || new Float32Array(this.finalTop.length).fill(boxTop);
     this.profile = toolProfile(tool);
     this.toolAxis = toolAxis(kinematics);   // null: along +Z, the three-axis view
+    // A turning tool: its axis per path point, which wins over a fixed one; null: none.
+    this.pathAxis = path.axis || null;
     // Per path point, the tool that walks it (an index into this.tools), for the in-process stock
     // and the tool drawn at the cursor.
     this.tools = [{ tool, profile: this.profile }];
@@ -560,6 +570,8 @@ export class View3D {
 
   // The in-process heights after path point `upto` (exclusive), from the nearest saved state.
   heightsAt(upto) {
+    // A turning tool: the final stock (see the top of this file).
+    if (this.pathAxis) return Float32Array.from(this.finalTop);
     if (!this.checkpoints) this.checkpoints = [{ at: 0, top: this.startTop }];
     let cp = this.checkpoints[0];
     for (const c of this.checkpoints) if (c.at <= upto) cp = c;
@@ -631,6 +643,10 @@ export class View3D {
       if (this.toolAxis) this.toolGroup.quaternion.set(...axisQuaternion(this.toolAxis));
       this.scene.add(this.toolGroup);
     }
+    // A turning tool stands on the axis of the point it is at.
+    const axis = pointAxis(this.path, i);
+    if (axis) this.toolGroup.quaternion.set(...axisQuaternion(axis));
+    this.toolIndex = i;
     this.toolGroup.position.set(x[i], y[i], z[i]);
     this.toolGroup.visible = true;
   }
@@ -659,6 +675,13 @@ export class View3D {
     fixed.push([[x0, y0, z0, x0 + len, y0, z0], new THREE.Color(0xa50f15)]);
     fixed.push([[x0, y0, z0, x0, y0 + len, z0], new THREE.Color(0x047857)]);
     fixed.push([[x0, y0, z0, x0, y0, z0 + len], new THREE.Color(0x1d4ed8)]);
+    // A turning tool's axis along the path: a stroke up it every fortieth of the view's size
+    // (at most 400), a twentieth of that size long.
+    const ticks = axisTicks(this.path, { spacing_mm: this.size / 40, length_mm: this.size / 20 });
+    const tickColour = new THREE.Color(TOOL_AXIS_COLOUR);
+    for (let k = 0; k < ticks.points.length; k++) fixed.push([ticks.segments.subarray(6 * k, 6 * k + 6), tickColour]);
+    this.axisTicks = ticks;
+    this.container.dataset.axisTicks = String(ticks.points.length);
     const segments = (n - 1) + fixed.length;
     const pos = new Float32Array(6 * segments);
     const col = new Float32Array(6 * segments);
