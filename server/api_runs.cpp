@@ -24,6 +24,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -900,8 +901,7 @@ void add_run_routes(Core& core) {
                  query_int("limit", "page size").range(1, 10000).or_else(1000),
                  query_bool("flagged", "only blocks with flags")}},
                [&core](Ctx& x) { list_blocks(core, x); });
-    std::vector<Param> forces = series_params(core, "spindle_angle_deg, block, fx_N, fy_N, fz_N, f_N, torque_Nm, power_kW, "
-                                                    "chip_mm, bending_MPa, radial_engagement_mm, axial_engagement_mm");
+    std::vector<Param> forces = series_params(core, fmt::format("{}", fmt::join(series_channels(SeriesId::Forces), ", ")));
     forces.push_back(query_string("source",
                                   "commanded: forces predicted from the NC program's path at programmed feed (runs uploaded "
                                   "with nc_program; 404 no_program otherwise). Same channels and block_names as actual.")
@@ -910,9 +910,10 @@ void add_run_routes(Core& core) {
     core.route({"GET", "/api/v1/runs/{id}/forces", Role::Read, forces},
                [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
     std::vector<Param> motion = series_params(
-        core, "x_mm, y_mm, z_mm, feed_mm_min, spindle_rpm, block, and for a run whose tool turned while it cut "
-              "(summary.kinematics.turning) tool_axis_x, tool_axis_y, tool_axis_z: its axis per sample (unit, tip to "
-              "spindle, stock axes); asked for by name from any other run, 404 no_tool_axis");
+        core, fmt::format("{}, and for a run whose tool turned while it cut (summary.kinematics.turning) {}: its axis per "
+                          "sample (unit, tip to spindle, stock axes); asked for by name from any other run, 404 no_tool_axis",
+                          fmt::join(series_channels(SeriesId::Motion), ", "),
+                          fmt::join(series_channels(SeriesId::ToolAxis), ", ")));
     motion.push_back(query_string("source", "actual only (the logged motion): only /forces has a commanded counterpart")
                          .one_of({"actual"})
                          .refused_as("actual (only /forces has a commanded counterpart; /motion is the log's)")
