@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 using namespace cutload;
@@ -210,6 +211,28 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turni
     INFO(tilted.output);
     CHECK(tilted.exit_code == 0);
     CHECK_THAT(tilted.output, Catch::Contains("multi-direction stock"));
+    // Again from the stock that run leaves: the same path finds its material gone and cuts less.
+    {
+        const auto run_saving = [&](const std::string& extra) {
+            return clitest::run("predict " + (dir / "tilted.csv").string() + " --spec " + (dir / "near.json").string() +
+                                " --device cpu --out " + (dir / "again.csv").string() + " --machine " + machine + extra);
+        };
+        const clitest::Result first = run_saving(" --save-stock " + (dir / "after.stock").string());
+        const clitest::Result again = run_saving(" --start-stock " + (dir / "after.stock").string());
+        INFO(first.output << again.output);
+        CHECK(first.exit_code == 0);
+        CHECK(again.exit_code == 0);
+        CHECK_THAT(again.output, Catch::Contains("multi-direction stock"));
+        const auto cutting = [](const std::string& out) {
+            std::smatch m;
+            return std::regex_search(out, m, std::regex(R"((\d+) cutting)")) ? std::stol(m[1]) : -1L;
+        };
+        CHECK(cutting(first.output) > 0);
+        CHECK(cutting(again.output) >= 0);
+        CHECK(cutting(again.output) < cutting(first.output));
+        fs::remove(dir / "after.stock");
+        fs::remove(dir / "again.csv");
+    }
     // On the OpenCL kernels, with the stock in host memory (PoCL) and on a GPU's path (the stock
     // written to the device once, read back at the end: CUTLOAD_OPENCL_DISCRETE=1), the same bytes.
     try {
