@@ -171,11 +171,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
                     throw InputError("nc_program", "the tool turns while it can reach the stock (simultaneous five-axis "
                                                    "work), and comparing such a run with its NC program is not built "
                                                    "yet: predict the log alone (docs/five_axis.md, section 3.4)");
-                if (in.spec.tools.size() > 1)
-                    throw InputError("spec", fmt::format("the tool turns while it can reach the stock (simultaneous "
-                                                         "five-axis work), which is predicted with one cutter so far, and "
-                                                         "the run spec's tool table has {} (docs/five_axis.md, section 3.4)",
-                                                         in.spec.tools.size()));
                 turns = true;
             }
             if (turns) {

@@ -18,6 +18,7 @@ public:
         return kernels::sweep_tri_dexel(stock_, solid_, chords, n);
     }
     const kernels::TriDexel& stock() override { return stock_; }
+    kernels::TriDexel take_stock() override { return std::move(stock_); }
 
 private:
     kernels::TriDexel stock_;

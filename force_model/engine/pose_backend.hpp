@@ -24,6 +24,8 @@ public:
     virtual std::array<double, 3> sweep(const kernels::ToolChord* chords, std::size_t n) = 0;
     // The stock as it stands (read back from a GPU when removals changed it since the last read).
     virtual const kernels::TriDexel& stock() = 0;
+    // Moves the stock out (read back first where it lives on a device); the backend is done with.
+    virtual kernels::TriDexel take_stock() = 0;
     // The shank and the holder against the stock at one pose (kernels::tri_dexel_body_clearance on
     // the stock as it stands).
     virtual kernels::BodyClearance body_clearance(const std::array<double, 3>& tip_mm,

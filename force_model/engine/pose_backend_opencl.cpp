@@ -273,6 +273,12 @@ public:
         return stock_;
     }
 
+    kernels::TriDexel take_stock() override {
+        stock();
+        // The device is done with the families (each call waited for its work), so they can go.
+        return std::move(stock_);
+    }
+
 private:
     cl_mem rays(int f) const { return wrap_host_ ? wrapped_[f].get() : leased_[f].get(); }
 

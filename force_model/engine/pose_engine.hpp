@@ -56,6 +56,12 @@ public:
 
     // The stock as it stands (read back from the device when it changed there).
     const kernels::TriDexel& stock() const { return backend_->stock(); }
+    // Ends the path (finish) and moves the stock out, for an engine with another cutter (a tool
+    // change); this engine is done with.
+    kernels::TriDexel take_stock() {
+        finish();
+        return backend_->take_stock();
+    }
     std::string device() const { return backend_->name(); }
     // Material removed so far, as the Z family measures it, mm^3.
     double removed_mm3() const { return removed_mm3_; }

@@ -188,7 +188,17 @@ private:
     const ToolPlan& plan_;
     const PredictOptions& opt_;
     const std::function<void(std::span<const ForceSample>)>& check_rows_;
-    ToolGeometry tool_;
+    struct TurningTool {
+        ToolGeometry geometry;
+        kernels::ConvexToolSolid solid;
+        kernels::EngageParams params;
+    };
+    const TurningTool& tool() const { return tools_[std::size_t(slot_)]; }
+    void use_slot(std::int32_t slot);
+
+    std::vector<TurningTool> tools_;   // per slot of the plan
+    std::int32_t slot_ = 0;            // the cutter the engine holds
+    PoseEngineSettings settings_;
     StockBox stock_box_;   // the box the stock covers: the spec's, or the base stock's
     std::optional<PoseEngine> engine_;
     RowTable rows_;
@@ -211,22 +221,28 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     if (poses.tool_to_stock.size() != motion.size() || poses.omega_tool_rad_s.size() != motion.size())
         throw std::invalid_argument(fmt::format("predict_turning: {} poses and {} turn rates for {} motion samples",
                                                 poses.tool_to_stock.size(), poses.omega_tool_rad_s.size(), motion.size()));
-    if (plan.tools.size() != 1)
-        throw SpecError(fmt::format("tools: a tool that turns while it cuts (simultaneous five-axis work) is predicted "
-                                    "with one cutter so far, and this run plans {} (docs/five_axis.md, section 3.4)",
-                                    plan.tools.size()));
     const Stock* base = opt.own_stock && *opt.own_stock ? opt.own_stock->get() : opt.base_stock;
-    const Cutter& cutter = plan.tools[0].cutter;
-    tool_ = build_tool_geometry(cutter, spec.resolution.axial_step_mm);
-    tool_.holder_clearance_mm = plan.tools[0].limits.holder_clearance_mm;
     const double grid_mm = spec.resolution.grid_mm;
-    std::vector<std::array<double, 2>> rz;
-    for (const ProfilePoint& p : profile_polyline(cutter.profile, grid_mm / 64)) rz.push_back({p.r_mm, p.z_mm});
-    kernels::ConvexToolSolid solid;
-    try {
-        solid = kernels::convex_tool_solid(rz);
-    } catch (const std::invalid_argument& e) {
-        throw SpecError(std::string("tool: a tool that turns while it cuts needs a convex cutting part: ") + e.what());
+    const auto law = cutting_law(spec.material, EngineSettings{}.min_chip_mm);
+    // Every cutter of the table up front (the engines keep references to their edge tables, so the
+    // vector is not resized later), each refused by name where its cutting part is not convex.
+    tools_.reserve(plan.tools.size());
+    for (const PlannedTool& t : plan.tools) {
+        TurningTool tool;
+        tool.geometry = build_tool_geometry(t.cutter, spec.resolution.axial_step_mm);
+        tool.geometry.holder_clearance_mm = t.limits.holder_clearance_mm;
+        std::vector<std::array<double, 2>> rz;
+        for (const ProfilePoint& p : profile_polyline(t.cutter.profile, grid_mm / 64)) rz.push_back({p.r_mm, p.z_mm});
+        try {
+            tool.solid = kernels::convex_tool_solid(rz);
+        } catch (const std::invalid_argument& e) {
+            const std::string which = t.number >= 0 ? fmt::format("tools (T{})", t.number) : std::string("tool");
+            throw SpecError(which + ": a tool that turns while it cuts needs a convex cutting part: " + e.what());
+        }
+        set_kernel_law(law, tool.params);
+        tool.params.holder_face_z_mm = tool.geometry.stickout_mm;
+        tool.params.element_end = int(tool.geometry.edges.size());
+        tools_.push_back(std::move(tool));
     }
     const StockBox& box = base ? base->box : spec.stock;
     const double cell_mm = base ? base->grid.cell_mm : grid_mm;
@@ -239,21 +255,17 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
                                     "more than {:.3g}",
                                     cell_mm, rays, kMaxStockRays));
     const auto start = [&] { return base ? tri_dexel_of(*base) : kernels::make_tri_dexel_box(lo, hi, cell_mm); };
-    kernels::EngageParams params;
-    set_kernel_law(cutting_law(spec.material, EngineSettings{}.min_chip_mm), params);
-    params.holder_face_z_mm = tool_.stickout_mm;
-    params.element_end = int(tool_.edges.size());
-    PoseEngineSettings settings;
-    settings.opencl = opt.device == Device::OpenCL;
+    slot_ = std::max(0, plan.first_slot());
+    settings_.opencl = opt.device == Device::OpenCL;
     try {
-        engine_.emplace(start(), tool_, solid, params, settings);
+        engine_.emplace(start(), tool().geometry, tool().solid, tool().params, settings_);
     } catch (const kernels::OpenClError& e) {
         // A device without double precision (or none at all) still predicts, on the twins, and says so.
-        settings.opencl = false;
-        engine_.emplace(start(), tool_, std::move(solid), params, settings);
+        settings_.opencl = false;
+        engine_.emplace(start(), tool().geometry, tool().solid, tool().params, settings_);
         device_note_ = std::string(" (OpenCL not used: ") + e.what() + ")";
     }
-    rows_.use_tool(0, motion.size() > 0 ? plan.number_at(0) : -1, tool_.shank_diameter_mm);
+    rows_.use_tool(slot_, motion.size() > 0 ? plan.number_at(0) : -1, tool().geometry.shank_diameter_mm);
     rows_.reserve(std::min<std::size_t>(expected_rows(motion, spec.resolution.angle_step_deg), kRowsOutPiece * 4));
     if (opt.rows_out) {
         std::vector<Limits> limits;
@@ -262,17 +274,27 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
     }
 }
 
+// A tool change: the path so far is removed and the stock handed to an engine for the new cutter.
+void TurningWalk::use_slot(std::int32_t slot) {
+    if (slot == slot_) return;
+    leave();
+    kernels::TriDexel stock = engine_->take_stock();
+    engine_.reset();
+    slot_ = slot;
+    engine_.emplace(std::move(stock), tool().geometry, tool().solid, tool().params, settings_);
+}
+
 // Neither sample's cutting part (the cylinder of its widest radius from the tip up the flutes) can
 // reach the stock box.
 bool TurningWalk::in_air(std::size_t i) const {
-    const double r = tool_.radius_mm + spec_.resolution.grid_mm;
+    const double r = tool().geometry.radius_mm + spec_.resolution.grid_mm;
     for (std::size_t k : {i, i + 1}) {
         const Mat R = to_mat(poses_.tool_to_stock[k]);
         const Vec tip{motion_.x_mm[k] + spec_.offset_mm[0], motion_.y_mm[k] + spec_.offset_mm[1],
                       motion_.z_mm[k] + spec_.offset_mm[2]};
         bool overlaps = true;
         for (int a = 0; a < 3 && overlaps; ++a) {
-            const double top = tip[a] + tool_.flute_length_mm * R[a][2];
+            const double top = tip[a] + tool().geometry.flute_length_mm * R[a][2];
             overlaps = std::min(tip[a], top) - r <= stock_box_.max_mm[a] && std::max(tip[a], top) + r >= stock_box_.min_mm[a];
         }
         if (overlaps) return false;
@@ -284,7 +306,7 @@ bool TurningWalk::in_air(std::size_t i) const {
 // flutes) inside the stock.
 bool TurningWalk::in_material(std::size_t i) const {
     const Mat R = to_mat(poses_.tool_to_stock[i]);
-    for (double z : {0.0, tool_.radius_mm, tool_.flute_length_mm / 2}) {
+    for (double z : {0.0, tool().geometry.radius_mm, tool().geometry.flute_length_mm / 2}) {
         const Vec p{motion_.x_mm[i] + spec_.offset_mm[0] + z * R[0][2], motion_.y_mm[i] + spec_.offset_mm[1] + z * R[1][2],
                     motion_.z_mm[i] + spec_.offset_mm[2] + z * R[2][2]};
         if (kernels::tri_dexel_inside(engine_->stock(), p)) return true;
@@ -310,7 +332,7 @@ void TurningWalk::flush() {
     rows_.append_steps(meta_, results_);
     for (std::size_t k = 0; k < body_.size(); ++k) {
         rows_.samples[first + k].holder_contact = body_[k].contact;
-        if (body_[k].clearance_mm < tool_.holder_clearance_mm)
+        if (body_[k].clearance_mm < tool().geometry.holder_clearance_mm)
             rows_.extra[first + k].holder_clearance_mm = float(body_[k].clearance_mm);
     }
     rows_.attribute_removed(first, meta_.size(), engine_->removed_mm3() - before);
@@ -359,7 +381,8 @@ void TurningWalk::walk_interval(std::size_t i) {
         rows_.append_unknown_tool(motion_, i, plan_.number_at(i));
         return;
     }
-    rows_.use_tool(0, plan_.number_at(i), tool_.shank_diameter_mm);
+    use_slot(plan_.slot_at(i));
+    rows_.use_tool(slot_, plan_.number_at(i), tool().geometry.shank_diameter_mm);
     const double rpm0 = motion_.spindle_rpm[i], rpm1 = motion_.spindle_rpm[i + 1];
     const bool turning = std::abs(rpm0) >= 1 && std::abs(rpm1) >= 1 && (rpm0 > 0) == (rpm1 > 0);
     if (!turning || in_air(i)) {
@@ -367,7 +390,7 @@ void TurningWalk::walk_interval(std::size_t i) {
         rows_.append_motion_sample(motion_, i, !turning && in_material(i));
         return;
     }
-    IntervalSteps steps(motion_, i, spec_.offset_mm, spec_.resolution.angle_step_deg, tool_.edges.flutes);
+    IntervalSteps steps(motion_, i, spec_.offset_mm, spec_.resolution.angle_step_deg, tool().geometry.edges.flutes);
     if (steps.spin() != chunk_spin_) {
         flush();
         chunk_spin_ = steps.spin();
@@ -383,7 +406,7 @@ void TurningWalk::walk_interval(std::size_t i) {
         p.tip_mm = {s.tip_mm.x, s.tip_mm.y, s.tip_mm.z};
         p.rot = blend(R0, R1, u);
         p.feed_mm = into_tool(p.rot, {s.feed_per_tooth_mm.x, s.feed_per_tooth_mm.y, s.feed_per_tooth_mm.z});
-        const double per_tooth_s = 60 / (tool_.edges.flutes * std::abs(s.rpm));
+        const double per_tooth_s = 60 / (tool().geometry.edges.flutes * std::abs(s.rpm));
         for (int c = 0; c < 3; ++c) p.turn_rad[c] = ((1 - u) * w0[c] + u * w1[c]) * per_tooth_s;
         p.theta_rad = s.theta_rad;
         chunk_.push_back(p);

@@ -124,25 +124,80 @@ TEST_CASE("predict_turning: a second pass after an air move cuts as the first, r
     for (std::size_t b = 0; b < q.blocks.size(); ++b) CHECK(q.blocks[b].peak_force_N == p.blocks[b].peak_force_N);
 }
 
-TEST_CASE("predict_turning: poses that do not match the motion, and a table of two cutters, are refused",
-          "[tri_dexel][turning][errors]") {
+TEST_CASE("predict_turning: poses that do not match the motion are refused", "[tri_dexel][turning][errors]") {
     const motion_io::MotionModel motion = testref::uniform_motion(two_passes());
     const force_model::RunSpec spec = force_model::parse_run_spec_text(kSpec, "turning.json");
     force_model::PredictOptions opt;
     opt.device = force_model::Device::Cpu;
     CHECK_THROWS_AS(force_model::predict_turning(motion, leaning_poses(motion.size() - 1), spec, opt), std::invalid_argument);
-    // A spec with two tools in its table is refused naming the key.
-    std::string two_tools(kSpec);
-    two_tools.replace(two_tools.find("\"material\""), 0,
-                      R"json("tools": [{"number": 1, "shape": "flat", "diameter_mm": 8, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30},
-                                       {"number": 2, "shape": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30}],
+}
+
+// A tool table: T1 (the ball D10) cuts the first pass, T2 (a ball D8) the second, which overlaps
+// the first's groove. The first pass's rows equal T1's run alone; the second's means agree with T2
+// from the stock T1 left (a base stock: its X and Y rays to the cell, so within 1 %).
+TEST_CASE("predict_turning: a tool change hands the stock to the next cutter", "[tri_dexel][turning][tools]") {
+    std::string table(kSpec);
+    table.replace(table.find("\"material\""), 0,
+                  R"json("tools": [{"number": 1, "shape": "ball", "diameter_mm": 10, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30},
+                                   {"number": 2, "shape": "ball", "diameter_mm": 8, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20, "stickout_mm": 30}],
   )json");
-    try {
-        force_model::predict_turning(motion, leaning_poses(motion.size()), force_model::parse_run_spec_text(two_tools, "t.json"),
-                                     opt);
-        FAIL("two cutters were taken");
-    } catch (const force_model::SpecError& e) {
-        CHECK_THAT(e.what(), Catch::Contains("one cutter"));
+    const force_model::RunSpec spec = force_model::parse_run_spec_text(table, "tools.json");
+    testref::Path both;
+    both.start_mm = {-8, 0, -2};
+    both.segments = {testref::line_to({48, 0, -2}, "N10"), testref::line_to({48, 45, -2}, "N20"),
+                     testref::line_to({-8, 45, -2}, "N30"), testref::line_to({-8, 5, -2}, "N40"),
+                     testref::line_to({48, 5, -2}, "N50")};
+    both.feed_mm_min = kFeed_mm_min;
+    both.spindle_rpm = 10000;
+    motion_io::MotionModel m = testref::uniform_motion(both);
+    const double v = kFeed_mm_min / 60;
+    const double change_s = (56 + 45) / v, b_start_s = (56 + 45 + 56 + 40) / v;
+    m.tool.resize(m.size());
+    for (std::size_t i = 0; i < m.size(); ++i) m.tool[i] = m.t_s[i] < change_s ? 1 : 2;
+    testref::Path only_a = both;
+    only_a.segments.resize(1);
+    motion_io::MotionModel m_a = testref::uniform_motion(only_a);
+    m_a.tool.assign(m_a.size(), 1);
+    testref::Path only_b;
+    only_b.start_mm = {-8, 5, -2};
+    only_b.segments = {testref::line_to({48, 5, -2}, "N50")};
+    only_b.feed_mm_min = kFeed_mm_min;
+    only_b.spindle_rpm = 10000;
+    motion_io::MotionModel m_b = testref::uniform_motion(only_b);
+    m_b.tool.assign(m_b.size(), 2);
+    for (const force_model::Device d : testref::devices_under_test()) {
+        INFO(testref::device_name(d));
+        force_model::PredictOptions opt;
+        opt.device = d;
+        const force_model::Prediction one = force_model::predict_turning(m, leaning_poses(m.size()), spec, opt);
+        opt.keep_final_stock = true;
+        const force_model::Prediction a = force_model::predict_turning(m_a, leaning_poses(m_a.size()), spec, opt);
+        REQUIRE(a.final_stock);
+        opt.keep_final_stock = false;
+        opt.base_stock = a.final_stock.get();
+        const force_model::Prediction b = force_model::predict_turning(m_b, leaning_poses(m_b.size()), spec, opt);
+
+        // Pass A: the same rows, bit for bit, and T1 on them.
+        std::size_t a_rows = 0;
+        for (const auto& r : a.samples)
+            if (r.t_s < 56 / v) ++a_rows;
+        REQUIRE(a_rows > 1000);
+        for (std::size_t i = 0; i < a_rows; ++i) {
+            REQUIRE(one.samples[i].t_s == a.samples[i].t_s);
+            CHECK(one.samples[i].fx_N == a.samples[i].fx_N);
+            CHECK(one.samples[i].fz_N == a.samples[i].fz_N);
+            CHECK(one.samples[i].tool == 1);
+        }
+        // Pass B: T2 on its rows, and the mean of the stock T1 left.
+        const auto f_one = mean_force(one.samples, b_start_s + 28 / v, b_start_s + 46 / v);
+        const auto f_b = mean_force(b.samples, 28 / v, 46 / v);
+        const double scale = std::hypot(f_one[0], f_one[1], f_one[2]);
+        INFO("pass B in one run (" << f_one[0] << ", " << f_one[1] << ", " << f_one[2] << ") N, from T1's stock (" << f_b[0]
+                                   << ", " << f_b[1] << ", " << f_b[2] << ") N");
+        CHECK(scale > 20);
+        for (int c = 0; c < 3; ++c) CHECK(std::abs(f_one[c] - f_b[c]) < 0.01 * scale);
+        for (const auto& r : one.samples)
+            if (r.t_s > b_start_s) CHECK(r.tool == 2);
     }
 }
 
