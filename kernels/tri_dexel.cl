@@ -133,6 +133,50 @@ bool tri_dexel_inside(const Families* fam, __constant double* grid, __constant i
     return inside;
 }
 
+// Signed distance along the ray from x to the ray's nearest interval end: positive in material,
+// negative outside; -inf for a ray that holds nothing. Twin: ray_signed_mm.
+double ray_signed_mm(__global const float* ray, const double x) {
+    double d = INF_D;
+    for (int k = 0; k < K; ++k)
+        if (ray[K + k] > ray[k]) d = fmin(d, fmin(fabs(x - (double)ray[k]), fabs(x - (double)ray[K + k])));
+    return ray_contains(ray, x) ? d : -d;
+}
+
+// Whether the point is in material, placed to a fraction of a cell: the signed distance along each
+// family's rays, blended bilinearly from the four rays around the point where all four have a
+// boundary within two cells; the family with the least blended distance tells; where none blends,
+// as tri_dexel_inside. Twin: inside_sub_cell (tri_dexel.cpp says why).
+bool inside_sub_cell(const Families* fam, __constant double* grid, __constant int* dims, const double3 p) {
+    const double pa[3] = {p.x, p.y, p.z};
+    const double g = grid[0], reach_mm = 2 * g;
+    double best_mm = INF_D;
+    bool inside = false;
+    for (int f = 0; f < 3; ++f) {
+        const int u = (f + 1) % 3, v = (f + 2) % 3;
+        const int nu = dims[2 * f], nv = dims[2 * f + 1];
+        const double fu = (pa[u] - grid[1 + 2 * f]) / g - 0.5, fv = (pa[v] - grid[2 + 2 * f]) / g - 0.5;
+        const double i0 = floor(fu), j0 = floor(fv);
+        if (!(i0 >= 0 && j0 >= 0 && i0 + 1 < nu && j0 + 1 < nv)) continue;
+        __global const float* r00 = fam->rays[f] + (size_t)(((long)j0 * nu + (long)i0) * 8);
+        const double x = pa[f];
+        const double s00 = ray_signed_mm(r00, x);
+        if (!(fabs(s00) < reach_mm)) continue;
+        const double s10 = ray_signed_mm(r00 + 8, x);
+        if (!(fabs(s10) < reach_mm)) continue;
+        const double s01 = ray_signed_mm(r00 + (size_t)nu * 8, x);
+        if (!(fabs(s01) < reach_mm)) continue;
+        const double s11 = ray_signed_mm(r00 + (size_t)(nu + 1) * 8, x);
+        if (!(fabs(s11) < reach_mm)) continue;
+        const double wu = fu - i0, wv = fv - j0;
+        const double s = (1 - wv) * ((1 - wu) * s00 + wu * s10) + wv * ((1 - wu) * s01 + wu * s11);
+        if (fabs(s) < best_mm) {
+            best_mm = fabs(s);
+            inside = s > 0;
+        }
+    }
+    return best_mm < INF_D ? inside : tri_dexel_inside(fam, grid, dims, p);
+}
+
 // rot: 9 doubles, row-major (rot[r][c]; columns are the tool's axes in stock coordinates).
 double3 turn(const double* rot, const double3 v) {
     return (double3)(rot[0] * v.x + rot[1] * v.y + rot[2] * v.z, rot[3] * v.x + rot[4] * v.y + rot[5] * v.z,
@@ -210,19 +254,19 @@ __kernel void engage_poses(const int n_steps, __global const double* steps, cons
                     clip_lo = rising ? zlo + t_lo * span : zhi - t_hi * span;
                     clip_hi = rising ? zlo + t_hi * span : zhi - t_lo * span;
                     const double3 mid = tip + turn(rot, (double3)(r_tool.x, r_tool.y, 0.5 * (clip_lo + clip_hi)));
-                    if (tri_dexel_inside(&fam, grid, dims, mid)) weight = overlap / (hi - lo);
-                } else if (tri_dexel_inside(&fam, grid, dims, P)) {
+                    if (inside_sub_cell(&fam, grid, dims, mid)) weight = overlap / (hi - lo);
+                } else if (inside_sub_cell(&fam, grid, dims, P)) {
                     weight = 1;
                     clip_lo = zlo;
                     clip_hi = zhi;
                 }
-            } else if (tri_dexel_inside(&fam, grid, dims, P)) {
+            } else if (inside_sub_cell(&fam, grid, dims, P)) {
                 // The chip is the material between this point and the previous tooth's pass.
                 const double3 nW = turn(rot, (double3)(nr * cu, nr * su, nz));
                 int in = 0;
                 for (int q = 1; q <= 10; ++q) {
                     const double d = -h * (q - 0.5) / 10;
-                    in += tri_dexel_inside(&fam, grid, dims, P + d * nW) ? 1 : 0;
+                    in += inside_sub_cell(&fam, grid, dims, P + d * nW) ? 1 : 0;
                 }
                 h_cut = h * in / 10;
                 if (h_cut > min_chip) weight = 1;

@@ -14,6 +14,7 @@
 #include "force_model/motion_fixtures.hpp"
 
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,12 @@ Forces average_forces(const Cut& cut, const Coefficients& k);
 // phi_tool_rad, axial slices of a_p / axial_slices with the helix lag 2 z tan(beta) / D, engagement
 // decided from the immersion window alone.
 Forces instantaneous_forces(const Cut& cut, const Coefficients& k, double phi_tool_rad, int axial_slices = 400);
+
+// The same integration where the stock's edges do not run along the feed: slice z_mm (above the
+// tip) of a flute at immersion phi_rad (in [0, 2 pi)) cuts where `cuts(phi_rad, z_mm)` says, with
+// the chip c sin(phi); the cut's immersion window is not used.
+Forces instantaneous_forces_where(const Cut& cut, const Coefficients& k, double phi_tool_rad, int axial_slices,
+                                  const std::function<bool(double phi_rad, double z_mm)>& cuts);
 
 // One slice dz of a revolved flank at radius r whose cutting edge leans from the axis (sin and cos
 // of the lean sb, cb), cutting a box whose face is d from the axis: Altintas' edge forces turned out
