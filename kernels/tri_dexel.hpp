@@ -174,9 +174,10 @@ struct PoseStep {
 // frame; forces and moments are turned into the stock frame for StepResult (fx, fy, fz; mx, my
 // are the tool-frame bending moments about the holder face, about the tool's x and y). An axial
 // element cuts with the fraction of its span inside material on the ray of the family most nearly
-// along the tool axis (exact along the axis, as the Z-map's), where tri_dexel_inside agrees that
-// its engaged part is material; a flat-bottom element where the point is inside, its chip limited
-// to the material behind it along its normal.
+// along the tool axis (exact along the axis, as the Z-map's), where a sub-cell inside test (the
+// signed distance along each family's four rays around the point, blended; tri_dexel_inside where
+// no family's four rays see one surface) agrees that its engaged part is material; a flat-bottom
+// element where the point is inside, its chip limited to the material behind it along its normal.
 void engage_tri_dexel(const PoseStep* steps, std::size_t n, double spin, const EdgeTable& tool, const EngageParams& p,
                       const TriDexel& stock, StepResult* out);
 

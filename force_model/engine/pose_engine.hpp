@@ -21,8 +21,9 @@ namespace cutload::force_model {
 struct PoseEngineSettings {
     // Removal trails the engagement by this much travel. A front point sits inside the stock by the
     // lag times the sine of its normal's angle to the feed; near a ball's bottom that angle is
-    // small, and with no sub-cell walls yet the rays need the margin: at 4 cells a vertical ball
-    // end mill lost 1.4 % of its axial force to the rays around its tip, at 8 none.
+    // small, and the rays need the margin: at 4 cells a vertical ball end mill lost 1.4 % of its
+    // axial force to the rays around its tip, at 8 none (measured before the engagement's sub-cell
+    // inside test; a shorter lag was not tried since).
     double lag_cells = 8;
     // A removal covers at least this much travel (and the lag behind it), so the stock trails the
     // engagement by lag_cells to lag_cells + removal_cells (plus half a lag within a batch).
