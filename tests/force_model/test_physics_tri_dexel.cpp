@@ -11,8 +11,8 @@
 // original test uses, at its tolerance, so the comparison cannot pass with both wrong or zero; the
 // rounded corner's finishing pass, which the original holds to no figure, to an integration over
 // the leftover stock's exact shape.
-// Grids as the originals'; the rounded corner's finishing pass follows its roughing in one motion,
-// since predict_turning takes no base stock.
+// Grids as the originals'; the rounded corner's finishing pass follows its roughing in one motion
+// (the roughing's Z-map as a base stock would give the X and Y rays its walls only to the cell).
 //
 // test_physics_reference.cpp runs no engine: it checks the closed form itself. Its hand-worked
 // slot (D 8, a 2, c 0.1) is the first straight case here.
