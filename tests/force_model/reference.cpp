@@ -105,25 +105,9 @@ Forces average_forces(const Cut& cut, const Coefficients& k) {
 }
 
 Forces instantaneous_forces(const Cut& cut, const Coefficients& k, double phi_tool_rad, int axial_slices) {
-    const double radius_mm = cut.diameter_mm / 2.0;
-    const double dz_mm = cut.axial_depth_mm / axial_slices;
-    const double lag_per_mm = std::tan(deg_to_rad(cut.helix_deg)) / radius_mm;
-    const double pitch_rad = 2 * pi / cut.flutes;
-    Forces sum;
-    for (int flute = 0; flute < cut.flutes; ++flute) {
-        for (int slice = 0; slice < axial_slices; ++slice) {
-            const double z_mm = (slice + 0.5) * dz_mm;
-            // A right-hand helix turning M03: higher slices reach a given immersion later.
-            const double phi = std::remainder(phi_tool_rad + flute * pitch_rad - lag_per_mm * z_mm - pi, 2 * pi) + pi;
-            if (phi < cut.phi_start_rad || phi > cut.phi_exit_rad) continue;
-            const Forces f = element_forces(k, cut.feed_per_tooth_mm * std::sin(phi), phi, radius_mm);
-            sum.fx_N += f.fx_N * dz_mm;
-            sum.fy_N += f.fy_N * dz_mm;
-            sum.fz_N += f.fz_N * dz_mm;
-            sum.torque_Nm += f.torque_Nm * dz_mm;
-        }
-    }
-    return sum;
+    return instantaneous_forces_where(cut, k, phi_tool_rad, axial_slices, [&cut](double phi_rad, double) {
+        return phi_rad >= cut.phi_start_rad && phi_rad <= cut.phi_exit_rad;
+    });
 }
 
 Forces instantaneous_forces_where(const Cut& cut, const Coefficients& k, double phi_tool_rad, int axial_slices,
@@ -136,6 +120,7 @@ Forces instantaneous_forces_where(const Cut& cut, const Coefficients& k, double 
     for (int flute = 0; flute < cut.flutes; ++flute)
         for (int slice = 0; slice < axial_slices; ++slice) {
             const double z_mm = (slice + 0.5) * dz_mm;
+            // A right-hand helix turning M03: higher slices reach a given immersion later.
             const double phi = std::remainder(phi_tool_rad + flute * pitch_rad - lag_per_mm * z_mm - pi, 2 * pi) + pi;
             if (!cuts(phi, z_mm)) continue;
             const Forces f = element_forces(k, cut.feed_per_tooth_mm * std::sin(phi), phi, radius_mm);
