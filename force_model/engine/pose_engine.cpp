@@ -41,28 +41,31 @@ PoseEngine::PoseEngine(kernels::TriDexel stock, const ToolGeometry& tool, kernel
     body_.flute_length_mm = tool.flute_length_mm;
     body_.stickout_mm = tool.stickout_mm;
     // A spec without a holder ("no holder beyond the shank") still has something above the face
-    // up to the spindle: taken as the shank's width for another stickout, as the Z-map engine's
-    // check takes everything above the face.
+    // up to the spindle: taken as the cutter's width (ToolGeometry's holder radius then) for
+    // another stickout, as the Z-map engine's check takes everything above the face.
     body_.holder_length_mm = tool.holder_length_mm > 0 ? tool.holder_length_mm : tool.stickout_mm;
     body_.shank_radius_mm = tool.shank_diameter_mm / 2;
     body_.holder_radius_mm = tool.holder_radius_mm;
     shell_mm_ = std::max(tool.holder_clearance_mm, 0.0);
-    body_reach_mm_ = std::hypot(tool.stickout_mm + tool.holder_length_mm, tool.holder_radius_mm);
+    body_reach_mm_ = std::hypot(body_.stickout_mm + body_.holder_length_mm, body_.holder_radius_mm);
+}
+
+kernels::BodyClearance PoseEngine::body_at(const kernels::PoseStep& s) {
+    const double every_mm = shell_mm_ > 0 ? std::min(settings_.holder_check_mm, shell_mm_ / 4) : settings_.holder_check_mm;
+    // Within the spacing of the last check its result holds. Removal only takes material away, so
+    // a result kept across a removal errs toward a flag, never past one.
+    if (!checked_at_ || distance_mm(checked_at_->tip_mm, s.tip_mm) +
+                                turn_between_rad(checked_at_->rot, s.rot) * body_reach_mm_ >= every_mm) {
+        last_check_ = backend_->body_clearance(s.tip_mm, s.rot, body_, shell_mm_);
+        checked_at_ = s;
+        ++body_checks_;
+    }
+    return last_check_;
 }
 
 void PoseEngine::check_body(const std::vector<kernels::PoseStep>& steps, std::size_t b0, std::size_t b1,
                             std::vector<kernels::BodyClearance>& body) {
-    const double every_mm = shell_mm_ > 0 ? std::min(settings_.holder_check_mm, shell_mm_ / 4) : settings_.holder_check_mm;
-    for (std::size_t i = b0; i < b1; ++i) {
-        const kernels::PoseStep& s = steps[i];
-        if (!checked_at_ || distance_mm(checked_at_->tip_mm, s.tip_mm) +
-                                    turn_between_rad(checked_at_->rot, s.rot) * body_reach_mm_ >= every_mm) {
-            last_check_ = backend_->body_clearance(s.tip_mm, s.rot, body_, shell_mm_);
-            checked_at_ = s;
-            ++body_checks_;
-        }
-        body[i] = last_check_;
-    }
+    for (std::size_t i = b0; i < b1; ++i) body[i] = body_at(steps[i]);
 }
 
 void PoseEngine::run(const std::vector<kernels::PoseStep>& steps, std::vector<kernels::StepResult>& out, double spin,
@@ -136,7 +139,6 @@ void PoseEngine::finish() {
     // to from here.
     pending_.clear();
     travel_mm_.clear();
-    checked_at_.reset();
 }
 
 void PoseEngine::remove_through(std::size_t last) {

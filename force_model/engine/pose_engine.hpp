@@ -68,6 +68,9 @@ public:
     double removed_mm3() const { return removed_mm3_; }
     std::size_t chords() const { return chords_; }
     std::size_t body_checks() const { return body_checks_; }
+    // The shank and holder at one pose outside a path (the flutes off the stock, a stopped
+    // spindle), under the same spacing rule as the path's checks.
+    kernels::BodyClearance body_at(const kernels::PoseStep& pose);
 
 private:
     void remove_through(std::size_t last);   // pending poses [0, last] become chords
@@ -86,7 +89,7 @@ private:
     kernels::ToolBody body_;
     double shell_mm_ = 0;
     double body_reach_mm_ = 0;
-    std::optional<kernels::PoseStep> checked_at_;   // the pose of the last check; none: the path is new
+    std::optional<kernels::PoseStep> checked_at_;   // the pose of the last check; none: none yet
     kernels::BodyClearance last_check_;
     std::size_t body_checks_ = 0;
 };

@@ -82,6 +82,17 @@ void append_run(float* ray, int& used, double lo_mm, double hi_mm, double g, int
     const float a = float(std::max(lo_mm, lo_mm + k0 * g)), b = float(std::min(hi_mm, lo_mm + k1 * g));
     if (!(b > a)) return;
     if (used == kernels::kDexelIntervals) {
+        constexpr int K = kernels::kDexelIntervals;
+        // The gap before the new run is a candidate too: when it is the narrowest the last run
+        // grows to the new one's end.
+        if (a - ray[K + used - 1] <= [&] {
+                float least = a - ray[K + used - 1];
+                for (int k = 0; k + 1 < used; ++k) least = std::min(least, ray[k + 1] - ray[K + k]);
+                return least;
+            }()) {
+            ray[K + used - 1] = b;
+            return;
+        }
         int narrowest = 0;
         for (int k = 1; k + 1 < used; ++k)
             if (ray[k + 1] - ray[kernels::kDexelIntervals + k] <
@@ -103,7 +114,7 @@ void append_run(float* ray, int& used, double lo_mm, double hi_mm, double g, int
 // rays as they are; an X or Y ray holds a cell where the Z ray of that cell's column holds the ray's
 // height, so its walls lie on cell boundaries, half a cell at most from where the Z-map's sub-cell
 // walls place them (not carried over yet), and its intervals are whole cells.
-kernels::TriDexel tri_dexel_of(const Stock& base) {
+kernels::TriDexel tri_dexel_of(const Stock& base, const std::atomic<bool>* cancel) {
     if (!base.grid_from_stock.is_identity())
         throw SpecError("base_stock: it was cut with the tool tilted at a fixed orientation and is kept in that tool's "
                         "frame; a tool that turns while it cuts needs a stock in the part's axes (docs/five_axis.md, "
@@ -123,41 +134,58 @@ kernels::TriDexel tri_dexel_of(const Stock& base) {
     for (std::size_t r = 0; r < fx.count(); ++r) std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), fx.ray(r));
     for (std::size_t r = 0; r < fy.count(); ++r) std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), fy.ray(r));
     std::vector<char> solid(static_cast<std::size_t>(nz), 0);
+    const auto same = [](const float* a, const float* b) { return std::equal(a, a + kernels::kDexelFloats, b); };
     for (int j = 0; j < ny; ++j) {
+        if (cancel && cancel->load()) throw Cancelled();
         for (int i = 0; i <= nx; ++i) {
-            // Which heights of column (i, j) hold material (none past the last column: runs close).
-            std::fill(solid.begin(), solid.end(), 0);
+            // Column (i, j)'s intervals as they are (a wall mark in the last slot is no interval and
+            // stays behind); past the last column none, so the runs close.
+            const float* cur = kernels::kNoMaterial.data();
             if (i < nx) {
                 const kernels::Ray ray = base.ray(i, j);
-                // Its intervals as they are (a wall mark in the last slot is no interval and stays behind).
                 float* z_ray = fz.ray(std::size_t(j) * std::size_t(nx) + std::size_t(i));
                 std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), z_ray);
                 int z_used = 0;
                 for (int k = 0; k < kernels::kDexelIntervals; ++k) {
-                    const double a = ray[k], b = ray[kernels::kDexelIntervals + k];
-                    if (!(b > a)) continue;
+                    if (!(ray[kernels::kDexelIntervals + k] > ray[k])) continue;
                     z_ray[z_used] = ray[k];
                     z_ray[kernels::kDexelIntervals + z_used] = ray[kernels::kDexelIntervals + k];
                     ++z_used;
-                    // Cells whose centre lies in [a, b).
-                    const int c0 = std::max(0, int(std::ceil((a - lo[2]) / g - 0.5)));
-                    const int c1 = std::min(nz, int(std::ceil((b - lo[2]) / g - 0.5)));
-                    for (int c = c0; c < c1; ++c) solid[std::size_t(c)] = 1;
                 }
+                cur = z_ray;
+            }
+            // A column like its neighbour before it along X (along Y) starts or ends no X (Y) run:
+            // most of a stock is, so most columns cost a comparison, not a pass over its height.
+            const float* before_x = i > 0 ? fz.ray(std::size_t(j) * std::size_t(nx) + std::size_t(i - 1)) : kernels::kNoMaterial.data();
+            const float* before_y = j > 0 && i < nx ? fz.ray(std::size_t(j - 1) * std::size_t(nx) + std::size_t(i))
+                                                    : kernels::kNoMaterial.data();
+            const bool x_changes = !same(cur, before_x), y_changes = i < nx && !same(cur, before_y);
+            if (!x_changes && !y_changes) continue;
+            std::fill(solid.begin(), solid.end(), 0);
+            for (int k = 0; k < kernels::kDexelIntervals; ++k) {
+                const double a = cur[k], b = cur[kernels::kDexelIntervals + k];
+                if (!(b > a)) continue;
+                // Cells whose centre lies in [a, b).
+                const int c0 = std::max(0, int(std::ceil((a - lo[2]) / g - 0.5)));
+                const int c1 = std::min(nz, int(std::ceil((b - lo[2]) / g - 0.5)));
+                for (int c = c0; c < c1; ++c) solid[std::size_t(c)] = 1;
             }
             for (int c = 0; c < nz; ++c) {
-                const std::size_t xr = std::size_t(c) * std::size_t(ny) + std::size_t(j);   // X ray (u = j, v = c)
-                if (solid[std::size_t(c)] && x_run[xr] < 0) x_run[xr] = i;
-                if (!solid[std::size_t(c)] && x_run[xr] >= 0) {
-                    append_run(fx.ray(xr), x_used[xr], lo[0], hi[0], g, x_run[xr], i);
-                    x_run[xr] = -1;
+                if (x_changes) {
+                    const std::size_t xr = std::size_t(c) * std::size_t(ny) + std::size_t(j);   // X ray (u = j, v = c)
+                    if (solid[std::size_t(c)] && x_run[xr] < 0) x_run[xr] = i;
+                    if (!solid[std::size_t(c)] && x_run[xr] >= 0) {
+                        append_run(fx.ray(xr), x_used[xr], lo[0], hi[0], g, x_run[xr], i);
+                        x_run[xr] = -1;
+                    }
                 }
-                if (i == nx) continue;
-                const std::size_t yr = std::size_t(i) * std::size_t(nz) + std::size_t(c);   // Y ray (u = c, v = i)
-                if (solid[std::size_t(c)] && y_run[yr] < 0) y_run[yr] = j;
-                if (!solid[std::size_t(c)] && y_run[yr] >= 0) {
-                    append_run(fy.ray(yr), y_used[yr], lo[1], hi[1], g, y_run[yr], j);
-                    y_run[yr] = -1;
+                if (y_changes) {
+                    const std::size_t yr = std::size_t(i) * std::size_t(nz) + std::size_t(c);   // Y ray (u = c, v = i)
+                    if (solid[std::size_t(c)] && y_run[yr] < 0) y_run[yr] = j;
+                    if (!solid[std::size_t(c)] && y_run[yr] >= 0) {
+                        append_run(fy.ray(yr), y_used[yr], lo[1], hi[1], g, y_run[yr], j);
+                        y_run[yr] = -1;
+                    }
                 }
             }
         }
@@ -254,7 +282,7 @@ TurningWalk::TurningWalk(const motion_io::MotionModel& motion, const ToolPoses& 
         throw SpecError(fmt::format("resolution.grid_mm: the multi-direction stock of this box at {} mm takes {:.3g} rays, "
                                     "more than {:.3g}",
                                     cell_mm, rays, kMaxStockRays));
-    const auto start = [&] { return base ? tri_dexel_of(*base) : kernels::make_tri_dexel_box(lo, hi, cell_mm); };
+    const auto start = [&] { return base ? tri_dexel_of(*base, opt.cancel) : kernels::make_tri_dexel_box(lo, hi, cell_mm); };
     slot_ = std::max(0, plan.first_slot());
     settings_.opencl = opt.device == Device::OpenCL;
     try {
@@ -388,6 +416,16 @@ void TurningWalk::walk_interval(std::size_t i) {
     if (!turning || in_air(i)) {
         leave();
         rows_.append_motion_sample(motion_, i, !turning && in_material(i));
+        // The flutes are off the stock or still, but a leaning holder reaches far past the tip:
+        // the shank and holder are checked at the sample all the same.
+        kernels::PoseStep at;
+        at.tip_mm = {motion_.x_mm[i] + spec_.offset_mm[0], motion_.y_mm[i] + spec_.offset_mm[1],
+                     motion_.z_mm[i] + spec_.offset_mm[2]};
+        at.rot = to_mat(poses_.tool_to_stock[i]);
+        const kernels::BodyClearance body = engine_->body_at(at);
+        rows_.samples.back().holder_contact = body.contact;
+        if (body.clearance_mm < tool().geometry.holder_clearance_mm)
+            rows_.extra.back().holder_clearance_mm = float(body.clearance_mm);
         return;
     }
     IntervalSteps steps(motion_, i, spec_.offset_mm, spec_.resolution.angle_step_deg, tool().geometry.edges.flutes);

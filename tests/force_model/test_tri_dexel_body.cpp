@@ -153,10 +153,11 @@ std::string spec_text(double flute_mm, double stickout_mm, double clearance_mm) 
            std::to_string(clearance_mm) + "}\n}";
 }
 
-force_model::Prediction run_along_y(double flute_mm, double stickout_mm, double clearance_mm, force_model::Device d) {
+force_model::Prediction run_along_y(double flute_mm, double stickout_mm, double clearance_mm, force_model::Device d,
+                                    double x_mm = 10, double z_mm = -1) {
     testref::Path path;
-    path.start_mm = {10, -25, -1};
-    path.segments = {testref::line_to({10, 45, -1}, "N10")};
+    path.start_mm = {x_mm, -25, z_mm};
+    path.segments = {testref::line_to({x_mm, 45, z_mm}, "N10")};
     path.feed_mm_min = 3000;
     path.spindle_rpm = 10000;
     const motion_io::MotionModel motion = testref::uniform_motion(path);
@@ -196,8 +197,7 @@ TEST_CASE("predict_turning flags a leaning holder's near miss and contact with t
         CHECK(hit->value >= clearance - 1e-5);
         CHECK(hit->value == Approx(clearance).margin(2e-3));
         CHECK(flag(near, "holder_contact") == nullptr);
-        // The holder is over the block (its lowest point at y -15 to 35) while the tool is: the
-        // rows say so, and not before the tool comes within reach.
+        // A near miss, never contact, on any row.
         std::size_t flagged = 0;
         for (const auto& row : near.samples) flagged += row.holder_contact ? 1 : 0;
         CHECK(flagged == 0);
@@ -212,5 +212,11 @@ TEST_CASE("predict_turning flags a leaning holder's near miss and contact with t
         std::size_t touching = 0;
         for (const auto& row : dips.samples) touching += row.holder_contact ? 1 : 0;
         CHECK(touching > dips.samples.size() / 2);
+        // Beside the block (tip at x -12, z -8), the flutes never reach it, but the holder leans
+        // over it: its lowest point (x -12 + 7 + 15 cos 30 = 8, z -8 + 14 cos 30 - 7.5 = -3.4) is
+        // inside. Contact, with no cutting at all.
+        const auto beside = run_along_y(10, 14, 4, d, -12, -8);
+        CHECK(beside.stats.cutting_steps == 0);
+        CHECK(flag(beside, "holder_contact") != nullptr);
     }
 }
