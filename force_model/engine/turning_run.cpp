@@ -81,27 +81,25 @@ StockPtr z_map_of(const kernels::TriDexel& tri) {
 void append_run(float* ray, int& used, double lo_mm, double hi_mm, double g, int k0, int k1) {
     const float a = float(std::max(lo_mm, lo_mm + k0 * g)), b = float(std::min(hi_mm, lo_mm + k1 * g));
     if (!(b > a)) return;
-    if (used == kernels::kDexelIntervals) {
-        constexpr int K = kernels::kDexelIntervals;
-        // The gap before the new run is a candidate too: when it is the narrowest the last run
-        // grows to the new one's end.
-        if (a - ray[K + used - 1] <= [&] {
-                float least = a - ray[K + used - 1];
-                for (int k = 0; k + 1 < used; ++k) least = std::min(least, ray[k + 1] - ray[K + k]);
-                return least;
-            }()) {
+    constexpr int K = kernels::kDexelIntervals;
+    if (used == K) {
+        // The narrowest gap closes: between stored runs k and k + 1, or the one before the new run
+        // (k = used - 1; on a tie, that one), which then extends the last run to its end.
+        int narrowest = used - 1;
+        float least = a - ray[K + used - 1];
+        for (int k = 0; k + 1 < used; ++k)
+            if (ray[k + 1] - ray[K + k] < least) {
+                least = ray[k + 1] - ray[K + k];
+                narrowest = k;
+            }
+        if (narrowest == used - 1) {
             ray[K + used - 1] = b;
             return;
         }
-        int narrowest = 0;
-        for (int k = 1; k + 1 < used; ++k)
-            if (ray[k + 1] - ray[kernels::kDexelIntervals + k] <
-                ray[narrowest + 1] - ray[kernels::kDexelIntervals + narrowest])
-                narrowest = k;
-        ray[kernels::kDexelIntervals + narrowest] = ray[kernels::kDexelIntervals + narrowest + 1];
+        ray[K + narrowest] = ray[K + narrowest + 1];
         for (int k = narrowest + 1; k + 1 < used; ++k) {
             ray[k] = ray[k + 1];
-            ray[kernels::kDexelIntervals + k] = ray[kernels::kDexelIntervals + k + 1];
+            ray[K + k] = ray[K + k + 1];
         }
         --used;
     }
@@ -135,6 +133,14 @@ kernels::TriDexel tri_dexel_of(const Stock& base, const std::atomic<bool>* cance
     for (std::size_t r = 0; r < fy.count(); ++r) std::copy(kernels::kNoMaterial.begin(), kernels::kNoMaterial.end(), fy.ray(r));
     std::vector<char> solid(static_cast<std::size_t>(nz), 0);
     const auto same = [](const float* a, const float* b) { return std::equal(a, a + kernels::kDexelFloats, b); };
+    // A run of ray r of family f opens at cell k where material begins and is stored where it ends.
+    const auto step = [&](int f, std::size_t r, std::vector<int>& run, std::vector<int>& used, bool in, int k) {
+        if (in && run[r] < 0) run[r] = k;
+        if (!in && run[r] >= 0) {
+            append_run(t.family[f].ray(r), used[r], lo[f], hi[f], g, run[r], k);
+            run[r] = -1;
+        }
+    };
     for (int j = 0; j < ny; ++j) {
         if (cancel && cancel->load()) throw Cancelled();
         for (int i = 0; i <= nx; ++i) {
@@ -171,22 +177,9 @@ kernels::TriDexel tri_dexel_of(const Stock& base, const std::atomic<bool>* cance
                 for (int c = c0; c < c1; ++c) solid[std::size_t(c)] = 1;
             }
             for (int c = 0; c < nz; ++c) {
-                if (x_changes) {
-                    const std::size_t xr = std::size_t(c) * std::size_t(ny) + std::size_t(j);   // X ray (u = j, v = c)
-                    if (solid[std::size_t(c)] && x_run[xr] < 0) x_run[xr] = i;
-                    if (!solid[std::size_t(c)] && x_run[xr] >= 0) {
-                        append_run(fx.ray(xr), x_used[xr], lo[0], hi[0], g, x_run[xr], i);
-                        x_run[xr] = -1;
-                    }
-                }
-                if (y_changes) {
-                    const std::size_t yr = std::size_t(i) * std::size_t(nz) + std::size_t(c);   // Y ray (u = c, v = i)
-                    if (solid[std::size_t(c)] && y_run[yr] < 0) y_run[yr] = j;
-                    if (!solid[std::size_t(c)] && y_run[yr] >= 0) {
-                        append_run(fy.ray(yr), y_used[yr], lo[1], hi[1], g, y_run[yr], j);
-                        y_run[yr] = -1;
-                    }
-                }
+                const bool in = solid[std::size_t(c)] != 0;
+                if (x_changes) step(0, std::size_t(c) * std::size_t(ny) + std::size_t(j), x_run, x_used, in, i);   // (u j, v c)
+                if (y_changes) step(1, std::size_t(i) * std::size_t(nz) + std::size_t(c), y_run, y_used, in, j);   // (u c, v i)
             }
         }
     }
