@@ -80,6 +80,16 @@ void turn_spec(force_model::RunSpec& spec, const force_model::Rotation3& g) {
     spec.stock = force_model::turned_stock_box(spec.stock, g, spec.resolution.grid_mm);
 }
 
+// A turning tool cuts the multi-direction stock: its three families' rays count as cells, all of
+// them written.
+void count_multi_direction_stock(WorkEstimate& work, const force_model::RunSpec& spec) {
+    const double zmap_cells = work.stock_cells;
+    work.stock_cells = force_model::multi_direction_stock_rays(spec.stock, spec.resolution.grid_mm);
+    work.memory_mb += (force_model::multi_direction_stock_bytes(spec.stock, spec.resolution.grid_mm) -
+                       zmap_cells * double(force_model::stock_bytes_per_cell())) /
+                      (1024.0 * 1024.0);
+}
+
 CuttingOrientation orientation_of(const ToolFrame& frame) {
     CuttingOrientation o;
     o.tilted = frame.tilted;
@@ -167,10 +177,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             try {
                 frame = tool_frame(axes, *in.machine, in.tool_length_mm, tool_reach(in.spec));
             } catch (const ToolTurnsInStock&) {
-                if (in.program)
-                    throw InputError("nc_program", "the tool turns while it can reach the stock (simultaneous five-axis "
-                                                   "work), and comparing such a run with its NC program is not built "
-                                                   "yet: predict the log alone (docs/five_axis.md, section 3.4)");
                 turns = true;
             }
             if (turns) {
@@ -212,6 +218,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
 
     // Before predicting: a log without the program's block names takes them by mapping.
+    std::optional<motion_io::NcProgram> machine_program;   // a turning tool's program, as read
     if (in.program) {
         track.begin(Phase::Program, 0, 0);
         ProgramSource source = *in.program;
@@ -223,10 +230,14 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         }
         motion_io::NcProgram program = read_program(source, in.spec, axes_start_mm);
         // With a machine: the tip's commanded path against the part (stock axes), its orientation
-        // held to the log's rule.
-        if (in.machine)
+        // held to the log's rule; a turning tool's commanded run is made from the machine axes.
+        if (turning) {
+            machine_program = program;
+            program = turning_workpiece_program(program, *in.machine, in.tool_length_mm, source.settings.rapid_mm_min);
+        } else if (in.machine) {
             program = workpiece_program(program, *in.machine, in.tool_length_mm, source.settings.rapid_mm_min, {}, frame,
                                         tool_reach(in.spec));
+        }
         // Without a tool table the run spec's one tool cuts every block; say so when the program
         // changes tools. (With a table, tools it lacks are counted after the prediction.)
         if (const std::vector<int> tools = motion_io::program_tools(program); tools.size() > 1 && in.spec.tools.empty()) {
@@ -242,6 +253,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.options.step_s = r.motion.step_s;
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
         r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
+        if (turning) count_multi_direction_stock(r.work, in.spec);
         check_run_work(r.work, in.limits, orientation_of(frame));
         track.begin(Phase::Mapping, 0, 0);
         // The log is matched to the program where both are: in stock axes (a tilted tool's motion
@@ -264,14 +276,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         CommandedWork commanded;
         commanded.from_log = in.commanded_from_log;
         r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
-        if (turning) {
-            // The multi-direction stock: its three families' rays count as cells, all of them written.
-            const double zmap_cells = r.work.stock_cells;
-            r.work.stock_cells = force_model::multi_direction_stock_rays(in.spec.stock, in.spec.resolution.grid_mm);
-            r.work.memory_mb += (force_model::multi_direction_stock_bytes(in.spec.stock, in.spec.resolution.grid_mm) -
-                                 zmap_cells * double(force_model::stock_bytes_per_cell())) /
-                                (1024.0 * 1024.0);
-        }
+        if (turning) count_multi_direction_stock(r.work, in.spec);
         check_run_work(r.work, in.limits, orientation_of(frame));
     }
     motion_io::MotionModel logged_commanded;
@@ -370,7 +375,9 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             commanded_stock = force_model::make_turned_stock(in.spec.stock, grid_frame, spec.resolution.grid_mm);
             po.own_stock = &commanded_stock;
         }
-        r.commanded = predict_program(*r.program, r.motion, r.prediction, spec, po, frame.tilted ? &grid_frame : nullptr);
+        const TurningCommand turning_command{machine_program ? &*machine_program : nullptr, in.machine.get(), in.tool_length_mm};
+        r.commanded = predict_program(*r.program, r.motion, r.prediction, spec, po, frame.tilted ? &grid_frame : nullptr,
+                                      machine_program ? &turning_command : nullptr);
         po.own_stock = nullptr;
     } else if (in.commanded_from_log) {
         track.begin(Phase::Commanded, actual_share, 1);

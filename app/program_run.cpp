@@ -187,13 +187,22 @@ TimeWarp commanded_to_actual_time(const ProgramRun& run, const motion_io::Motion
 
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
                                   const RunSpec& spec, const PredictOptions& options,
-                                  const force_model::Rotation3* grid_from_stock) {
+                                  const force_model::Rotation3* grid_from_stock, const TurningCommand* turning) {
     ProgramPrediction out;
-    motion_io::MotionModel commanded = motion_io::commanded_motion(run.program, run.commanded);
-    const Eigen::Matrix3d tool_to_stock = grid_from_stock ? tool_to_workpiece(*grid_from_stock) : Eigen::Matrix3d::Identity();
-    if (grid_from_stock) turn_motion(commanded, tool_to_stock.transpose());
-    out.commanded = force_model::predict(commanded, spec, options);
-    if (grid_from_stock) turn_forces(out.commanded.samples, tool_to_stock);
+    if (turning) {
+        if (grid_from_stock) throw std::logic_error("predict_program: a turning tool has no fixed frame");
+        // Feed overrides index the tip path's pieces, not the machine-axis blocks.
+        if (!run.commanded.feed_mm_min.empty()) throw std::logic_error("predict_program: feed overrides of a turning tool's program");
+        const motion_io::MotionModel axes = motion_io::commanded_motion(*turning->machine_axes, run.commanded);
+        const TurningMotion t = turning_motion(axes, *turning->machine, turning->tool_length_mm);
+        out.commanded = force_model::predict_turning(t.motion, t.poses, spec, options);
+    } else {
+        motion_io::MotionModel commanded = motion_io::commanded_motion(run.program, run.commanded);
+        const Eigen::Matrix3d tool_to_stock = grid_from_stock ? tool_to_workpiece(*grid_from_stock) : Eigen::Matrix3d::Identity();
+        if (grid_from_stock) turn_motion(commanded, tool_to_stock.transpose());
+        out.commanded = force_model::predict(commanded, spec, options);
+        if (grid_from_stock) turn_forces(out.commanded.samples, tool_to_stock);
+    }
     out.blocks = force_model::compare_program(run.program, motion, run.mapping, out.commanded, actual, run.commanded);
     out.to_actual_time = commanded_to_actual_time(run, motion);
     return out;

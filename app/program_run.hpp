@@ -18,6 +18,10 @@
 #include <string>
 #include <vector>
 
+namespace cutload::machine {
+struct Machine;
+}
+
 namespace cutload::app {
 
 using force_model::BlockComparison;
@@ -112,8 +116,20 @@ struct ProgramPrediction {
 // axes like the program. With `grid_from_stock` (a fixed tilt, ToolFrame::grid_from_stock: `spec`
 // and the options' stock are in the tool's frame) the commanded motion is turned into that frame
 // for the engine and its forces back into stock axes, as the actual ones were.
+//
+// With `turning` (the log's tool turns where it can reach the stock, and `run.program` is
+// turning_workpiece_program's tip path) the commanded motion is made from the program in the
+// machine's axes and goes through turning_motion, as the log did, to force_model::predict_turning:
+// the commanded poses come from the chain, not from the tip path's pieces. Both programs share
+// their block names and times, so the comparison and the time warp read `run.program`.
+struct TurningCommand {
+    const motion_io::NcProgram* machine_axes = nullptr;   // the program as read (machine-axis form)
+    const machine::Machine* machine = nullptr;
+    double tool_length_mm = 0;
+};
 ProgramPrediction predict_program(const ProgramRun& run, const motion_io::MotionModel& motion, const Prediction& actual,
                                   const RunSpec& spec, const PredictOptions& options,
-                                  const force_model::Rotation3* grid_from_stock = nullptr);
+                                  const force_model::Rotation3* grid_from_stock = nullptr,
+                                  const TurningCommand* turning = nullptr);
 
 }  // namespace cutload::app

@@ -505,17 +505,18 @@ machine::AxisPositions block_axes(const machine::Machine& machine, const motion_
     return q;
 }
 
-}  // namespace
-
-motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
-                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits,
-                                       const ToolFrame& frame, const std::optional<ToolReach>& reach) {
+// workpiece_program and turning_workpiece_program: the tip's path, with the orientation held to
+// the log's rule (a checked frame and the reach), to the vertical (neither), or free (any_orientation).
+motion_io::NcProgram tip_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                 double tool_length_mm, double rapid_mm_min, const PieceLimits& limits,
+                                 const ToolFrame& frame, const std::optional<ToolReach>& reach, bool any_orientation) {
     using motion_io::NcBlock;
     using motion_io::NcMotion;
-    const bool checked = frame.checked && reach.has_value();
+    const bool checked = !any_orientation && frame.checked && reach.has_value();
     const double length_mm = reach ? reach_length_mm(tool_length_mm, *reach) : tool_length_mm;
     auto tip = [&](const NcBlock& b, double u) {
         const machine::AxisPositions q = block_axes(machine, b, u);
+        if (any_orientation) return Eigen::Vector3d(machine::forward(machine, q, tool_length_mm).tip_mm());
         const machine::ToolPose nominal = machine::forward(machine, q, tool_length_mm, machine::ErrorMode::Nominal);
         if (checked) {
             // The log's rule (tool_frame): the commanded tool keeps the orientation the log cuts at
@@ -631,6 +632,19 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
         }
     }
     return out;
+}
+
+}  // namespace
+
+motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                       double tool_length_mm, double rapid_mm_min, const PieceLimits& limits,
+                                       const ToolFrame& frame, const std::optional<ToolReach>& reach) {
+    return tip_program(program, machine, tool_length_mm, rapid_mm_min, limits, frame, reach, false);
+}
+
+motion_io::NcProgram turning_workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                               double tool_length_mm, double rapid_mm_min, const PieceLimits& limits) {
+    return tip_program(program, machine, tool_length_mm, rapid_mm_min, limits, {}, std::nullopt, true);
 }
 
 std::shared_ptr<const machine::Machine> load_machine_definition(const MachineFiles& files) {

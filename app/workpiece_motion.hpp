@@ -263,4 +263,12 @@ motion_io::NcProgram workpiece_program(const motion_io::NcProgram& program, cons
                                        double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {},
                                        const ToolFrame& frame = {}, const std::optional<ToolReach>& reach = std::nullopt);
 
+// As workpiece_program, for a log whose tool turns where it can reach the stock (simultaneous
+// five-axis work, turning_motion): every orientation is taken, since the multi-direction stock
+// cuts at any. The tip's path serves the block mapping and the comparison; the commanded run
+// itself goes from the program's machine axes through turning_motion (predict_program's
+// TurningCommand), so its poses are the chain's, not the pieces'.
+motion_io::NcProgram turning_workpiece_program(const motion_io::NcProgram& program, const machine::Machine& machine,
+                                               double tool_length_mm, double rapid_mm_min, const PieceLimits& limits = {});
+
 }  // namespace cutload::app

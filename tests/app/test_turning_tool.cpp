@@ -25,8 +25,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <numbers>
 #include <sstream>
+#include <string>
 #include <vector>
 
 using namespace cutload;
@@ -87,20 +89,17 @@ Eigen::Vector3d reference_forces(const Eigen::Matrix3d& R, double theta_rad, int
     return R * sum;
 }
 
-}  // namespace
+constexpr double kFeed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
+constexpr double kIdleBefore_s = 0.3;
 
-TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while it cuts matches the numerical "
-          "integration at each instant's orientation",
-          "[five_axis][turning][physics]") {
-    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
-    apptest::Scratch dir("turning_tool");
-    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
-    const double duration_s = (kX1_mm - kX0_mm) / feed_mm_s;
+// The cut as a path against the part: the centre along +X, the lead turning with the path's time.
+app::PathDryRunSpec turning_path_spec() {
+    const double duration_s = (kX1_mm - kX0_mm) / kFeed_mm_s;
     app::PathDryRunSpec s;
-    s.path = [feed_mm_s, duration_s](double u) {
+    s.path = [duration_s](double u) {
         const double lead = kLead0_deg + (kLead1_deg - kLead0_deg) * std::clamp(u / duration_s, 0.0, 1.0);
         const Eigen::Vector3d a = tool_axis(lead, kTilt_deg);
-        const Eigen::Vector3d centre(kX0_mm + feed_mm_s * u, kY_mm, kCentreZ_mm);
+        const Eigen::Vector3d centre(kX0_mm + kFeed_mm_s * u, kY_mm, kCentreZ_mm);
         const Eigen::Vector3d tip = centre - kRadius_mm * a;
         app::PathPose p;
         p.tip_mm = {tip.x(), tip.y(), tip.z()};
@@ -111,11 +110,22 @@ TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while
     s.tool_length_mm = kToolLength_mm;
     s.start_axes = {{'A', 0}, {'C', 180}};
     s.spindle_rpm = kRpm;
-    s.idle_before_s = 0.3;
+    s.idle_before_s = kIdleBefore_s;
     s.idle_after_s = 0.2;
     s.seed = 20261128;
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while it cuts matches the numerical "
+          "integration at each instant's orientation",
+          "[five_axis][turning][physics]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("turning_tool");
+    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
     std::ostringstream csv;
-    const app::PathDryRun run = app::synthesize_path_dry_run(s, *machine, csv);
+    const app::PathDryRun run = app::synthesize_path_dry_run(turning_path_spec(), *machine, csv);
     const std::string log_path = (dir / "turning.csv").string();
     apptest::write_text(log_path, csv.str());
 
@@ -205,4 +215,120 @@ TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while
     if (std::getenv("CUTLOAD_TILT_VERBOSE"))
         fmt::print("turning lead: mean {:.3f} %, trace RMS {:.3f} % of peak {:.1f} N, offset {} deg, {} rows\n",
                    mean_error * 100, trace_rms * 100, peak, offset_deg, window.size());
+}
+
+// The same cut with its NC program: the machine-axis program the log was made from, its pieces
+// named in three blocks (N31 entering the stock, N32 and N33 in it), compared with the log. The
+// commanded run is made from the program's machine axes through the chain, so its forces over the
+// steady window must be the numerical integration's, as the log's are; the comparison finds the
+// log on the program's tip path block by block.
+TEST_CASE("turning tool: with its NC program the commanded run turns the tool as the program does, matches the "
+          "integration, and the blocks compare",
+          "[five_axis][turning][nc]") {
+    const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
+    apptest::Scratch dir("turning_program");
+    std::ostringstream csv;
+    const app::PathDryRun run = app::synthesize_path_dry_run(turning_path_spec(), *machine, csv);
+    const std::string log_path = (dir / "turning.csv").string();
+    apptest::write_text(log_path, csv.str());
+    // One block per third of the pieces; the log names them all N30, so it is mapped onto these.
+    std::vector<std::string> lines;
+    {
+        std::istringstream in(run.program);
+        for (std::string line; std::getline(in, line);) lines.push_back(line);
+    }
+    const std::string prefix = run.block + " ";
+    const auto pieces = std::size_t(std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; }));
+    REQUIRE(pieces > 300);
+    std::string program;
+    std::size_t k = 0;
+    for (std::string& line : lines) {
+        if (line.rfind(prefix, 0) == 0) line = fmt::format("N{} {}", 31 + 3 * k++ / pieces, line.substr(prefix.size()));
+        program += line + "\n";
+    }
+
+    app::RunInput in;
+    in.log_path = log_path;
+    in.read = app::read_options(app::LogFormat{});
+    in.spec = force_model::parse_run_spec_text(kSpec, "turning.json");
+    in.machine = machine;
+    in.tool_length_mm = kToolLength_mm;
+    in.device = enginetest::opencl_available() ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    app::ProgramSource source;
+    source.text = program;
+    source.name = "turning.nc";
+    source.settings.work_offsets_mm["G54"] = {0, 0, 0};   // the program is in machine coordinates
+    in.program = source;
+    const app::RunResult r = app::predict_run(in);
+    CHECK(r.turning);
+    REQUIRE(r.program);
+    REQUIRE(r.commanded);
+    CHECK(r.program->mapped);
+
+    // The three blocks, found on the program's tip path: the log trails the command along it.
+    std::map<std::string, const force_model::BlockComparison*> blocks;
+    for (const auto& b : r.commanded->blocks) blocks[b.block] = &b;
+    for (const char* name : {"N31", "N32", "N33"}) {
+        INFO(name);
+        REQUIRE(blocks.count(name) == 1);
+        const auto& b = *blocks[name];
+        CHECK(b.samples > 100);
+        CHECK(b.max_deviation_mm < 0.01);
+    }
+    // N32 runs at its programmed tip speed all through (N31 holds the start, N33 the stop); the tip
+    // moves slower than the ball's centre as the lead turns: 1226 against 1280 mm/min.
+    CHECK(blocks["N32"]->actual_duration_s == Approx(blocks["N32"]->commanded_duration_s).epsilon(0.01));
+    CHECK(blocks["N32"]->actual_mean_feed_mm_min == Approx(blocks["N32"]->programmed_feed_mm_min).epsilon(0.005));
+    CHECK(blocks["N32"]->programmed_feed_mm_min < kFeed_mm_s * 60 * 0.97);
+    // N32 and N33 cut the groove whole, at the same chip: their peaks agree, commanded and actual.
+    for (const char* name : {"N32", "N33"}) {
+        INFO(name << ": commanded peak " << blocks[name]->commanded_peak_force_N << " N, actual "
+                  << blocks[name]->actual_peak_force_N << " N");
+        CHECK(blocks[name]->commanded_peak_force_N > 50);
+        CHECK(std::abs(blocks[name]->force_difference_pct) < 3);
+    }
+
+    // The steady window of the first test (the centre 10 to 26 mm into the stock) in commanded time:
+    // the program dwells kIdleBefore_s before the path.
+    const double u0 = 18 / kFeed_mm_s, u1 = 34 / kFeed_mm_s;
+    Eigen::Vector3d commanded_mean = Eigen::Vector3d::Zero();
+    std::size_t n = 0;
+    for (const auto& row : r.commanded->commanded.samples)
+        if (row.t_s >= kIdleBefore_s + u0 && row.t_s <= kIdleBefore_s + u1) {
+            commanded_mean += Eigen::Vector3d(row.fx_N, row.fy_N, row.fz_N);
+            ++n;
+        }
+    REQUIRE(n > 10000);
+    commanded_mean /= double(n);
+    // The integration's mean over the window: at each instant the average over a turn of the
+    // spindle, which does not depend on how the frame turns about the tool's axis.
+    const double duration_s = (kX1_mm - kX0_mm) / kFeed_mm_s;
+    Eigen::Vector3d reference_mean = Eigen::Vector3d::Zero();
+    constexpr int kInstants = 32, kAngles = 90;
+    for (int i = 0; i < kInstants; ++i) {
+        const double u = u0 + (u1 - u0) * (i + 0.5) / kInstants;
+        const Eigen::Vector3d a = tool_axis(kLead0_deg + (kLead1_deg - kLead0_deg) * u / duration_s, kTilt_deg);
+        const Eigen::Matrix3d R = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), a).toRotationMatrix();
+        for (int j = 0; j < kAngles; ++j) reference_mean += reference_forces(R, 2 * kPi * (j + 0.5) / kAngles, 300);
+    }
+    reference_mean /= double(kInstants * kAngles);
+    // The log's rows over the same stretch of path (it trails the command by the lag).
+    Eigen::Vector3d actual_mean = Eigen::Vector3d::Zero();
+    std::size_t m = 0;
+    for (const auto& row : r.prediction.samples)
+        if (row.t_s >= run.path_start_s + run.lag_s + u0 && row.t_s <= run.path_start_s + run.lag_s + u1) {
+            actual_mean += Eigen::Vector3d(row.fx_N, row.fy_N, row.fz_N);
+            ++m;
+        }
+    REQUIRE(m > 10000);
+    actual_mean /= double(m);
+    INFO("commanded mean (" << commanded_mean.transpose() << ") N, actual (" << actual_mean.transpose()
+                            << ") N, integration (" << reference_mean.transpose() << ") N");
+    CHECK(reference_mean.norm() > 50);
+    CHECK((commanded_mean - reference_mean).norm() / reference_mean.norm() < 0.01);
+    CHECK((commanded_mean - actual_mean).norm() / reference_mean.norm() < 0.01);
+    if (std::getenv("CUTLOAD_TILT_VERBOSE"))
+        fmt::print("turning program: commanded {:.3f} % and actual {:.3f} % off the integration's mean\n",
+                   100 * (commanded_mean - reference_mean).norm() / reference_mean.norm(),
+                   100 * (actual_mean - reference_mean).norm() / reference_mean.norm());
 }

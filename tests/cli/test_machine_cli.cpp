@@ -186,16 +186,16 @@ TEST_CASE("predict --machine: rotary axes become the tool's motion, a tool turni
     replace(R"("offset_mm": [-200, 300, 350])", R"("offset_mm": [0, 0, 0])");
     replace(R"("grid_mm": 0.1)", R"("grid_mm": 2)");
     std::ofstream(dir / "near.json") << near_spec;
-    // With its NC program the turning tool is refused (comparing such a run with a program is not
-    // built), in one line, before any row: the earlier FORCES.csv is untouched and no temporary
-    // file is left.
+    // With a program it does not run (demo3's ring groove) the turning tool's log is refused by the
+    // mapping, in one line, before any row: the earlier FORCES.csv is untouched and no temporary
+    // file is left. (Its own program is compared: tests/app/test_turning_tool.cpp.)
     const clitest::Result with_program = clitest::run(
         "predict " + (dir / "tilted.csv").string() + " --spec " + (dir / "near.json").string() + " --device cpu -q --out " +
         (dir / "forces.csv").string() + " --machine " + machine + " --program " + clitest::source("data/demo3_program.nc"));
     INFO(with_program.output);
     CHECK(with_program.exit_code != 0);
-    CHECK_THAT(with_program.output, Catch::Contains("the tool turns while it can reach the stock") &&
-                                        Catch::Contains("NC program"));
+    CHECK_THAT(with_program.output, Catch::Contains("demo3_program.nc: only") &&
+                                        Catch::Contains("not this log's program, or the wrong work offset"));
     CHECK(std::count(with_program.output.begin(), with_program.output.end(), '\n') == 1);
     {
         std::ifstream in(dir / "forces.csv", std::ios::binary);

@@ -58,7 +58,8 @@ std::string without_column(const std::string& csv, const std::string& name) {
 // A D8 flat end mill leaning 30 deg toward the feed (+X), 2 mm into a 40 x 30 x 20 block's top
 // face, logged through the AC machine with a 120 mm tool (docs/five_axis.md, section 2.5).
 // With `final_lean_deg`, the lean turns linearly to it along the path (simultaneous five-axis).
-std::string tilted_log_csv(double final_lean_deg = 30) {
+// `program`: where to put the machine-axis program the log was made from (G93 pieces, block N30).
+std::string tilted_log_csv(double final_lean_deg = 30, std::string* program = nullptr) {
     const auto machine_def = cutload::app::load_machine_definition((kData / "machines" / "ac_table_table.json").string());
     cutload::app::PathDryRunSpec p;
     const double feed_mm_s = 0.05 * 2 * 8000 / 60.0, duration_s = 28 / feed_mm_s;
@@ -74,7 +75,8 @@ std::string tilted_log_csv(double final_lean_deg = 30) {
     p.start_axes = {{'A', 0}, {'C', 0}};
     p.spindle_rpm = 8000;
     std::ostringstream log;
-    cutload::app::synthesize_path_dry_run(p, *machine_def, log);
+    const cutload::app::PathDryRun run = cutload::app::synthesize_path_dry_run(p, *machine_def, log);
+    if (program) *program = run.program;
     return log.str();
 }
 // Its block at 0.2 mm: 200 x 150 = 30 000 cells as given, more turned into the tool's frame.
@@ -345,6 +347,40 @@ TEST_CASE("kinematics: with its NC program in the machine's axes the run also pr
     // Without the machine the program's C words are refused at upload, naming line and word.
     require_error(upload_demo3(c, {{"nc_program", slurp(kData / "demo3_program.nc"), "demo3_program.nc", "text/plain"}}), 400,
                   "bad_program", "demo3_program.nc");
+}
+
+TEST_CASE("kinematics: a tool whose lean turns while it cuts is compared with its NC program, the commanded run turning too") {
+    std::string program;
+    const std::string log = tilted_log_csv(10, &program);
+    TestServer ts;
+    auto c = ts.client(ts.write_key);
+    auto r = c.Post("/api/v1/runs",
+                    httplib::MultipartFormDataItems{
+                        {"log", log, "tilted.csv", "text/csv"},
+                        {"spec", kTiltedSpec, "", "application/json"},
+                        {"kinematics", slurp(kData / "machines" / "ac_table_table.json"), "ac.json", "application/json"},
+                        {"tool_length_mm", "120", "", ""},
+                        {"nc_program", program, "tilted.nc", "text/plain"},
+                        // The program is in machine coordinates.
+                        {"nc_options", R"({"work_offsets_mm": {"G54": [0, 0, 0]}})", "", ""}});
+    REQUIRE(r->status == 202);
+    const auto id = body(r)["id"].get<std::int64_t>();
+    json run = wait_finished(c, id, 300);
+    INFO(run.dump());
+    REQUIRE(run["state"] == "done");
+    CHECK(run["summary"]["kinematics"]["turning"] == true);
+    const json blocks = body(c.Get(("/api/v1/runs/" + std::to_string(id) + "/program").c_str()))["blocks"];
+    bool compared = false;
+    for (const json& b : blocks) {
+        if (b["block"] != "N30") continue;
+        INFO(b.dump());
+        // The path's pieces: the log on the program's tip path, the commanded peak near the actual.
+        CHECK(b["max_deviation_mm"].get<double>() < 0.01);
+        CHECK(b["actual_peak_force_N"].get<double>() > 50);
+        CHECK(b["commanded_peak_force_N"].get<double>() == Approx(b["actual_peak_force_N"].get<double>()).epsilon(0.05));
+        compared = true;
+    }
+    CHECK(compared);
 }
 
 TEST_CASE("kinematics: a bad machine file, errors or a tool length without a machine are 400 and store nothing") {
