@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <sstream>
 #include <string>
@@ -116,6 +117,28 @@ app::PathDryRunSpec turning_path_spec() {
     return s;
 }
 
+// The cut's dry-run log, written to `log_path` as the AC machine records it.
+app::PathDryRun write_turning_log(const machine::Machine& machine, const std::string& log_path) {
+    std::ostringstream csv;
+    app::PathDryRun run = app::synthesize_path_dry_run(turning_path_spec(), machine, csv);
+    apptest::write_text(log_path, csv.str());
+    return run;
+}
+
+// The run as `cutload predict --machine` sets it up, on the OpenCL kernels where a device exists
+// (their twins equal them step for step: tests/force_model/test_tri_dexel_opencl.cpp), so the
+// references below check the device path.
+app::RunInput turning_input(const std::string& log_path, std::shared_ptr<const machine::Machine> machine) {
+    app::RunInput in;
+    in.log_path = log_path;
+    in.read = app::read_options(app::LogFormat{});
+    in.spec = force_model::parse_run_spec_text(kSpec, "turning.json");
+    in.machine = std::move(machine);
+    in.tool_length_mm = kToolLength_mm;
+    in.device = enginetest::opencl_available() ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    return in;
+}
+
 }  // namespace
 
 TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while it cuts matches the numerical "
@@ -123,21 +146,9 @@ TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while
           "[five_axis][turning][physics]") {
     const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
     apptest::Scratch dir("turning_tool");
-    const double feed_mm_s = kFeedPerTooth_mm * kFlutes * kRpm / 60;
-    std::ostringstream csv;
-    const app::PathDryRun run = app::synthesize_path_dry_run(turning_path_spec(), *machine, csv);
     const std::string log_path = (dir / "turning.csv").string();
-    apptest::write_text(log_path, csv.str());
-
-    app::RunInput in;
-    in.log_path = log_path;
-    in.read = app::read_options(app::LogFormat{});
-    in.spec = force_model::parse_run_spec_text(kSpec, "turning.json");
-    in.machine = machine;
-    in.tool_length_mm = kToolLength_mm;
-    // The OpenCL kernels where a device exists (their twins equal them step for step:
-    // tests/force_model/test_tri_dexel_opencl.cpp), so the reference below checks the device path.
-    in.device = enginetest::opencl_available() ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    const app::PathDryRun run = write_turning_log(*machine, log_path);
+    const app::RunInput in = turning_input(log_path, machine);
     const app::RunResult r = app::predict_run(in);
     CHECK(r.turning);
     CHECK_FALSE(r.fixed_tilt);
@@ -159,7 +170,7 @@ TEST_CASE("turning tool: a ball end mill turning its lead from 5 to 25 deg while
     };
     // The steady window: the centre 10 to 26 mm into the stock (the ball is fully in from 5 mm; the
     // path ends at 32 mm, and its deceleration must stay out).
-    const double t0 = run.path_start_s + run.lag_s + 18 / feed_mm_s, t1 = run.path_start_s + run.lag_s + 34 / feed_mm_s;
+    const double t0 = run.path_start_s + run.lag_s + 18 / kFeed_mm_s, t1 = run.path_start_s + run.lag_s + 34 / kFeed_mm_s;
     std::vector<const force_model::ForceSample*> window;
     std::vector<Eigen::Matrix3d> frames;
     for (const auto& row : r.prediction.samples)
@@ -227,10 +238,8 @@ TEST_CASE("turning tool: with its NC program the commanded run turns the tool as
           "[five_axis][turning][nc]") {
     const auto machine = app::load_machine_definition(apptest::source_path("data/machines/ac_table_table.json"));
     apptest::Scratch dir("turning_program");
-    std::ostringstream csv;
-    const app::PathDryRun run = app::synthesize_path_dry_run(turning_path_spec(), *machine, csv);
     const std::string log_path = (dir / "turning.csv").string();
-    apptest::write_text(log_path, csv.str());
+    const app::PathDryRun run = write_turning_log(*machine, log_path);
     // One block per third of the pieces; the log names them all N30, so it is mapped onto these.
     std::vector<std::string> lines;
     {
@@ -247,13 +256,7 @@ TEST_CASE("turning tool: with its NC program the commanded run turns the tool as
         program += line + "\n";
     }
 
-    app::RunInput in;
-    in.log_path = log_path;
-    in.read = app::read_options(app::LogFormat{});
-    in.spec = force_model::parse_run_spec_text(kSpec, "turning.json");
-    in.machine = machine;
-    in.tool_length_mm = kToolLength_mm;
-    in.device = enginetest::opencl_available() ? force_model::Device::OpenCL : force_model::Device::Cpu;
+    app::RunInput in = turning_input(log_path, machine);
     app::ProgramSource source;
     source.text = program;
     source.name = "turning.nc";
