@@ -40,8 +40,7 @@ std::string number_problem(std::string_view text, NumberError error);
 // (the double's exact value rounded half to even, "-" on any negative value, -0.0 included),
 // several times faster for what result files hold: finite values under 2^52 with up to 9
 // decimals; others go through std::to_chars itself. FORCES.csv prints about 3 million numbers
-// for a 10 s log, which std::to_chars made the longest part of a short prediction. Unlike
-// std::to_chars it may change up to 24 characters from `first` past the returned end.
+// for a 10 s log, which std::to_chars made the longest part of a short prediction.
 std::to_chars_result format_fixed(char* first, char* last, double value, int decimals);
 
 }  // namespace cutload::textio
