@@ -4,9 +4,11 @@
 
 #include "staged_file.hpp"
 #include "textio/csv.hpp"
+#include "textio/number.hpp"
 
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <vector>
 #include <filesystem>
 #include <fmt/format.h>
@@ -35,11 +37,13 @@ namespace {
 
 class ForcesCsvWriter final : public ForcesWriter {
 public:
-    ForcesCsvWriter(const std::string& path, const ForcesColumns& columns) : file_(path), machine_axes_(columns.machine_axes) {
-        buf_.reserve(1 << 20);
-        buf_ += "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
-                "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact";
-        buf_ += machine_axes_ ? ",fx_machine_N,fy_machine_N,fz_machine_N,tool_axis_x,tool_axis_y,tool_axis_z\n" : "\n";
+    ForcesCsvWriter(const std::string& path, const ForcesColumns& columns)
+        : file_(path), machine_axes_(columns.machine_axes), buf_(kFlushBytes + kRowBytesMax, '\0') {
+        append(machine_axes_ ? "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+                               "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact,"
+                               "fx_machine_N,fy_machine_N,fz_machine_N,tool_axis_x,tool_axis_y,tool_axis_z\n"
+                             : "t_s,spindle_angle_deg,block,tool,fx_N,fy_N,fz_N,torque_Nm,power_kW,chip_mm,bending_MPa,"
+                               "radial_engagement_mm,axial_engagement_mm,removed_mm3,holder_contact\n");
     }
 
     void set_block_names(const std::vector<std::string>& block_names) override {
@@ -48,24 +52,28 @@ public:
     }
 
     void write(std::span<const ForceSample> rows) override {
-        // std::to_chars: the rows are the bulk of a run's output, and locale-free fixed formatting
-        // through it is several times faster than stream or fmt float formatting.
-        char tmp[64];
-        auto num = [&](double v, int digits) {
-            const auto r = std::to_chars(tmp, tmp + sizeof tmp, v, std::chars_format::fixed, digits);
-            buf_.append(tmp, r.ptr);
-            buf_ += ',';
-        };
+        // The rows are the bulk of a run's output: each is formatted straight into the buffer,
+        // which always has room for the longest row (kRowBytesMax beside its block name).
         for (const ForceSample& s : rows) {
+            const std::string_view name =
+                s.block >= 0 && std::size_t(s.block) < names_.size() ? std::string_view(names_[std::size_t(s.block)]) : "";
+            if (used_ >= kFlushBytes || buf_.size() - used_ < kRowBytesMax + name.size()) {
+                flush();
+                if (buf_.size() < kRowBytesMax + name.size()) buf_.resize(kFlushBytes + kRowBytesMax + name.size());
+            }
+            char* p = buf_.data() + used_;
+            char* const end = buf_.data() + buf_.size();
+            auto num = [&](double v, int digits) {
+                p = textio::format_fixed(p, end, v, digits).ptr;
+                *p++ = ',';
+            };
             num(s.t_s, 6);
             num(s.spindle_angle_deg, 3);
-            if (s.block >= 0 && std::size_t(s.block) < names_.size()) buf_ += names_[std::size_t(s.block)];
-            buf_ += ',';
-            if (s.tool >= 0) {
-                const auto r = std::to_chars(tmp, tmp + sizeof tmp, s.tool);
-                buf_.append(tmp, r.ptr);
-            }
-            buf_ += ',';
+            std::memcpy(p, name.data(), name.size());
+            p += name.size();
+            *p++ = ',';
+            if (s.tool >= 0) p = std::to_chars(p, end, s.tool).ptr;
+            *p++ = ',';
             num(s.fx_N, 3);
             num(s.fy_N, 3);
             num(s.fz_N, 3);
@@ -76,19 +84,19 @@ public:
             num(s.radial_engagement_mm, 3);
             num(s.axial_engagement_mm, 3);
             num(s.removed_mm3, 5);
+            *p++ = s.holder_contact ? '1' : '0';
             if (machine_axes_) {
-                buf_ += s.holder_contact ? "1," : "0,";
+                *p++ = ',';
                 num(s.fx_machine_N, 3);
                 num(s.fy_machine_N, 3);
                 num(s.fz_machine_N, 3);
                 num(s.tool_axis_x, 6);
                 num(s.tool_axis_y, 6);
                 num(s.tool_axis_z, 6);
-                buf_.back() = '\n';
-            } else {
-                buf_ += s.holder_contact ? "1\n" : "0\n";
+                --p;
             }
-            if (buf_.size() > (1 << 20) - 512) flush();
+            *p++ = '\n';
+            used_ = std::size_t(p - buf_.data());
         }
     }
 
@@ -96,18 +104,29 @@ public:
         flush();
         file_.commit();
     }
-    std::uint64_t bytes_written() const override { return file_.bytes() + buf_.size(); }
+    std::uint64_t bytes_written() const override { return file_.bytes() + used_; }
 
 private:
+    static constexpr std::size_t kFlushBytes = 1 << 20;
+    // A row's 21 numbers at their longest (std::to_chars of a double near 1e308: 309 digits, sign,
+    // point, 6 decimals), the tool number and the separators; the block name comes on top.
+    static constexpr std::size_t kRowBytesMax = 21 * 320 + 32;
+
     void flush() {
-        file_.append(buf_);
-        buf_.clear();
+        file_.append(std::string_view(buf_.data(), used_));
+        used_ = 0;
+    }
+    void append(std::string_view text) {
+        if (buf_.size() - used_ < text.size()) flush();
+        std::memcpy(buf_.data() + used_, text.data(), text.size());
+        used_ += text.size();
     }
 
     StagedFile file_;
     bool machine_axes_ = false;
     std::vector<std::string> names_;   // CSV fields of the block names
-    std::string buf_;
+    std::string buf_;                  // its whole size is usable; used_ bytes of it are filled
+    std::size_t used_ = 0;
 };
 
 }  // namespace

@@ -45,6 +45,16 @@ void StagedFile::append(std::string_view bytes) {
         done += static_cast<std::size_t>(n);
     }
     bytes_ += bytes.size();
+    // Writeback started as the file grows, on the writer's thread: ext4 otherwise writes the whole
+    // delayed-allocation file inside commit()'s rename when it replaces an existing file (its
+    // auto_da_alloc), which held `cutload predict` 23-32 ms at exit for a 26.5 MB FORCES.csv. Whole
+    // pages only: the last, partial one would be written again. Only a hint: errors are ignored.
+    constexpr std::uint64_t kWritebackBytes = 1 << 20, kPageBytes = 4096;
+    const std::uint64_t whole_pages_end = bytes_ / kPageBytes * kPageBytes;
+    if (whole_pages_end - written_back_ >= kWritebackBytes) {
+        ::sync_file_range(fd_, off64_t(written_back_), off64_t(whole_pages_end - written_back_), SYNC_FILE_RANGE_WRITE);
+        written_back_ = whole_pages_end;
+    }
 }
 
 void StagedFile::commit() {

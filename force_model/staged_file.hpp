@@ -26,6 +26,7 @@ private:
     std::string path_, tmp_;
     int fd_ = -1;
     std::uint64_t bytes_ = 0;
+    std::uint64_t written_back_ = 0;   // bytes whose writeback append() has started
     bool committed_ = false;
 };
 

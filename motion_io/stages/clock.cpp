@@ -31,19 +31,32 @@ double tick_interval(double cur, double prev, double period_s) {
     return period_s > 0 ? period_s * (cur - prev) : cur - prev;
 }
 
+// Dims = 3 leaves the rotary components as they are: for readings whose rotary axes stand still
+// (equal angles) they are +0 either way, and the sums below then add +0 for each of them, which
+// changes no value: the same bits as kJointDims, without half the divisions.
+template <int Dims = kJointDims>
 void velocity(const PosRead& a, const PosRead& b, double dg, double v[kJointDims]) {
     for (int ax = 0; ax < 3; ++ax) v[ax] = (b.p_mm[ax] - a.p_mm[ax]) / dg;
-    for (int ax = 0; ax < 3; ++ax) v[3 + ax] = (b.rot_deg[ax] - a.rot_deg[ax]) * kRotaryMmPerDeg / dg;
+    for (int ax = 0; ax < Dims - 3; ++ax) v[3 + ax] = (b.rot_deg[ax] - a.rot_deg[ax]) * kRotaryMmPerDeg / dg;
 }
 
 // |v - pv|^2 / (|v|^2 + |pv|^2): 0 for a steady velocity, up to 2 for a reversal.
+template <int Dims = kJointDims>
 double velocity_jump(const double v[kJointDims], const double pv[kJointDims]) {
     double dv2 = 0, s2 = 0;
-    for (int ax = 0; ax < kJointDims; ++ax) {
+    for (int ax = 0; ax < Dims; ++ax) {
         dv2 += (v[ax] - pv[ax]) * (v[ax] - pv[ax]);
         s2 += v[ax] * v[ax] + pv[ax] * pv[ax];
     }
     return dv2 / s2;
+}
+
+// Whether any two successive readings differ in a rotary axis (NaNs count as differing).
+bool rotary_moves(const PosRead* r, std::size_t n) {
+    for (std::size_t k = 1; k < n; ++k)
+        for (int ax = 0; ax < 3; ++ax)
+            if (!(r[k].rot_deg[ax] == r[k - 1].rot_deg[ax])) return true;
+    return false;
 }
 
 struct RoughnessSum {
@@ -341,6 +354,7 @@ public:
              std::size_t* last_pairs) {
         r_ = r, n_ = n, period_s_ = period_s;
         if (!(period_s > 0) || phases < 2 || n < 3) return false;
+        rotary_ = rotary_moves(r, n);
         auto phase_at = [&](int i) { return period_s * (i + offset) / phases; };
         idx_.resize(n), dropped_.resize(n), drop_at_.assign(n, phases);
         bucket_start_.assign(static_cast<std::size_t>(phases) + 1, 0);
@@ -419,14 +433,19 @@ private:
     void update_pair(std::size_t k) {
         const double dg = tick_interval(idx_[k], idx_[k - 1], period_s_);
         ahead_[k] = dg > 0;
-        if (moving_[k] && ahead_[k]) velocity(r_[k - 1], r_[k], dg, &v_[kJointDims * k]);
+        if (!moving_[k] || !ahead_[k]) return;
+        if (rotary_) velocity(r_[k - 1], r_[k], dg, &v_[kJointDims * k]);
+        else velocity<3>(r_[k - 1], r_[k], dg, &v_[kJointDims * k]);   // the rotary parts stay +0
     }
     // Pair k's term of tick_roughness's sum: none when it did not move or the pair before did not
     // give a velocity, 1 for two positions on one tick.
     void update_term(std::size_t k) {
         if (!moving_[k]) term_[k] = 0, counted_[k] = 0;
         else if (!ahead_[k]) term_[k] = 1.0, counted_[k] = 1;
-        else if (k >= 2 && moving_[k - 1] && ahead_[k - 1]) term_[k] = velocity_jump(&v_[kJointDims * k], &v_[kJointDims * (k - 1)]), counted_[k] = 1;
+        else if (k >= 2 && moving_[k - 1] && ahead_[k - 1])
+            term_[k] = rotary_ ? velocity_jump(&v_[kJointDims * k], &v_[kJointDims * (k - 1)])
+                               : velocity_jump<3>(&v_[kJointDims * k], &v_[kJointDims * (k - 1)]),
+            counted_[k] = 1;
         else term_[k] = 0, counted_[k] = 0;
     }
     RoughnessSum ordered_sum() const {
@@ -439,6 +458,7 @@ private:
     const PosRead* r_ = nullptr;
     std::size_t n_ = 0;
     double period_s_ = 0;
+    bool rotary_ = false;   // some reading turns a rotary axis: all six velocity components
     std::vector<double> idx_, dropped_, v_, term_;
     std::vector<int> drop_at_;
     std::vector<std::size_t> bucket_start_, fill_, order_, counted_;
