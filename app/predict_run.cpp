@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <numbers>
 #include <optional>
@@ -153,7 +154,12 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (in.program && in.commanded_from_log)
         throw InputError("commanded_from_log", "the program and the log's commanded positions both give the commanded path: "
                                                "choose one");
-    r.motion = motion_io::ingest(in.log_path, in.read, &r.ingest);
+    motion_io::ReadOptions read = in.read;
+    // PoCL takes tens of ms to open (it loads LLVM) on a thread of its own: the second core is its
+    // until then, and a scan thread beside it only delays both.
+    if (in.device_ready.valid() && in.device_ready.wait_for(std::chrono::seconds(0)) != std::future_status::ready)
+        read.threads = 1;
+    r.motion = motion_io::ingest(in.log_path, read, &r.ingest);
     std::optional<MachineAxesForces> machine_axes;
     if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
     // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").

@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -160,6 +161,7 @@ IngestReport run_pipeline(const std::string& path, const ReadOptions& opt, GridS
     detail::ChainSettings settings;
     settings.step_s = opt.step_ms * 1e-3;
     settings.event_driven = format == Format::Shdr;
+    settings.clock.scan_threads = std::clamp(opt.threads, 1u, 2u);
     MotionExtent extent;
     ExtentSink measured(sink, extent);
     const auto chain = detail::make_ingest_chain(diag, measured, settings);

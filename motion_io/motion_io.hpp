@@ -37,6 +37,10 @@ struct ReadOptions {
     std::optional<std::string> feed_unit;   // e.g. "mm/min", "mm/s", "in/min": explicit override for
                                             // logs whose feed values disagree with their declaration
     double step_ms = 1.0;                   // uniform resampling step of the motion model
+    // Threads ingest may use (the clock stage's search for the CNC's update period): 2, or 1 where
+    // another thread needs the second core (predict, while the OpenCL device opens). The same
+    // motion either way.
+    unsigned threads = 2;
 };
 
 // A bad log: names where (file, line, column or key) and what was expected.

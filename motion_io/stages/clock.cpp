@@ -99,18 +99,24 @@ constexpr std::size_t kTrackChunk = 64;   // readings per phase estimate, as the
 // Fewer readings than kShortStretchReads span too few chunks for the phase drift to refine the period.
 static_assert(kShortStretchReads == 4 * kTrackChunk);
 
+class PhaseScan;
+double least_roughness_over_phases(PhaseScan& scan, const PosRead* r, std::size_t n, double period_s, int phases,
+                                   double offset);
+
 // Roughness with the phase re-chosen for every chunk of readings, as the repair tracks it: a
 // slightly wrong period or a drifting client clock then costs nothing, a wrong period a lot.
-double tracked_roughness(const PosRead* r, std::size_t n, double period_s, int phases) {
+double tracked_roughness(PhaseScan& scan, const PosRead* r, std::size_t n, double period_s, int phases) {
     double sum = 0;
     std::size_t chunks = 0;
     for (std::size_t s = 0; s + 1 < n; s += kTrackChunk) {
         const std::size_t m = std::min(n - s, kTrackChunk + 1);
-        sum += least_roughness_over_phases(r + s, m, period_s, phases, 0.5);
+        sum += least_roughness_over_phases(scan, r + s, m, period_s, phases, 0.5);
         ++chunks;
     }
     return chunks ? sum / static_cast<double>(chunks) : 0.0;
 }
+
+double tracked_roughness(const PosRead* r, std::size_t n, double period_s, int phases);
 
 struct Candidate {
     double period_s;
@@ -122,53 +128,7 @@ constexpr double kParallelScanWork = 2e6;
 
 // Scans periods geometrically in [lo, hi]; returns the `keep` best local minima, best first.
 std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, double hi, double rel_step,
-                                    std::size_t keep, int phases) {
-    std::vector<Candidate> all;
-    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, 0.0});
-    // The trial periods are independent: on a short stretch (256 phases each) the scan is most of
-    // `cutload inspect`'s time, so a second core takes every other period. Each thread has its own
-    // scanner (phase_scan() is thread-local), and each value is the same as in one thread.
-    auto evaluate = [&](std::size_t first, std::size_t stride) {
-        for (std::size_t i = first; i < all.size(); i += stride)
-            all[i].roughness = tracked_roughness(r, n, all[i].period_s, phases);
-    };
-    const double work = double(all.size()) * double(n) * double(phases);
-    std::thread second;
-    std::exception_ptr failed;
-    if (work >= kParallelScanWork && std::thread::hardware_concurrency() > 1) {
-        try {
-            second = std::thread([&] {
-                try {
-                    evaluate(1, 2);
-                } catch (...) {
-                    failed = std::current_exception();
-                }
-            });
-        } catch (const std::system_error&) {   // no thread to be had (a busy service): one does it all
-        }
-    }
-    if (second.joinable()) {
-        try {
-            evaluate(0, 2);
-        } catch (...) {
-            second.join();
-            throw;
-        }
-        second.join();
-        if (failed) std::rethrow_exception(failed);
-    } else {
-        evaluate(0, 1);
-    }
-    std::vector<Candidate> minima;
-    for (std::size_t i = 0; i < all.size(); ++i) {
-        const bool left = i == 0 || all[i].roughness <= all[i - 1].roughness;
-        const bool right = i + 1 == all.size() || all[i].roughness <= all[i + 1].roughness;
-        if (left && right) minima.push_back(all[i]);
-    }
-    std::sort(minima.begin(), minima.end(), [](const Candidate& a, const Candidate& b) { return a.roughness < b.roughness; });
-    if (minima.size() > keep) minima.resize(keep);
-    return minima;
-}
+                                    std::size_t keep, int phases, unsigned threads);
 
 // A period slightly off makes the best phase drift steadily from chunk to chunk: a tick at time t
 // sits at phase (t * (T_true - T) / T_true) mod T on the trial grid. The slope of the unwrapped
@@ -465,28 +425,88 @@ private:
     std::vector<char> moving_, ahead_;
 };
 
-// One scanner per thread, its buffers reused: the period scan calls it thousands of times.
-PhaseScan& phase_scan() {
-    thread_local PhaseScan scan;
-    return scan;
+// A scanner's buffers are reused from call to call: the period scan makes thousands. Each scan
+// owns its scanners rather than keeping one per thread: a thread_local with a destructor is
+// registered under the dynamic loader's lock on its first use, and `cutload predict` ingests while
+// another thread opens the OpenCL device (PoCL loads LLVM, tens of ms holding that lock).
+double least_roughness_over_phases(PhaseScan& scan, const PosRead* r, std::size_t n, double period_s, int phases,
+                                   double offset) {
+    double least = 1e300;
+    if (scan.run(r, n, period_s, phases, offset, nullptr, &least, nullptr)) return least;
+    for (int i = 0; i < phases; ++i) least = std::min(least, tick_roughness(r, n, period_s, period_s * (i + offset) / phases));
+    return least;
+}
+
+double tracked_roughness(const PosRead* r, std::size_t n, double period_s, int phases) {
+    PhaseScan scan;
+    return tracked_roughness(scan, r, n, period_s, phases);
+}
+
+std::vector<Candidate> scan_periods(const PosRead* r, std::size_t n, double lo, double hi, double rel_step,
+                                    std::size_t keep, int phases, unsigned threads) {
+    std::vector<Candidate> all;
+    for (double T = lo; T <= hi; T *= 1.0 + rel_step) all.push_back({T, 0.0});
+    // The trial periods are independent: on a short stretch (256 phases each) the scan is most of
+    // `cutload inspect`'s time, so a second core takes every other period where the caller allows
+    // one. Each thread has its own scanner, and each value is the same as in one thread.
+    auto evaluate = [&](std::size_t first, std::size_t stride) {
+        PhaseScan scan;
+        for (std::size_t i = first; i < all.size(); i += stride)
+            all[i].roughness = tracked_roughness(scan, r, n, all[i].period_s, phases);
+    };
+    const double work = double(all.size()) * double(n) * double(phases);
+    std::thread second;
+    std::exception_ptr failed;
+    if (threads > 1 && work >= kParallelScanWork && std::thread::hardware_concurrency() > 1) {
+        try {
+            second = std::thread([&] {
+                try {
+                    evaluate(1, 2);
+                } catch (...) {
+                    failed = std::current_exception();
+                }
+            });
+        } catch (const std::system_error&) {   // no thread to be had (a busy service): one does it all
+        }
+    }
+    if (second.joinable()) {
+        try {
+            evaluate(0, 2);
+        } catch (...) {
+            second.join();
+            throw;
+        }
+        second.join();
+        if (failed) std::rethrow_exception(failed);
+    } else {
+        evaluate(0, 1);
+    }
+    std::vector<Candidate> minima;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const bool left = i == 0 || all[i].roughness <= all[i - 1].roughness;
+        const bool right = i + 1 == all.size() || all[i].roughness <= all[i + 1].roughness;
+        if (left && right) minima.push_back(all[i]);
+    }
+    std::sort(minima.begin(), minima.end(), [](const Candidate& a, const Candidate& b) { return a.roughness < b.roughness; });
+    if (minima.size() > keep) minima.resize(keep);
+    return minima;
 }
 
 }  // namespace
 
 void roughness_over_phases(const PosRead* r, std::size_t n, double period_s, int phases, double offset,
                            double* out, std::size_t* last_pairs) {
-    if (phase_scan().run(r, n, period_s, phases, offset, out, nullptr, last_pairs)) return;
+    PhaseScan scan;
+    if (scan.run(r, n, period_s, phases, offset, out, nullptr, last_pairs)) return;
     for (int i = 0; i < phases; ++i) out[i] = tick_roughness(r, n, period_s, period_s * (i + offset) / phases, last_pairs);
 }
 
 double least_roughness_over_phases(const PosRead* r, std::size_t n, double period_s, int phases, double offset) {
-    double least = 1e300;
-    if (phase_scan().run(r, n, period_s, phases, offset, nullptr, &least, nullptr)) return least;
-    for (int i = 0; i < phases; ++i) least = std::min(least, tick_roughness(r, n, period_s, period_s * (i + offset) / phases));
-    return least;
+    PhaseScan scan;
+    return least_roughness_over_phases(scan, r, n, period_s, phases, offset);
 }
 
-UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
+UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads, unsigned threads) {
     const std::size_t pairs = count_moving_pairs(reads.data(), reads.size());
     if (pairs < kMinPeriodPairs) return {};
     const double med = median_interval(reads);
@@ -499,9 +519,10 @@ UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads) {
     const std::size_t n_fine = prefix_with_moving_pairs(reads, 512);
     auto scan = [&](int phases) {
         double T = 0, best = 1e300;
-        for (const Candidate& c : scan_periods(reads.data(), n_coarse, lo, hi, 2.5e-3, 5, phases)) {
+        for (const Candidate& c : scan_periods(reads.data(), n_coarse, lo, hi, 2.5e-3, 5, phases, threads)) {
             const auto fine =
-                scan_periods(reads.data(), n_fine, c.period_s * (1 - 5e-3), c.period_s * (1 + 5e-3), 2.5e-4, 1, phases);
+                scan_periods(reads.data(), n_fine, c.period_s * (1 - 5e-3), c.period_s * (1 + 5e-3), 2.5e-4, 1, phases,
+                             threads);
             if (!fine.empty() && fine.front().roughness < best) best = fine.front().roughness, T = fine.front().period_s;
         }
         return T;

@@ -58,8 +58,9 @@ struct UpdatePeriod {
 
 // Estimated update period from readings of a moving machine; period 0 when the readings show no
 // update grid that explains them better than their own time stamps (too few moving readings,
-// event-driven logs, or already uniform sampling).
-UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads);
+// event-driven logs, or already uniform sampling). `threads`: 2 lets a long scan take a second
+// core; the same period either way.
+UpdatePeriod estimate_update_period(const std::vector<PosRead>& reads, unsigned threads = 2);
 
 // Whether a period explains the readings clearly better than their own time stamps: the test
 // estimate_update_period() accepts a found period by. Cheap (no scan): for a period known from

@@ -92,7 +92,7 @@ bool ClockRecovery::calibrate(bool final) {
             period_s_ = known_period_s_;
         } else if (scan_allowed) {
             ++scans_;
-            const UpdatePeriod found = estimate_update_period(stretch);
+            const UpdatePeriod found = estimate_update_period(stretch, limits_.scan_threads);
             period_s_ = found.period_s;
             if (period_s_ > 0) known_period_s_ = period_s_;
             if (period_s_ > 0 && found.nominal) warn_short_stretch(found, end - begin);

@@ -16,6 +16,9 @@ struct ClockLimits {
     // from the first 1024 readings at any batch size. Event-driven sources have no grid: each
     // reading is passed on as soon as its successor arrives, whatever the batch size.
     std::size_t batch_readings = 1024;
+    // Threads the period scan may use (estimate_update_period): 1 where another thread of the
+    // process needs the second core.
+    unsigned scan_threads = 2;
 };
 
 // Accepts sessions and positions; emits sessions and ticks. Polled logs: the update period is
