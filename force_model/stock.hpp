@@ -9,6 +9,8 @@
 #include "kernels/engine_kernels.hpp"
 
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 namespace cutload::force_model {
 
@@ -29,11 +31,18 @@ public:
     void* data() const { return data_; }
     std::size_t bytes() const { return bytes_; }
 
+    // Maps bytes [begin, end) writable before anything reads them (zero_pages.cpp says why). Pages
+    // already made so, by this object or by an earlier owner of its pooled mapping, cost nothing.
+    void prepare_writable(std::size_t begin, std::size_t end);
+    // The same for bytes [begin, end) of each row j0 <= j < j1 of `row_bytes`.
+    void prepare_writable_rows(std::size_t row_bytes, std::size_t begin, std::size_t end, std::size_t j0, std::size_t j1);
+
 private:
     void release() noexcept;
 
     void* data_ = nullptr;
     std::size_t bytes_ = 0;
+    std::vector<std::uint64_t> writable_;   // a bit per page already made writable
 };
 
 // Makes a page-aligned anonymous mapping of `len` bytes (whole pages) all zero again, touching only

@@ -33,6 +33,9 @@ public:
     virtual void use_tool(std::size_t slot) = 0;
     // Makes the host stock current (end of run): on a GPU, the tiles removals changed are read back.
     virtual void download(Stock& stock) = 0;
+    // The rays [i0, i1) x [j0, j1) are about to be read by engage() and cut by a later sweep(): a
+    // backend that works in the host's arrays maps their pages writable first (StockPages).
+    virtual void will_cut(int i0, int j0, int i1, int j1) = 0;
 };
 
 // Both work on `stock` (the OpenCL backend wraps it on CPU devices; on a GPU it fills a fresh stock

@@ -8,6 +8,7 @@
 // device; at the end only the tiles a removal touched are read back (docs/force_model.md,
 // "Device state").
 #include "engine/backend.hpp"
+#include "engine/stock_pages.hpp"
 #include "kernels/opencl_runtime.hpp"
 
 #include <array>
@@ -16,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <numbers>
+#include <optional>
 
 namespace cutload::force_model {
 
@@ -44,6 +46,7 @@ public:
         wrap_host_ = rt_.host_unified_memory();
         group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
         if (wrap_host_) {
+            host_pages_.emplace(stock);
             wrapped_cells_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.storage.bytes(), stock.stored());
             wrapped_walls_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.walls.bytes(), stock.stored_walls());
         } else {
@@ -273,7 +276,13 @@ private:
     cl_mem cells() const { return wrap_host_ ? wrapped_cells_.get() : cells_lease_.get(); }
     cl_mem walls() const { return wrap_host_ ? wrapped_walls_.get() : walls_lease_.get(); }
 
+    void will_cut(int i0, int j0, int i1, int j1) override {
+        if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
+    }
+
+    // CPU devices: the call's rays (and walls) are mapped writable before the kernel reads them.
     void mark_dirty(const kernels::SweepCall& c) {
+        if (host_pages_) host_pages_->prepare(c.i0, c.j0, c.i0 + c.width, c.j0 + c.height);
         if (wrap_host_ || c.width <= 0 || c.height <= 0) return;
         const int tx0 = std::max(c.i0, 0) / kDirtyTile, ty0 = std::max(c.j0, 0) / kDirtyTile;
         const int tx1 = std::min((c.i0 + c.width - 1) / kDirtyTile, tiles_x_ - 1);
@@ -366,6 +375,7 @@ private:
     bool wrap_host_ = false;
     std::size_t group_ = 0;
     ClMem wrapped_cells_, wrapped_walls_;                // CPU devices: the host stock itself
+    std::optional<StockPages> host_pages_;               // and its pages made writable
     kernels::BufferLease cells_lease_, walls_lease_;     // otherwise: the stock on the device
     int tiles_x_ = 0, tiles_y_ = 0;
     std::vector<std::uint8_t> dirty_;                    // tiles a removal may have changed

@@ -174,7 +174,13 @@ void Engine::flush_batch() {
     // Elements higher than the highest material under the batch cannot engage: skip them.
     const double R = tool_->radius_mm;
     const double reach_mm = double(stock_map_.max_top(b.x0_mm - R, b.y0_mm - R, b.x1_mm + R, b.y1_mm + R)) - b.z_min_mm;
-    engagement_.queue_batch(batcher_, b, tool_->elements_reaching(reach_mm));
+    const int element_end = tool_->elements_reaching(reach_mm);
+    // An edge point lies within R of its tip and reads its cell's ray, or the one across a wall.
+    const double near_mm = R + stock_map_.grid().cell_mm;
+    if (CellRect under; element_end > 0 && stock_map_.cells_covering(b.x0_mm - near_mm, b.y0_mm - near_mm,
+                                                                     b.x1_mm + near_mm, b.y1_mm + near_mm, under))
+        engagement_.will_cut(under.i0, under.j0, under.i1, under.j1);
+    engagement_.queue_batch(batcher_, b, element_end);
     removal_path_.add_batch(engagement_.in_flight().steps);
     queue_removal(true);
 }

@@ -41,6 +41,8 @@ public:
     // Queues the engagement of the batcher's batch over the edge elements [0, element_end) (none
     // when 0: every result is zero) and takes the batch into the in-flight slot.
     void queue_batch(StepBatcher& batcher, const TipBounds& bounds, int element_end);
+    // The rays [i0, i1) x [j0, j1) are the next batch's to read and cut (Backend::will_cut).
+    void will_cut(int i0, int j0, int i1, int j1) { backend_.will_cut(i0, j0, i1, j1); }
     // Queues the removal calls gathered in the in-flight slot, if any.
     void queue_sweep();
     // Blocks until the backend has finished what is in flight.

@@ -88,6 +88,9 @@ double StockMap::apply_sweep(const std::vector<kernels::SweepCall>& calls, const
     double removed_len_mm = 0;
     const kernels::SweepCellResult* r = results;
     for (const kernels::SweepCall& c : calls) {
+        if (c.width > 0 && c.height > 0)
+            tops_.will_set(std::size_t(grid_.nx), std::size_t(c.i0), std::size_t(c.i0 + c.width), std::size_t(c.j0),
+                           std::size_t(c.j0 + c.height));
         for (int jj = 0; jj < c.height; ++jj)
             for (int ii = 0; ii < c.width; ++ii, ++r) {
                 removed_len_mm += r->removed_mm;

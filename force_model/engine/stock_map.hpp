@@ -20,6 +20,12 @@ namespace cutload::force_model {
 class TopMap {
 public:
     TopMap(const Stock& stock, bool fresh);
+    // Rays [i0, i1) of rows [j0, j1) (nx rays a row) are about to be compared and set: their
+    // pages are made writable first (ZeroPages::prepare_writable).
+    void will_set(std::size_t nx, std::size_t i0, std::size_t i1, std::size_t j0, std::size_t j1) {
+        bits_.prepare_writable_rows(nx * sizeof(std::uint32_t), i0 * sizeof(std::uint32_t), i1 * sizeof(std::uint32_t),
+                                    j0, j1);
+    }
     float at(std::size_t ray) const { return std::bit_cast<float>(data()[ray] ^ base_); }
     void set(std::size_t ray, float top_mm) {
         const std::uint32_t v = std::bit_cast<std::uint32_t>(top_mm) ^ base_;

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <vector>
 
 using namespace cutload;
 using namespace cutload::enginetest;
@@ -111,4 +112,56 @@ TEST_CASE("clearing a mapping zeroes what was written, with and without swap on 
         CHECK(std::all_of(p, p + len, [](unsigned char b) { return b == 0; }));
         munmap(m, len);
     }
+}
+
+namespace {
+
+// Pages of [data, data + pages * page) the OS has mapped (mincore: resident).
+std::vector<bool> resident_pages(const void* data, std::size_t pages) {
+    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    std::vector<unsigned char> v(pages);
+    REQUIRE(mincore(const_cast<void*>(data), pages * page, v.data()) == 0);
+    std::vector<bool> out(pages);
+    for (std::size_t k = 0; k < pages; ++k) out[k] = (v[k] & 1) != 0;
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("pages made writable keep what they hold, and only the pages asked for are mapped", "[stock][zero_pages]") {
+    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    // A size no other test asks for: a pooled mapping would come with its pages already mapped.
+    constexpr std::size_t kPages = 173;
+    force_model::ZeroPages z(kPages * page);
+    auto* p = static_cast<unsigned char*>(z.data());
+    std::memset(p + 2 * page, 0x5a, page);   // written before: must survive the request
+    const std::vector<bool> before = resident_pages(p, kPages);
+    CHECK(before[2]);
+    CHECK(std::count(before.begin(), before.end(), true) == 1);
+
+    // Bytes 100 to page + 10: pages 0 and 1.
+    z.prepare_writable(100, page + 10);
+    // Rows of 3 pages, bytes [100, 200) of rows 4..7: one page a row (12, 15, 18, 21), the rows'
+    // gaps of two pages left alone.
+    z.prepare_writable_rows(3 * page, 100, 200, 4, 8);
+    // Rows of 1.5 pages, the whole width of rows 20..23: one range, pages 30..35.
+    z.prepare_writable_rows(page + page / 2, 0, page + page / 2, 20, 24);
+    // Past the mapping's end: clipped to its last page.
+    z.prepare_writable((kPages - 1) * page, 2 * kPages * page);
+    const std::vector<bool> after = resident_pages(p, kPages);
+    // Linux before 5.14 has no MADV_POPULATE_WRITE: the pages then fault in when touched, as before.
+    void* probe = mmap(nullptr, page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    REQUIRE(probe != MAP_FAILED);
+    const bool supported = madvise(probe, page, 23 /* MADV_POPULATE_WRITE */) == 0;
+    munmap(probe, page);
+    if (!supported) WARN("this kernel cannot populate pages for writing: only the contents are checked");
+    for (std::size_t k = 0; k < kPages && supported; ++k) {
+        const bool asked =
+            k <= 2 || k == 12 || k == 15 || k == 18 || k == 21 || (k >= 30 && k <= 35) || k == kPages - 1;
+        INFO("page " << k);
+        CHECK(after[k] == asked);
+    }
+    CHECK(std::all_of(p + 2 * page, p + 3 * page, [](unsigned char b) { return b == 0x5a; }));
+    CHECK(std::all_of(p, p + 2 * page, [](unsigned char b) { return b == 0; }));
+    CHECK(std::all_of(p + 3 * page, p + kPages * page, [](unsigned char b) { return b == 0; }));
 }

@@ -1,0 +1,33 @@
+// Internal: the rays and walls a batch is about to read and cut, made writable first, for the
+// backends whose kernels work in the host's stock arrays (ZeroPages::prepare_writable says why).
+#pragma once
+
+#include "stock.hpp"
+
+#include <algorithm>
+#include <cstddef>
+
+namespace cutload::force_model {
+
+class StockPages {
+public:
+    explicit StockPages(Stock& stock) : stock_(stock) {}
+    // The rays [i0, i1) x [j0, j1), clipped to the grid.
+    void prepare(int i0, int j0, int i1, int j1) {
+        i0 = std::max(i0, 0), j0 = std::max(j0, 0);
+        i1 = std::min(i1, stock_.grid.nx), j1 = std::min(j1, stock_.grid.ny);
+        if (i0 >= i1 || j0 >= j1) return;
+        constexpr std::size_t ray = kernels::kDexelFloats * sizeof(float);
+        constexpr std::size_t wall = kernels::kWallSlots * kernels::kWallFloats * sizeof(float);
+        const std::size_t nx = std::size_t(stock_.grid.nx);
+        stock_.storage.prepare_writable_rows(nx * ray, std::size_t(i0) * ray, std::size_t(i1) * ray, std::size_t(j0),
+                                             std::size_t(j1));
+        stock_.walls.prepare_writable_rows(nx * wall, std::size_t(i0) * wall, std::size_t(i1) * wall, std::size_t(j0),
+                                           std::size_t(j1));
+    }
+
+private:
+    Stock& stock_;
+};
+
+}  // namespace cutload::force_model
