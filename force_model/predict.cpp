@@ -66,6 +66,16 @@ void check_plan(const ToolPlan& plan) {
 // No NaN or infinity reaches FORCES.csv, BLOCKS.csv or a JSON answer: a row or summary that holds
 // one is an engine fault, reported as one rather than written.
 void check_rows(std::span<const ForceSample> rows) {
+    // v - v is 0 for a finite v and NaN otherwise, so one sum tells whether any value is not
+    // finite without a branch per value; the rows are searched only then, for the message.
+    double any_bad = 0;
+    for (const ForceSample& s : rows)
+        any_bad += (s.t_s - s.t_s) + (s.spindle_angle_deg - s.spindle_angle_deg) + double(s.fx_N - s.fx_N) +
+                   double(s.fy_N - s.fy_N) + double(s.fz_N - s.fz_N) + double(s.torque_Nm - s.torque_Nm) +
+                   double(s.power_kW - s.power_kW) + double(s.chip_mm - s.chip_mm) +
+                   double(s.bending_MPa - s.bending_MPa) + double(s.radial_engagement_mm - s.radial_engagement_mm) +
+                   double(s.axial_engagement_mm - s.axial_engagement_mm) + double(s.removed_mm3 - s.removed_mm3);
+    if (any_bad == 0) return;
     for (const ForceSample& s : rows)
         for (const double v : {s.t_s, s.spindle_angle_deg, double(s.fx_N), double(s.fy_N), double(s.fz_N),
                                double(s.torque_Nm), double(s.power_kW), double(s.chip_mm), double(s.bending_MPa),
