@@ -280,7 +280,7 @@ private:
         if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
     }
 
-    // CPU devices: the call's rays (and walls) are mapped writable before the kernel reads them.
+    // CPU devices: the call's rays are made writable before the kernel reads them (StockPages).
     void mark_dirty(const kernels::SweepCall& c) {
         if (host_pages_) host_pages_->prepare(c.i0, c.j0, c.i0 + c.width, c.j0 + c.height);
         if (wrap_host_ || c.width <= 0 || c.height <= 0) return;

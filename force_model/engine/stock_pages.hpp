@@ -1,5 +1,7 @@
-// Internal: the rays and walls a batch is about to read and cut, made writable first, for the
-// backends whose kernels work in the host's stock arrays (ZeroPages::prepare_writable says why).
+// Internal: the rays a batch is about to read and cut, made writable first, for the backends whose
+// kernels work in the host's stock arrays (ZeroPages::prepare_writable says why). Not the walls:
+// the removal reads a ray's stored wall only once the ray is marked as having one (remove.cl), so
+// a wall's page is written before it is read, and walls stay where the cut's sides are.
 #pragma once
 
 #include "stock.hpp"
@@ -18,12 +20,9 @@ public:
         i1 = std::min(i1, stock_.grid.nx), j1 = std::min(j1, stock_.grid.ny);
         if (i0 >= i1 || j0 >= j1) return;
         constexpr std::size_t ray = kernels::kDexelFloats * sizeof(float);
-        constexpr std::size_t wall = kernels::kWallSlots * kernels::kWallFloats * sizeof(float);
         const std::size_t nx = std::size_t(stock_.grid.nx);
         stock_.storage.prepare_writable_rows(nx * ray, std::size_t(i0) * ray, std::size_t(i1) * ray, std::size_t(j0),
                                              std::size_t(j1));
-        stock_.walls.prepare_writable_rows(nx * wall, std::size_t(i0) * wall, std::size_t(i1) * wall, std::size_t(j0),
-                                           std::size_t(j1));
     }
 
 private:
