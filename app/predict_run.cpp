@@ -166,18 +166,17 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
     // The program is read in the machine's axes, from where the log's axes start.
     const std::optional<std::array<double, 3>> axes_start_mm = log_start_mm(r.motion);
-    std::array<double, 3> axes_start_deg{};
-    for (std::size_t k = 0; k < 3; ++k)
-        if (r.motion.has_rotary(int(k))) axes_start_deg[k] = r.motion.rot_deg[k].front();
     force_model::RunSpec spec = in.spec;   // in the tool's frame for a fixed tilt
     ToolFrame frame;
     // A tool that turns where it can reach the stock: its poses, for the multi-direction stock.
     std::optional<force_model::ToolPoses> turning;
+    std::array<double, 3> axes_start_deg{};   // by axis letter, as the NC reader takes them
     if (in.machine) {
         if (in.commanded_from_log)
             throw InputError("machine", "a machine definition cannot be combined with the log's commanded path yet: "
                                         "predict the log alone, or with its NC program");
         try {
+            axes_start_deg = rotary_start_by_letter(r.motion, *in.machine);
             motion_io::MotionModel axes = std::move(r.motion);
             bool turns = false;
             try {

@@ -193,7 +193,8 @@ ProgramPrediction predict_program(const ProgramRun& run, const motion_io::Motion
         if (grid_from_stock) throw std::logic_error("predict_program: a turning tool has no fixed frame");
         // Feed overrides index the tip path's pieces, not the machine-axis blocks.
         if (!run.commanded.feed_mm_min.empty()) throw std::logic_error("predict_program: feed overrides of a turning tool's program");
-        const motion_io::MotionModel axes = motion_io::commanded_motion(*turning->machine_axes, run.commanded);
+        motion_io::MotionModel axes = motion_io::commanded_motion(*turning->machine_axes, run.commanded);
+        program_axes_as_log(axes, *turning->machine_axes, *turning->machine);
         const TurningMotion t = turning_motion(axes, *turning->machine, turning->tool_length_mm);
         out.commanded = force_model::predict_turning(t.motion, t.poses, spec, options);
     } else {

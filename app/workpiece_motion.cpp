@@ -486,6 +486,38 @@ std::string machine_rotary_axes(const machine::Machine& machine) {
     return out;
 }
 
+std::array<double, 3> rotary_start_by_letter(const motion_io::MotionModel& log, const machine::Machine& machine) {
+    std::array<double, 3> out{};
+    for (const machine::Axis& a : machine.chain) {
+        const int letter = rotary_index(std::string(1, a.name));
+        if (!a.rotary() || letter < 0) continue;
+        const int k = rotary_channel(machine, a);
+        require_rotary(machine, a, k, log.has_rotary(k));
+        out[std::size_t(letter)] = log.rot_deg[std::size_t(k)].front();
+    }
+    return out;
+}
+
+void program_axes_as_log(motion_io::MotionModel& axes, const motion_io::NcProgram& program,
+                         const machine::Machine& machine) {
+    std::array<std::vector<double>, 3> rot, vel;
+    for (const machine::Axis& a : machine.chain) {
+        const int letter = rotary_index(std::string(1, a.name));
+        if (!a.rotary() || letter < 0) continue;
+        const auto k = std::size_t(rotary_channel(machine, a)), l = std::size_t(letter);
+        if (axes.has_rotary(letter)) {
+            rot[k] = axes.rot_deg[l];
+            vel[k] = axes.rot_vel_deg_s[l];
+        } else {
+            // Not in the program: every block holds it at its start (NcReadOptions::start_deg).
+            rot[k].assign(axes.size(), program.blocks.empty() ? 0.0 : program.blocks.front().start_deg[l]);
+            vel[k].assign(axes.size(), 0.0);
+        }
+    }
+    axes.rot_deg = std::move(rot);
+    axes.rot_vel_deg_s = std::move(vel);
+}
+
 namespace {
 
 // The machine's axes at fraction u of a program block: X/Y/Z on its path, the rotary axes linear.
@@ -524,9 +556,9 @@ motion_io::NcProgram tip_program(const motion_io::NcProgram& program, const mach
             if (const double off = off_orientation_rad(frame, nominal, length_mm, *reach); off > 0)
                 throw motion_io::NcProgramError(fmt::format(
                     "{}:{}: block {}: where the tool can reach the stock its axis {} {:.4g} deg from the orientation "
-                    "the log cuts at (leaning {:.4g} deg from the stock's +Z): a program's commanded path is predicted "
-                    "at the log's one fixed orientation (3+2 work); a program that turns the tool there is not "
-                    "predicted yet (docs/five_axis.md, section 3.4)",
+                    "the log cuts at (leaning {:.4g} deg from the stock's +Z): the log holds the tool at one "
+                    "orientation there (3+2 work), so the program must too; a log whose tool turns where it cuts is "
+                    "compared with a program that turns it (docs/five_axis.md, section 3.4)",
                     program.file, b.line, b.name, frame.tilted ? "turns" : "leans", off * 180.0 / std::numbers::pi,
                     frame.lean_deg));
         } else if (const double tilt_rad = tilt_from_z_rad(nominal); !(tilt_rad <= kVerticalToleranceRad)) {

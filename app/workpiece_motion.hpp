@@ -231,6 +231,18 @@ private:
 // The machine's rotary axes as the NC reader takes them (NcReadOptions::rotary_axes): "AC".
 std::string machine_rotary_axes(const machine::Machine& machine);
 
+// Where the log's rotary axes start, by the machine's axis letters (A, B, C: what the NC reader's
+// start_deg means), each read from the log channel the axis reads (machine::Axis::channel). 0 for
+// a letter the machine lacks. Throws WorkpieceMotionError as turning_motion does for a log without
+// an axis's channel.
+std::array<double, 3> rotary_start_by_letter(const motion_io::MotionModel& log, const machine::Machine& machine);
+
+// A machine-axis program's commanded motion (motion_io::commanded_motion: angles by axis letter,
+// only the axes the program names) laid out as this machine's log holds it: each rotary axis in
+// the channel it reads, and one the program never names held where the program starts it.
+void program_axes_as_log(motion_io::MotionModel& axes, const motion_io::NcProgram& program,
+                         const machine::Machine& machine);
+
 // How closely the pieces of a joint-space block follow the tip's curved path (docs/five_axis.md
 // section 2.4: 1 um), and the most pieces one block and the whole program become. A piece is a
 // program block (272 B and 40 B a word: 0.4 to 0.5 kB), so the total bounds the memory a program

@@ -8,9 +8,13 @@
 #include "app/workpiece_motion.hpp"
 #include "force_model/engine_fixtures.hpp"
 #include "machine/kinematics.hpp"
+#include "motion_io/commanded.hpp"
+#include "motion_io/nc_program.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -468,5 +472,66 @@ TEST_CASE("workpiece motion: a squareness error and a C-line offset move the cut
         CHECK(removed_ratio > 0.60);
         CHECK(removed_ratio < 0.75);
         CHECK(errored.blocks[0].mean_force_N < 0.9 * plain.blocks[0].mean_force_N);
+    }
+}
+
+// A machine-axis program names only the axes it moves: its commanded motion holds those, by the
+// axis's letter. Laid out as the machine's log (what turning_motion reads), each rotary axis sits
+// in the channel it reads, and one the program never names stays where the program starts it.
+TEST_CASE("program axes as a log: an axis the program leaves out holds its start, each in its channel",
+          "[five_axis][turning]") {
+    const auto base = ac_table_table();
+    motion_io::NcReadOptions ro;
+    ro.rotary_axes = app::machine_rotary_axes(*base);
+    REQUIRE(ro.rotary_axes == "AC");
+    ro.start_mm = std::array<double, 3>{0, 0, 100};
+    ro.work_offsets_mm["G54"] = {0, 0, 0};
+    ro.start_deg = {-30, 0, 10};   // A held at -30 by an earlier set-up, C from 10
+    const std::string text = "G21 G90 G54\nN10 G1 X10 Y0 Z100 C90 F600\nN20 G1 X20 C170\n";
+    const motion_io::NcProgram program = motion_io::parse_nc_program(text, "c_only.nc", ro);
+    motion_io::CommandedOptions co;
+    const motion_io::MotionModel as_read = motion_io::commanded_motion(program, co);
+    REQUIRE_FALSE(as_read.has_rotary(0));   // the program never names A
+    REQUIRE(as_read.has_rotary(2));
+    // As read, the chain cannot take it: it wants A's channel.
+    CHECK_THROWS_WITH(app::turning_motion(as_read, *base, 120), Catch::Contains("rotary axis A needs column 'a'"));
+
+    SECTION("each axis reads the channel of its own letter") {
+        motion_io::MotionModel axes = as_read;
+        app::program_axes_as_log(axes, program, *base);
+        REQUIRE(axes.has_rotary(0));
+        CHECK_FALSE(axes.has_rotary(1));
+        REQUIRE(axes.rot_deg[0].size() == axes.size());
+        CHECK(std::all_of(axes.rot_deg[0].begin(), axes.rot_deg[0].end(), [](double a) { return a == -30; }));
+        CHECK(std::all_of(axes.rot_vel_deg_s[0].begin(), axes.rot_vel_deg_s[0].end(), [](double v) { return v == 0; }));
+        CHECK(axes.rot_deg[2] == as_read.rot_deg[2]);
+        CHECK(axes.rot_deg[2].front() == Approx(10));
+        CHECK(axes.rot_deg[2].back() == Approx(170));
+        // Through the chain: no refusal for the axis the program left out.
+        CHECK_NOTHROW(app::turning_motion(axes, *base, 120));
+        // The log's own start angles by letter are what the reader was given.
+        const std::array<double, 3> start = app::rotary_start_by_letter(axes, *base);
+        CHECK(start[0] == -30);
+        CHECK(start[2] == Approx(10));
+    }
+    SECTION("an axis that reads another channel is laid out there, and its start read from there") {
+        machine::Machine swapped = *base;
+        for (machine::Axis& a : swapped.chain)
+            if (a.name == 'A') a.channel = "b";   // the controller exports A as column b
+        motion_io::MotionModel axes = as_read;
+        app::program_axes_as_log(axes, program, swapped);
+        CHECK_FALSE(axes.has_rotary(0));
+        REQUIRE(axes.has_rotary(1));
+        CHECK(axes.rot_deg[1].front() == -30);
+        CHECK(axes.rot_deg[2] == as_read.rot_deg[2]);
+        CHECK_NOTHROW(app::turning_motion(axes, swapped, 120));
+        const std::array<double, 3> start = app::rotary_start_by_letter(axes, swapped);
+        CHECK(start[0] == -30);   // A's letter, read from channel b
+        CHECK(start[1] == 0);
+        // A log without A's channel is refused by name, as turning_motion refuses it.
+        motion_io::MotionModel no_b = axes;
+        no_b.rot_deg[1].clear();
+        no_b.rot_vel_deg_s[1].clear();
+        CHECK_THROWS_WITH(app::rotary_start_by_letter(no_b, swapped), Catch::Contains("rotary axis A needs column 'b'"));
     }
 }
