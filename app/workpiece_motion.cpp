@@ -659,7 +659,15 @@ motion_io::NcProgram tip_program(const motion_io::NcProgram& program, const mach
             set_ends(piece, tips[k], tips[k + 1]);
             piece.feed_time_s = block_s * (cuts[k + 1] - cuts[k]);
             const double length_mm = (tips[k + 1] - tips[k]).norm();
-            if (piece.motion != NcMotion::Rapid && piece.feed_time_s > 0) piece.feed_mm_min = length_mm / piece.feed_time_s * 60.0;
+            if (!(length_mm > 0) && piece.feed_time_s > 0) {
+                // The axes turn about a tip that stays put: the tip path holds it there for the
+                // piece's time (a piece that neither moves nor turns would be timed as none), so
+                // the two programs keep the same block times.
+                piece.motion = NcMotion::Dwell;
+                piece.dwell_s = piece.feed_time_s;
+            } else if (piece.motion != NcMotion::Rapid && piece.feed_time_s > 0) {
+                piece.feed_mm_min = length_mm / piece.feed_time_s * 60.0;
+            }
             out.blocks.push_back(std::move(piece));
         }
     }

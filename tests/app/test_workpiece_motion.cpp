@@ -6,18 +6,22 @@
 // tilted tool or a missing channel is refused.
 #include "app/predict_run.hpp"
 #include "app/workpiece_motion.hpp"
+#include "app_fixtures.hpp"
 #include "force_model/engine_fixtures.hpp"
+#include "machine/machine.hpp"
 #include "machine/kinematics.hpp"
 #include "motion_io/commanded.hpp"
 #include "motion_io/nc_program.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <unistd.h>
 #include <numbers>
 
@@ -534,4 +538,42 @@ TEST_CASE("program axes as a log: an axis the program leaves out holds its start
         no_b.rot_vel_deg_s[1].clear();
         CHECK_THROWS_WITH(app::rotary_start_by_letter(no_b, swapped), Catch::Contains("rotary axis A needs column 'b'"));
     }
+}
+
+// The table turns about a tip that sits on its C line: the tip stays put against the part. The tip
+// path holds it there for the block's time, so both programs time the block alike. (With the
+// pivots at the machine's zero and the tip at X0 Y0 the tip's pieces are exactly 0 long: such a
+// piece, neither moving nor turning, was timed as none.)
+TEST_CASE("turning program: a turn about a tip that stays put keeps its time on the tip path", "[five_axis][turning]") {
+    nlohmann::json def = nlohmann::json::parse(apptest::read_text(std::string(CUTLOAD_SOURCE_DIR) + "/data/machines/ac_table_table.json"));
+    for (auto& axis : def["workpiece_side"]) axis["pivot_mm"] = {0, 0, 0};
+    const machine::Machine m = machine::parse_machine(def);
+    const machine::Machine* machine = &m;
+    motion_io::NcReadOptions ro;
+    ro.rotary_axes = app::machine_rotary_axes(*machine);
+    ro.start_mm = std::array<double, 3>{0, 0, -300};
+    ro.work_offsets_mm["G54"] = {0, 0, 0};
+    // 1/F minutes each: N20 turns C a quarter in 1 s, N30 a half in 2 s, the tip on the C line.
+    const std::string text = "G21 G90 G54\nN10 G1 X0 Y0 Z-300 F600\nN20 G93 G1 C90 F60\nN30 C270 F30\n"
+                             "N40 G94 G1 X-10 F600\n";
+    const motion_io::NcProgram axes = motion_io::parse_nc_program(text, "turn_in_place.nc", ro);
+    const motion_io::NcProgram tip = app::turning_workpiece_program(axes, *machine, 120, 30000);
+    motion_io::CommandedOptions co;
+    const std::vector<double> axes_s = motion_io::commanded_durations_s(axes, co);
+    const std::vector<double> tip_s = motion_io::commanded_durations_s(tip, co);
+    std::map<std::string, double> by_axes, by_tip;
+    for (std::size_t i = 0; i < axes.blocks.size(); ++i) by_axes[axes.blocks[i].name] += axes_s[i];
+    for (std::size_t i = 0; i < tip.blocks.size(); ++i) by_tip[tip.blocks[i].name] += tip_s[i];
+    CHECK(by_axes["N20"] == Approx(1.0));
+    CHECK(by_axes["N30"] == Approx(2.0));
+    for (const auto& [name, s] : by_axes) {
+        INFO("block " << name);
+        CHECK(by_tip[name] == Approx(s).margin(1e-12));
+    }
+    // The tip does not move in N20 and N30: their pieces hold it.
+    for (const motion_io::NcBlock& b : tip.blocks)
+        if (b.name == "N20" || b.name == "N30") {
+            CHECK(b.start_mm == b.end_mm);
+            CHECK(b.motion == motion_io::NcMotion::Dwell);
+        }
 }
