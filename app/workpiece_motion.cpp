@@ -653,6 +653,10 @@ motion_io::NcProgram tip_program(const motion_io::NcProgram& program, const mach
             refine(refine, u0, u1, tips.back(), tip(b, u1), 0);
         }
         const double block_s = motion_io::block_time_s(b, rapid_mm_min);
+        // The block's mean tip speed (the tip's speed changes along a block that turns).
+        double path_mm = 0;
+        for (std::size_t k = 0; k + 1 < tips.size(); ++k) path_mm += (tips[k + 1] - tips[k]).norm();
+        const double mean_feed_mm_min = block_s > 0 ? path_mm / block_s * 60.0 : 0.0;
         for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
             NcBlock piece = b;
             piece.motion = b.motion == NcMotion::Rapid ? NcMotion::Rapid : NcMotion::Linear;
@@ -665,9 +669,11 @@ motion_io::NcProgram tip_program(const motion_io::NcProgram& program, const mach
                 // the two programs keep the same block times.
                 piece.motion = NcMotion::Dwell;
                 piece.dwell_s = piece.feed_time_s;
-            } else if (piece.motion != NcMotion::Rapid && piece.feed_time_s > 0) {
-                piece.feed_mm_min = length_mm / piece.feed_time_s * 60.0;
             }
+            // A turning tool's program: the block's mean tip speed, the one feed the comparison
+            // reads. Otherwise each piece's own speed, which a feed override rescales.
+            if (b.motion != NcMotion::Rapid && piece.feed_time_s > 0)
+                piece.feed_mm_min = any_orientation ? mean_feed_mm_min : length_mm / piece.feed_time_s * 60.0;
             out.blocks.push_back(std::move(piece));
         }
     }

@@ -38,8 +38,11 @@ std::vector<BlockComparison> compare_program(const motion_io::NcProgram& program
             r.rapid = b.motion == motion_io::NcMotion::Rapid;
             r.programmed_feed_mm_min = r.rapid ? commanded.rapid_mm_min : motion_io::block_moves(b) ? b.feed_mm_min : 0.0;
             rows.push_back(r);
-        } else if (rows[it->second].rapid && motion_io::block_moves(b) && b.motion != motion_io::NcMotion::Rapid) {
+        } else if ((rows[it->second].rapid || rows[it->second].programmed_feed_mm_min == 0) && motion_io::block_moves(b) &&
+                   b.motion != motion_io::NcMotion::Rapid) {
             // A canned cycle's pieces share a name: the block is a feed block if any piece feeds.
+            // A five-axis block's tip path may start with the tip held while the axes turn: its
+            // feed is that of its first piece that moves.
             rows[it->second].rapid = false;
             rows[it->second].programmed_feed_mm_min = b.feed_mm_min;
         }

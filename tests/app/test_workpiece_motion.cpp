@@ -554,8 +554,9 @@ TEST_CASE("turning program: a turn about a tip that stays put keeps its time on 
     ro.start_mm = std::array<double, 3>{0, 0, -300};
     ro.work_offsets_mm["G54"] = {0, 0, 0};
     // 1/F minutes each: N20 turns C a quarter in 1 s, N30 a half in 2 s, the tip on the C line.
+    // N50 moves the tip off the C line while C turns on: its tip speed grows along the block.
     const std::string text = "G21 G90 G54\nN10 G1 X0 Y0 Z-300 F600\nN20 G93 G1 C90 F60\nN30 C270 F30\n"
-                             "N40 G94 G1 X-10 F600\n";
+                             "N40 G94 G1 X-10 F600\nN50 G93 G1 X-40 C450 F30\n";
     const motion_io::NcProgram axes = motion_io::parse_nc_program(text, "turn_in_place.nc", ro);
     const motion_io::NcProgram tip = app::turning_workpiece_program(axes, *machine, 120, 30000);
     motion_io::CommandedOptions co;
@@ -570,6 +571,17 @@ TEST_CASE("turning program: a turn about a tip that stays put keeps its time on 
         INFO("block " << name);
         CHECK(by_tip[name] == Approx(s).margin(1e-12));
     }
+    // N50's pieces all carry the block's mean tip speed, the one programmed feed the comparison reads.
+    double n50_mm = 0;
+    std::vector<double> n50_feeds;
+    for (const motion_io::NcBlock& b : tip.blocks)
+        if (b.name == "N50") {
+            n50_mm += std::hypot(b.end_mm[0] - b.start_mm[0], b.end_mm[1] - b.start_mm[1], b.end_mm[2] - b.start_mm[2]);
+            n50_feeds.push_back(b.feed_mm_min);
+        }
+    REQUIRE(n50_feeds.size() > 10);
+    CHECK(n50_mm > 30);   // 30 mm along X, more along the turning spiral
+    for (const double f : n50_feeds) CHECK(f == Approx(n50_mm / 2.0 * 60.0).epsilon(1e-9));
     // The tip does not move in N20 and N30: their pieces hold it.
     for (const motion_io::NcBlock& b : tip.blocks)
         if (b.name == "N20" || b.name == "N30") {
