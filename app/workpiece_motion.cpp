@@ -486,26 +486,34 @@ std::string machine_rotary_axes(const machine::Machine& machine) {
     return out;
 }
 
-std::array<double, 3> rotary_start_by_letter(const motion_io::MotionModel& log, const machine::Machine& machine) {
-    std::array<double, 3> out{};
+namespace {
+
+// Calls f(axis, letter, channel) for each rotary axis of the machine named A, B or C: the index of
+// its letter (what the NC reader's angles are indexed by) and of the log channel it reads.
+template <typename F>
+void for_each_rotary(const machine::Machine& machine, F&& f) {
     for (const machine::Axis& a : machine.chain) {
         const int letter = rotary_index(std::string(1, a.name));
-        if (!a.rotary() || letter < 0) continue;
-        const int k = rotary_channel(machine, a);
-        require_rotary(machine, a, k, log.has_rotary(k));
-        out[std::size_t(letter)] = log.rot_deg[std::size_t(k)].front();
+        if (a.rotary() && letter >= 0) f(a, std::size_t(letter), std::size_t(rotary_channel(machine, a)));
     }
+}
+
+}  // namespace
+
+std::array<double, 3> rotary_start_by_letter(const motion_io::MotionModel& log, const machine::Machine& machine) {
+    std::array<double, 3> out{};
+    for_each_rotary(machine, [&](const machine::Axis& a, std::size_t l, std::size_t k) {
+        require_rotary(machine, a, int(k), log.has_rotary(int(k)));
+        out[l] = log.rot_deg[k].front();
+    });
     return out;
 }
 
 void program_axes_as_log(motion_io::MotionModel& axes, const motion_io::NcProgram& program,
                          const machine::Machine& machine) {
     std::array<std::vector<double>, 3> rot, vel;
-    for (const machine::Axis& a : machine.chain) {
-        const int letter = rotary_index(std::string(1, a.name));
-        if (!a.rotary() || letter < 0) continue;
-        const auto k = std::size_t(rotary_channel(machine, a)), l = std::size_t(letter);
-        if (axes.has_rotary(letter)) {
+    for_each_rotary(machine, [&](const machine::Axis&, std::size_t l, std::size_t k) {
+        if (axes.has_rotary(int(l))) {
             rot[k] = axes.rot_deg[l];
             vel[k] = axes.rot_vel_deg_s[l];
         } else {
@@ -513,7 +521,7 @@ void program_axes_as_log(motion_io::MotionModel& axes, const motion_io::NcProgra
             rot[k].assign(axes.size(), program.blocks.empty() ? 0.0 : program.blocks.front().start_deg[l]);
             vel[k].assign(axes.size(), 0.0);
         }
-    }
+    });
     axes.rot_deg = std::move(rot);
     axes.rot_vel_deg_s = std::move(vel);
 }

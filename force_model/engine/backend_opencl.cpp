@@ -171,6 +171,8 @@ public:
         cl_kernel k = remove_.get();
         std::size_t out_first = 0;
         for (const kernels::SweepCall& c : calls) {
+            // CPU devices: the call's rays are made writable before the kernel reads them.
+            if (host_pages_) host_pages_->prepare(c.i0, c.j0, c.i0 + c.width, c.j0 + c.height);
             mark_dirty(c);
             const cl_int i0 = c.i0, j0 = c.j0, w = c.width, h = c.height, seg_first = cl_int(c.first_segment),
                          n_segs = cl_int(c.segments), first = cl_int(out_first);
@@ -280,9 +282,7 @@ private:
         if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
     }
 
-    // CPU devices: the call's rays are made writable before the kernel reads them (StockPages).
     void mark_dirty(const kernels::SweepCall& c) {
-        if (host_pages_) host_pages_->prepare(c.i0, c.j0, c.i0 + c.width, c.j0 + c.height);
         if (wrap_host_ || c.width <= 0 || c.height <= 0) return;
         const int tx0 = std::max(c.i0, 0) / kDirtyTile, ty0 = std::max(c.j0, 0) / kDirtyTile;
         const int tx1 = std::min((c.i0 + c.width - 1) / kDirtyTile, tiles_x_ - 1);
