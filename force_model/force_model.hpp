@@ -262,6 +262,11 @@ struct Prediction {
     PredictStats stats;
 };
 
+// A stretch of a run's motion time (seconds, the log's own clock).
+struct TimeWindow {
+    double from_s = 0, to_s = 0;
+};
+
 struct PredictOptions {
     Device device = Device::OpenCL;
     const Stock* base_stock = nullptr;                    // start from this stock instead of the box
@@ -290,6 +295,15 @@ struct PredictOptions {
     // False: the caller has no use for the final stock, so Prediction::final_stock comes back empty
     // and a GPU reads none of it back (the stock lives on the device for the run).
     bool keep_final_stock = true;
+    // When set: only the rows with from_s <= t_s < to_s, the very rows the whole run computes
+    // there (a zoom at full resolution on demand; docs/force_model.md, "A window on demand"). The
+    // motion before the window is walked as the whole run walks it (batches, removal, its lag) for
+    // its removal alone: no engagement is evaluated and no row kept before it. Blocks are
+    // those the window covers, summarised over it; stats.simulated_s is the window's span and
+    // stats.steps its steps; no final stock comes back. A log of more than one session, a window
+    // that is empty or outside the motion, and a turning run (predict_turning) are refused
+    // (SpecError).
+    std::optional<TimeWindow> window;
 };
 // 8192 rows (0.7 MB): small enough that the pieces in flight (the engine's table, the pipe's
 // copies) stay in cache and a short run's first prediction does not fault in 20 MB of fresh pages

@@ -112,8 +112,30 @@ std::vector<Limits> slot_limits(const ToolPlan& plan) {
 struct RowsOut {
     BlockSummaries blocks;
     std::size_t cutting_steps = 0;
-    RowsOut(const motion_io::MotionModel& motion, const ToolPlan& plan) : blocks(motion, slot_limits(plan)) {}
+    std::vector<ForceSample> window_rows;   // PredictOptions::window without rows_out
+    RowsOut(const motion_io::MotionModel& motion, const ToolPlan& plan, const TimeWindow* window)
+        : blocks(motion, slot_limits(plan), window) {}
 };
+
+void check_window(const motion_io::MotionModel& m, const TimeWindow& w) {
+    if (session_ranges(m).size() > 1)
+        throw SpecError(fmt::format("window: the log has {} sessions (the control restarted or the clock jumped); a "
+                                    "window is recomputed on a log of one session",
+                                    session_ranges(m).size()));
+    if (!(std::isfinite(w.from_s) && std::isfinite(w.to_s) && w.from_s < w.to_s))
+        throw SpecError(fmt::format("window: from_s {} s must be below to_s {} s", w.from_s, w.to_s));
+    if (w.to_s <= m.t_s.front() || w.from_s >= m.t_s.back())
+        throw SpecError(fmt::format("window: {} .. {} s lies outside the log's motion, {:.6f} .. {:.6f} s", w.from_s, w.to_s,
+                                    m.t_s.front(), m.t_s.back()));
+}
+
+// The rows [first, end) of n (in time order: one session) inside the window.
+std::pair<std::size_t, std::size_t> rows_in_window(const ForceSample* rows, std::size_t n, const TimeWindow& w) {
+    const auto before = [](const ForceSample& r, double t_s) { return r.t_s < t_s; };
+    const std::size_t first = std::size_t(std::lower_bound(rows, rows + n, w.from_s, before) - rows);
+    const std::size_t end = std::size_t(std::lower_bound(rows + first, rows + n, w.to_s, before) - rows);
+    return {first, end};
+}
 
 Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, Engine& engine, EngineSetup& setup,
                    RowsOut* rows_out, bool keep_final_stock) {
@@ -125,6 +147,7 @@ Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, E
         engine.drain_rows();
         p.blocks = rows_out->blocks.result();
         p.stats.cutting_steps = rows_out->cutting_steps;
+        p.samples = std::move(rows_out->window_rows);
     } else {
         p.blocks = summarise_blocks(motion, rows.samples, rows.extra, slot_limits(plan));
         for (const RowExtra& x : rows.extra) p.stats.cutting_steps += x.engaged > 0 ? 1 : 0;
@@ -145,6 +168,7 @@ Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, E
 Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& spec, const ToolPlan& plan,
                           const PredictOptions& opt, const EngineSettings& settings, EnginePhases* phases_out) {
     check_plan(plan);
+    if (opt.window) check_window(motion, *opt.window);
     const auto wall0 = Clock::now();
     EnginePhases phases;
     Prediction p;
@@ -156,14 +180,19 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
         EngineSetup setup(spec, plan, opt, settings);
         Engine engine(motion, spec, plan, opt, settings, setup, phases);
         std::optional<RowsOut> rows_out;
-        if (opt.rows_out) {
-            rows_out.emplace(motion, plan);
+        const TimeWindow* window = opt.window ? &*opt.window : nullptr;
+        if (window) engine.limit_to(*window);
+        if (opt.rows_out || window) {
+            rows_out.emplace(motion, plan, window);
             engine.take_rows_as_they_come([&](const RowTable& rows, std::size_t n) {
-                const std::span<const ForceSample> piece(rows.samples.data(), n);
+                const auto [first, end] = window ? rows_in_window(rows.samples.data(), n, *window)
+                                                 : std::pair<std::size_t, std::size_t>{0, n};
+                const std::span<const ForceSample> piece(rows.samples.data() + first, end - first);
                 check_rows(piece);
-                rows_out->blocks.add_rows(rows.samples.data(), rows.extra.data(), n);
-                for (std::size_t r = 0; r < n; ++r) rows_out->cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
-                opt.rows_out(piece);
+                rows_out->blocks.add_rows(piece.data(), rows.extra.data() + first, piece.size());
+                for (std::size_t r = first; r < end; ++r) rows_out->cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
+                if (opt.rows_out) opt.rows_out(piece);
+                else rows_out->window_rows.insert(rows_out->window_rows.end(), piece.begin(), piece.end());
             });
         }
         setup_timer.reset();
@@ -172,7 +201,9 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
             engine.run();
         }
         finish_timer.emplace(phases.finish_s);
-        p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr, opt.keep_final_stock);
+        p = collect(motion, plan, engine, setup, rows_out ? &*rows_out : nullptr, opt.keep_final_stock && !window);
+        if (window)
+            p.stats.simulated_s = std::min(window->to_s, motion.t_s.back()) - std::max(window->from_s, motion.t_s.front());
     }
     finish_timer.reset();
     // The walk's own share: what the timed phases inside it leave over (step generation, batching,
@@ -206,6 +237,7 @@ Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, co
 Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses& poses, const RunSpec& spec,
                            const PredictOptions& opt) {
     check_inputs(motion, spec);
+    if (opt.window) throw SpecError("window: a run whose tool turns as it cuts is not recomputed by window");
     const ToolPlan plan = plan_tools(motion, spec);
     check_plan(plan);
     Prediction p = run_turning(motion, poses, spec, plan, opt, check_rows);

@@ -37,6 +37,11 @@ public:
     TipBounds tip_bounds() const;
     // Hands the batch over (swapping buffers, so neither side reallocates) and starts an empty one.
     void hand_over(kernels::StepBatch& steps, std::vector<StepMeta>& meta);
+    // Drops the batch (its removal taken by the caller) and starts an empty one.
+    void discard() {
+        steps_.clear();
+        meta_.clear();
+    }
 
 private:
     kernels::StepBatch steps_;

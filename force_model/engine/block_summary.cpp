@@ -87,12 +87,15 @@ BlockSummary BlockAccumulator::summary() const {
     return b;
 }
 
-BlockSummaries::BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits)
+BlockSummaries::BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits,
+                               const TimeWindow* window)
     : block_names_(motion.block_names), limits_(std::move(limits)) {
     std::int32_t max_block = -1;
     for (std::int32_t b : motion.block) max_block = std::max(max_block, b);
     index_.assign(std::size_t(max_block) + 2, -1);
-    for (std::size_t i = 0; i < motion.size(); ++i) at(motion.block[i], motion.t_s[i]).add_motion(motion.t_s[i]);
+    for (std::size_t i = 0; i < motion.size(); ++i)
+        if (!window || (motion.t_s[i] >= window->from_s && motion.t_s[i] < window->to_s))
+            at(motion.block[i], motion.t_s[i]).add_motion(motion.t_s[i]);
 }
 
 BlockAccumulator& BlockSummaries::at(std::int32_t block, double t_s) {

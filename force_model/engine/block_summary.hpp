@@ -42,7 +42,9 @@ class BlockSummaries {
 public:
     // `limits`: by the rows' cutter slot (RowExtra::slot; the tool's own limits over the run's).
     // Rows of an unknown tool (slot -1) flag unknown_tool.
-    BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits);
+    // With a window (PredictOptions::window): the blocks it covers, their spans clipped to it.
+    BlockSummaries(const motion_io::MotionModel& motion, std::vector<Limits> limits,
+                   const TimeWindow* window = nullptr);
     void add_rows(const ForceSample* rows, const RowExtra* extra, std::size_t n);
     std::vector<BlockSummary> result() const;
 

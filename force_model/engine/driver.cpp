@@ -40,6 +40,7 @@ void Engine::run() {
         // The previous session's rows are all written (its batch and removal completed below).
         if (options_.session_begins) options_.session_begins(begin, end, rows_taken_ + rows_.size());
         for (std::size_t i = begin; i + 1 < end; ++i) {
+            if (window_ && motion_.t_s[i] >= window_->to_s && window_rows_final()) break;
             current_interval_ = i;
             walk_interval(i);
         }
@@ -100,8 +101,23 @@ void Engine::end_session() {
     remove_all_pending();
 }
 
+// A row is final once one follows it (the last one may still take a stop's removed volume), and
+// rows come in time order within a session.
+bool Engine::window_rows_final() const {
+    return !rows_.samples.empty() && rows_.samples.back().t_s >= window_->to_s;
+}
+
+void Engine::limit_to(const TimeWindow& w) {
+    window_ = w;
+    replaying_ = true;
+}
+
 void Engine::walk_interval(std::size_t i) {
     if (!(motion_.t_s[i + 1] - motion_.t_s[i] > 0)) return;
+    // The window starts. The batch being gathered is the whole run's, so it is evaluated whole
+    // (its rows before from_s are dropped later): the stock each of its steps sees is the one the
+    // whole run gave it, the removal lag included.
+    if (replaying_ && motion_.t_s[i + 1] > window_->from_s) replaying_ = false;
     check_rows();
     // Rows already written are final (a batch in flight appends its own); the last one may still
     // take a stop's removed volume.
@@ -110,13 +126,13 @@ void Engine::walk_interval(std::size_t i) {
         use_tool(slot, number);
     if (slot_ < 0) {
         // A tool the run does not have: nothing is guessed (no forces, no removal).
-        rows_.append_unknown_tool(motion_, i, number_);
+        if (!replaying_) rows_.append_unknown_tool(motion_, i, number_);
         return;
     }
     if (interval_in_air(i)) {
         flush_batch();
         remove_all_pending();
-        rows_.append_motion_sample(motion_, i, false);
+        if (!replaying_) rows_.append_motion_sample(motion_, i, false);
         return;
     }
     const double rpm0 = motion_.spindle_rpm[i], rpm1 = motion_.spindle_rpm[i + 1];
@@ -150,7 +166,7 @@ void Engine::walk_stopped_spindle(std::size_t i) {
     removal_path_.add(p1);
     const bool in_material = stock_map_.material_above(p0.x, p0.y, 0, tool_->radius_mm, p0.z + 1e-3) ||
                              stock_map_.material_above(p1.x, p1.y, 0, tool_->radius_mm, p1.z + 1e-3);
-    rows_.append_motion_sample(motion_, i, in_material);
+    if (!replaying_) rows_.append_motion_sample(motion_, i, in_material);
 }
 
 void Engine::walk_angle_steps(std::size_t i) {
@@ -168,6 +184,10 @@ void Engine::walk_angle_steps(std::size_t i) {
 void Engine::flush_batch() {
     const std::size_t n = batcher_.size();
     if (n == 0) return;
+    if (replaying_) {
+        replay_batch();
+        return;
+    }
     complete();
     steps_ += n;
     const TipBounds b = batcher_.tip_bounds();
@@ -182,6 +202,13 @@ void Engine::flush_batch() {
         engagement_.will_cut(under.i0, under.j0, under.i1, under.j1);
     engagement_.queue_batch(batcher_, b, element_end);
     removal_path_.add_batch(engagement_.in_flight().steps);
+    queue_removal(true);
+}
+
+void Engine::replay_batch() {
+    complete();
+    removal_path_.add_batch(batcher_.steps());
+    batcher_.discard();
     queue_removal(true);
 }
 

@@ -18,6 +18,7 @@
 #include "engine/stock_map.hpp"
 
 #include <functional>
+#include <optional>
 
 namespace cutload::force_model {
 
@@ -48,6 +49,13 @@ public:
     void take_rows_as_they_come(RowTaker take);
     void drain_rows();
 
+    // Walks a window (PredictOptions::window): before it, every interval as the whole run walks
+    // it (the same batches, the same removal path and lag) but with no engagement evaluated and
+    // no rows; after it, on until a row past to_s is written, so that the window's last batch and
+    // the volume booked on its rows are the whole run's. Call before run(). Rows before from_s
+    // (the batch the window starts in is evaluated whole) and from to_s on are the caller's to drop.
+    void limit_to(const TimeWindow& window);
+
     RowTable& rows() { return rows_; }
     std::size_t steps() const { return steps_; }   // angle steps evaluated
 
@@ -70,6 +78,9 @@ private:
     void report_progress();
     void check_rows() const;   // TooManyRows past options_.max_rows
     void hand_out_rows(std::size_t keep);
+    // Before a window: the batch's path joins the pending removal; nothing is evaluated.
+    void replay_batch();
+    bool window_rows_final() const;   // every row before the window's end is final
 
     const motion_io::MotionModel& motion_;
     const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates
@@ -91,6 +102,9 @@ private:
     std::size_t steps_ = 0;
     std::size_t current_interval_ = 0;   // for progress
     double last_progress_ = -1;
+
+    std::optional<TimeWindow> window_;   // limit_to
+    bool replaying_ = false;             // walking the motion before the window
 };
 
 }  // namespace cutload::force_model

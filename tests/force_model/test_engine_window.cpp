@@ -1,0 +1,190 @@
+// PredictOptions::window: a stretch of a run recomputed on demand at full resolution. The window's
+// rows must be the whole run's rows over the same times (within 0.1 % of the window's peak force,
+// the bar; in fact bit for bit), although the motion before the window is walked only for
+// its removal, with no engagement evaluated and no rows.
+#include "force_model/engine.hpp"
+#include "force_model/engine_fixtures.hpp"
+#include "force_model/motion_fixtures.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <span>
+#include <string>
+
+using namespace cutload;
+using namespace cutload::enginetest;
+using force_model::Device;
+using testref::arc_to;
+using testref::line_to;
+
+namespace {
+
+// Two layers of zig-zag pocketing over a 40 x 30 mm block (ap 3 mm, stepover 3 mm with half-circle
+// turns, so later passes cut against the walls the earlier ones left, round ones included), an air
+// move between the layers, then a short side pass far from the rest, at 3000 mm/min and 10000 rpm.
+testref::Path pocket_path() {
+    testref::Path p;
+    p.feed_mm_min = 3000;
+    p.spindle_rpm = 10000;
+    p.start_mm = {-6, 4, 7};
+    auto layer = [&](double z, const std::string& name) {
+        double y = 4;
+        p.segments.push_back(line_to({-6, y, z}, name + " entry"));
+        for (int pass = 0; pass < 5; ++pass) {
+            const bool forward = pass % 2 == 0;
+            const double x_end = forward ? 34 : 2;
+            p.segments.push_back(line_to({x_end, y, z}, name + " pass " + std::to_string(pass)));
+            // Half circle of radius 1.5 mm to the next pass (ccw on the right end going up).
+            p.segments.push_back(arc_to({x_end, y + 3, z}, x_end, y + 1.5, forward, name + " turn " + std::to_string(pass)));
+            y += 3;
+        }
+        p.segments.push_back(line_to({-6, y, z}, name + " exit"));
+    };
+    layer(7, "L1");
+    p.segments.push_back(line_to({-6, 19, 20}, "lift"));
+    p.segments.push_back(line_to({-6, 4, 20}, "back"));
+    p.segments.push_back(line_to({-6, 4, 4}, "down"));
+    layer(4, "L2");
+    p.segments.push_back(line_to({-6, 19, 20}, "lift 2"));
+    p.segments.push_back(line_to({-6, 28, 20}, "over"));
+    p.segments.push_back(line_to({-6, 28, 7}, "down 2"));
+    p.segments.push_back(line_to({46, 28, 7}, "far side"));
+    return p;
+}
+
+const force_model::ForceSample* row_at(const force_model::Prediction& p, double t_s) {
+    const auto it = std::lower_bound(p.samples.begin(), p.samples.end(), t_s,
+                                     [](const force_model::ForceSample& r, double t) { return r.t_s < t; });
+    return it != p.samples.end() && it->t_s == t_s ? &*it : nullptr;
+}
+
+struct Agreement {
+    std::size_t rows = 0, full_rows = 0, missing = 0, exact = 0;
+    double peak_N = 0, max_diff_N = 0;
+};
+
+Agreement compare(const force_model::Prediction& full, const force_model::Prediction& win, double from_s, double to_s) {
+    Agreement a;
+    for (const auto& r : full.samples)
+        if (r.t_s >= from_s && r.t_s < to_s) {
+            ++a.full_rows;
+            a.peak_N = std::max(a.peak_N, double(std::hypot(r.fx_N, r.fy_N, r.fz_N)));
+        }
+    for (const auto& w : win.samples) {
+        ++a.rows;
+        const force_model::ForceSample* r = row_at(full, w.t_s);
+        if (!r) {
+            ++a.missing;
+            continue;
+        }
+        const double d = std::max({std::abs(double(w.fx_N) - r->fx_N), std::abs(double(w.fy_N) - r->fy_N),
+                                   std::abs(double(w.fz_N) - r->fz_N), 1e3 * std::abs(double(w.torque_Nm) - r->torque_Nm)});
+        a.max_diff_N = std::max(a.max_diff_N, d);
+        if (w.fx_N == r->fx_N && w.fy_N == r->fy_N && w.fz_N == r->fz_N && w.torque_Nm == r->torque_Nm &&
+            w.chip_mm == r->chip_mm && w.removed_mm3 == r->removed_mm3 && w.holder_contact == r->holder_contact &&
+            w.block == r->block && w.tool == r->tool)
+            ++a.exact;
+    }
+    return a;
+}
+
+force_model::Prediction window_of(const motion_io::MotionModel& m, const force_model::RunSpec& spec, Device d,
+                                  double from_s, double to_s) {
+    force_model::PredictOptions o;
+    o.device = d;
+    o.window = force_model::TimeWindow{from_s, to_s};
+    return force_model::predict(m, spec, o);
+}
+
+}  // namespace
+
+TEST_CASE("window: rows recomputed on demand are the whole run's rows over the window") {
+    const auto spec = base_spec(40, 30, 10);
+    const testref::Path path = pocket_path();
+    const auto m = testref::uniform_motion(path);
+    std::vector<Device> devices{Device::Cpu};
+    if (opencl_available()) devices.push_back(Device::OpenCL);
+    for (Device device : devices) {
+        INFO((device == Device::Cpu ? "cpu" : "opencl"));
+        const auto full = run_on(m, spec, device);
+        REQUIRE(full.samples.size() > 100000);
+        // Where the windows lie: mid-pass of the second layer, across one of its round turns, the
+        // run's start, the far side pass (nothing before it reaches it), and the run's end.
+        const double t_end = m.t_s.back();
+        double l2_turn = -1, far_side = -1;
+        for (std::size_t i = 0; i < m.size(); ++i) {
+            const std::string& b = m.block_names[std::size_t(m.block[i])];
+            if (l2_turn < 0 && b == "L2 turn 2") l2_turn = m.t_s[i];
+            if (far_side < 0 && b == "far side") far_side = m.t_s[i];
+        }
+        REQUIRE(l2_turn > 0);
+        REQUIRE(far_side > 0);
+        const std::vector<std::pair<double, double>> windows{
+            {l2_turn - 0.35, l2_turn - 0.05}, {l2_turn - 0.04, l2_turn + 0.12}, {0, 0.5},
+            {far_side + 0.2, far_side + 0.45}, {t_end - 0.2, t_end + 1}};
+        for (const auto& [from_s, to_s] : windows) {
+            INFO("window " << from_s << " .. " << to_s << " s");
+            const auto win = window_of(m, spec, device, from_s, to_s);
+            const Agreement a = compare(full, win, from_s, to_s);
+            INFO(a.rows << " rows (" << a.full_rows << " in the whole run), " << a.exact << " bit for bit, largest "
+                        << "difference " << a.max_diff_N << " N against a peak of " << a.peak_N << " N");
+            CHECK(a.rows == a.full_rows);
+            CHECK(a.missing == 0);
+            CHECK(a.max_diff_N <= 1e-3 * std::max(a.peak_N, 1.0));
+            // Stronger than the bar: the walk before the window is the whole run's, so the stock,
+            // the batches and the removal lag are too.
+            CHECK(a.exact == a.rows);
+            for (const auto& r : win.samples) {
+                CHECK(r.t_s >= from_s);
+                CHECK(r.t_s < to_s);
+            }
+            CHECK(win.stats.simulated_s == Approx(std::min(to_s, t_end) - std::max(from_s, 0.0)));
+            CHECK(win.stats.steps < full.stats.steps);
+            CHECK(!win.final_stock);
+        }
+        // The cutting windows do cut (the comparison is not of zeros).
+        const auto mid = window_of(m, spec, device, l2_turn - 0.35, l2_turn - 0.05);
+        double peak_N = 0;
+        for (const auto& r : mid.samples) peak_N = std::max(peak_N, double(std::hypot(r.fx_N, r.fy_N, r.fz_N)));
+        CHECK(peak_N > 100);
+        // Blocks: those the window covers, their spans inside it, their peaks the window's.
+        REQUIRE(!mid.blocks.empty());
+        for (const auto& b : mid.blocks) {
+            CHECK(b.t_start_s >= l2_turn - 0.35);
+            CHECK(b.t_end_s < l2_turn - 0.05);
+        }
+        CHECK(mid.blocks.front().block == "L2 pass 2");
+        // Handed out as they come (rows_out), the window's rows are the same rows.
+        force_model::PredictOptions o;
+        o.device = device;
+        o.window = force_model::TimeWindow{l2_turn - 0.35, l2_turn - 0.05};
+        std::vector<force_model::ForceSample> streamed;
+        o.rows_out = [&](std::span<const force_model::ForceSample> rows) {
+            streamed.insert(streamed.end(), rows.begin(), rows.end());
+        };
+        const auto piecewise = force_model::predict(m, spec, o);
+        CHECK(piecewise.samples.empty());
+        REQUIRE(streamed.size() == mid.samples.size());
+        CHECK(std::memcmp(streamed.data(), mid.samples.data(), streamed.size() * sizeof(force_model::ForceSample)) == 0);
+    }
+}
+
+TEST_CASE("window: bad windows are refused by name") {
+    const auto spec = base_spec(40, 30, 10);
+    auto m = testref::uniform_motion(pocket_path());
+    const double t_end = m.t_s.back();
+    auto refused = [&](double from_s, double to_s, const std::string& words) {
+        INFO(from_s << " .. " << to_s);
+        CHECK_THROWS_WITH(window_of(m, spec, Device::Cpu, from_s, to_s), Catch::Contains(words));
+    };
+    refused(2, 2, "must be below");
+    refused(3, 1, "must be below");
+    refused(std::nan(""), 1, "must be below");
+    refused(t_end + 1, t_end + 2, "outside the log's motion");
+    refused(-5, -1, "outside the log's motion");
+    m.session_start = {0, m.size() / 2};
+    refused(1, 2, "2 sessions");
+}
