@@ -154,6 +154,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     if (in.program && in.commanded_from_log)
         throw InputError("commanded_from_log", "the program and the log's commanded positions both give the commanded path: "
                                                "choose one");
+    if (in.window && in.commanded_from_log)
+        throw InputError("window", "a window is the logged motion's forces alone; the log's commanded path is compared "
+                                   "over the whole run (drop the window or commanded_from_log)");
+    if (in.window && in.machine)
+        throw InputError("window", "a window of a run on a five-axis machine is not recomputed yet: predict the whole run");
     motion_io::ReadOptions read = in.read;
     // PoCL takes tens of ms to open (it loads LLVM) on a thread of its own: the second core is its
     // until then, and a scan thread beside it only delays both.
@@ -307,6 +312,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         actual_share = 0.5;   // the same log twice
     }
     force_model::PredictOptions po;
+    po.window = in.window;
     po.device = in.device;
     if (in.device_ready.valid()) {
         const DeviceChoice choice = in.device_ready.get();
@@ -371,7 +377,9 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     r.rows = rows_out + r.prediction.samples.size();
     if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));
     if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);
-    if (r.program) {
+    if (in.window) {
+        // A window is the actual motion's forces alone: the comparison is the whole run's.
+    } else if (r.program) {
         track.begin(Phase::Commanded, actual_share, 1);
         po.progress = track.engine_progress();
         // A tilted tool's commanded run cuts its own turned stock, in the same frame as the actual.

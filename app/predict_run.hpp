@@ -59,6 +59,12 @@ struct RunInput {
     // MachineAxesForces), in rows_out and in RunResult's prediction alike.
     std::shared_ptr<const machine::Machine> machine;
     double tool_length_mm = 0;
+    // When set: only this stretch of the log's time is predicted, at full resolution, the very
+    // rows a whole run gives there (force_model::PredictOptions::window; the motion before it is
+    // walked for its removal alone). A program still names the blocks; the commanded prediction
+    // and the comparison are not made. Refused (InputError "window") with commanded_from_log or a
+    // machine; a log of several sessions, an empty window or one outside the log are SpecErrors.
+    std::optional<force_model::TimeWindow> window;
 };
 
 // A machine definition file (docs/machines.md), with the errors of an errors file when one is

@@ -11,6 +11,9 @@
 // direction (so up and down milling alternate), with a retract between layers; as many layers as
 // fill --minutes of motion (the stock is made deep enough for them).
 //
+// Then 1 s zooms recomputed on demand (`cutload predict --window`) at 10, 50 and 95 % of the run:
+// wall, CPU and peak memory of each, and whether its rows are byte for byte the whole run's.
+//
 // Then through the service: a `cutload serve` child (SQLite store, one worker) gets the log and
 // spec uploaded as a run; printed are the time from upload to done, the server's peak resident
 // memory (VmHWM), the bytes stored (database, WAL, uploads), and the latency of /forces windows
@@ -32,6 +35,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -235,6 +239,8 @@ int through_service(const fs::path& cutload, const fs::path& dir, const std::str
 }  // namespace
 
 int through_cli(const fs::path& cutload, const fs::path& dir, const std::string& device, const std::string& forces_file);
+int windows_through_cli(const fs::path& cutload, const fs::path& dir, const std::string& device,
+                        const std::string& forces_file, double simulated_s);
 
 int main(int argc, char** argv) {
     double minutes = 60;
@@ -323,5 +329,87 @@ int through_cli(const fs::path& cutload, const fs::path& dir, const std::string&
                 simulated_s, simulated_s / 60, c.wall_s, c.wall_s > 0 ? simulated_s / c.wall_s : 0.0, c.cpu_s, c.peak_rss_mb,
                 double(bytes) / 1e9);
     std::printf("  its report: %s", c.out.substr(0, c.out.find('\n', c.out.find("simulated")) + 1).c_str());
-    return 0;
+    return windows_through_cli(cutload, dir, device, forces_file, simulated_s);
+}
+
+namespace {
+
+// The first byte of the first line at or after `offset` whose time is >= t_s, in a FORCES.csv whose
+// rows are in time order (one session): binary search on byte offsets.
+std::uintmax_t first_line_at(std::ifstream& in, std::uintmax_t size, double t_s) {
+    auto line_after = [&](std::uintmax_t at, double& line_t_s) {
+        in.clear();
+        in.seekg(std::streamoff(at));
+        std::string line;
+        if (at > 0) std::getline(in, line);   // the rest of a line cut in the middle (or the header)
+        const std::uintmax_t start = std::uintmax_t(in.tellg());
+        if (!std::getline(in, line)) return size;
+        line_t_s = std::atof(line.c_str());
+        return start;
+    };
+    std::uintmax_t lo = 0, hi = size;   // the answer lies in [lo, hi]
+    while (hi - lo > 1) {
+        const std::uintmax_t mid = lo + (hi - lo) / 2;
+        double mid_t_s = 0;
+        const std::uintmax_t start = line_after(mid, mid_t_s);
+        if (start >= size || mid_t_s >= t_s) hi = mid;
+        else lo = mid;
+    }
+    double t = 0;
+    return line_after(hi, t);
+}
+
+std::string forces_lines_between(const fs::path& file, double from_s, double to_s) {
+    std::ifstream in(file, std::ios::binary);
+    const std::uintmax_t size = fs::file_size(file);
+    const std::uintmax_t a = first_line_at(in, size, from_s), b = first_line_at(in, size, to_s);
+    std::string text(b > a ? b - a : 0, '\0');
+    in.clear();
+    in.seekg(std::streamoff(a));
+    in.read(text.data(), std::streamsize(text.size()));
+    return text;
+}
+
+}  // namespace
+
+// Zooms recomputed on demand (cutload predict --window): 1 s windows at 10, 50 and 95 % of the
+// run, each timed as a user runs it and compared byte for byte with the whole run's rows there.
+int windows_through_cli(const fs::path& cutload, const fs::path& dir, const std::string& device,
+                        const std::string& forces_file, double simulated_s) {
+    if (!(simulated_s > 10)) return 0;
+    int rc = 0;
+    std::printf("cutload predict --window (1 s zooms recomputed at full resolution), load average %s:\n",
+                load_average().c_str());
+    for (double at : {0.10, 0.50, 0.95}) {
+        const double from_s = std::floor(at * simulated_s), to_s = from_s + 1;
+        char window[64];
+        std::snprintf(window, sizeof window, "%.0f:%.0f", from_s, to_s);
+        const Child c = run_and_read({fs::absolute(cutload).string(), "predict", (dir / "roughing_dryrun.csv").string(),
+                                      "--spec", (dir / "run.json").string(), "--out", (dir / "WINDOW.csv").string(),
+                                      "--window", window, "--device", device, "-q"},
+                                     dir / "window.out");
+        if (c.status != 0) {
+            std::printf("  --window %s failed (exit status %d): %s\n", window, c.status, c.out.c_str());
+            rc = 1;
+            continue;
+        }
+        std::string same = "not compared (the whole run wrote FORCES.bin)";
+        if (forces_file == "FORCES.csv") {
+            std::ifstream w(dir / "WINDOW.csv", std::ios::binary);
+            std::string header, rows;
+            std::getline(w, header);
+            std::stringstream ss;
+            ss << w.rdbuf();
+            rows = ss.str();
+            const std::string whole = forces_lines_between(dir / forces_file, from_s, to_s);
+            const std::size_t n = std::size_t(std::count(rows.begin(), rows.end(), '\n'));
+            same = rows == whole ? "identical to the whole run's " + std::to_string(n) + " rows there"
+                                 : "DIFFERENT from the whole run's rows there (" + std::to_string(n) + " rows against " +
+                                       std::to_string(std::count(whole.begin(), whole.end(), '\n')) + ")";
+            if (rows != whole) rc = 1;
+        }
+        std::printf("  %-12s wall %.2f s, CPU %.2f s, peak RSS %.0f MB; %s\n", window, c.wall_s, c.cpu_s, c.peak_rss_mb,
+                    same.c_str());
+    }
+    return rc;
 }

@@ -16,12 +16,30 @@ namespace {
 struct PredictArgs {
     std::string log, spec, out, blocks, device = "auto", start_stock, save_stock, machine, machine_errors;
     double tool_length_mm = 0;
+    std::string window;   // FROM:TO in seconds of the log's time
     bool quiet = false;
     double step_ms = motion_io::ReadOptions{}.step_ms;
     app::LogFormat format;
     ProgramOptions program;
     app::WorkLimits limits;
 };
+
+// "12.5:14" -> [12.5, 14) s.
+force_model::TimeWindow parse_window(const std::string& text) {
+    const std::size_t colon = text.find(':');
+    force_model::TimeWindow w;
+    std::size_t used_from = 0, used_to = 0;
+    try {
+        if (colon == std::string::npos) throw std::invalid_argument("no colon");
+        const std::string from = text.substr(0, colon), to = text.substr(colon + 1);
+        w.from_s = std::stod(from, &used_from);
+        w.to_s = std::stod(to, &used_to);
+        if (used_from != from.size() || used_to != to.size()) throw std::invalid_argument("trailing text");
+    } catch (const std::exception&) {
+        throw CLI::ValidationError("--window", "'" + text + "' is not FROM:TO in seconds of the log's time (e.g. 120:121.5)");
+    }
+    return w;
+}
 
 void run_predict(const PredictArgs& a) {
     // A long prediction must not end in "cannot write": check every output place first.
@@ -43,6 +61,7 @@ void run_predict(const PredictArgs& a) {
     in.keep_final_stock = !a.save_stock.empty();
     if (!a.machine.empty()) in.machine = app::load_machine_definition(a.machine, a.machine_errors);
     in.tool_length_mm = a.tool_length_mm;
+    if (!a.window.empty()) in.window = parse_window(a.window);
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
     // With a machine the rows carry their forces in machine axes too (docs/formats.md, FORCES.csv).
@@ -132,10 +151,16 @@ void add_predict(CLI::App& app) {
     cmd->add_option("--tool-length-mm", a->tool_length_mm, "With --machine: gauge point to tool tip in mm")
         ->check(CLI::Range(0.0, 1000.0))
         ->capture_default_str();
+    auto* window = cmd->add_option("--window", a->window,
+                                   "FROM:TO, seconds of the log's time: only that stretch is predicted, at full "
+                                   "resolution, the very rows the whole run gives there (the motion before it is walked "
+                                   "for its removal alone; docs/force_model.md, \"A window on demand\")");
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_work_limit_options(*cmd, a->limits.max_force_rows, a->limits.max_stock_cells, a->limits.max_job_memory_mb);
     add_program_options(*cmd, a->program, true);
     add_log_options(*cmd, a->format);
+    for (const char* other : {"--save-stock", "--machine", "--compare", "--commanded-out", "--commanded-from-log"})
+        window->excludes(other);
     cmd->callback([a] { run_predict(*a); });
 }
 
