@@ -17,6 +17,7 @@
 #include "library.hpp"
 #include "number_text.hpp"
 #include "program.hpp"
+#include "results.hpp"
 #include "series.hpp"
 
 #include "textio/csv.hpp"
@@ -32,6 +33,9 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <cmath>
+#include <limits>
+#include <mutex>
 #include <cstdlib>
 #include <fstream>
 #include <regex>
@@ -700,7 +704,7 @@ std::string series_csv(const Window& w, const std::vector<std::string>& ch, cons
 
 std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t max_points, const Window& w,
                         const std::vector<std::string>& ch, const std::vector<bool>& wanted, std::size_t block_col,
-                        const BlockNames& names) {
+                        const BlockNames& names, bool recomputed = false) {
     const std::size_t n = w.t_s.size();
     // Block indices that occur in the window, for block_names.
     std::vector<char> seen(names.json.size(), 0);
@@ -726,6 +730,7 @@ std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t
     out << ",\"to_s\":";
     out.time(to_s);
     out << fmt::format(R"(,"decimated":{},"level":{},"count":{})", w.decimated, w.level, n);
+    if (recomputed) out << R"(,"recomputed":true)";
     auto times = [&](const char* key, const std::vector<double>& t) {
         out << ",\"" << key << "\":[";
         for (std::size_t i = 0; i < n; ++i) {
@@ -771,8 +776,102 @@ std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t
     return std::move(out).done();
 }
 
+// The longest window /forces?resolution=full recomputes: 3e5 rows at 10000 rpm and 2 deg steps.
+constexpr double kMaxRecomputedWindowS = 10;
+
+// /forces?resolution=full: the window predicted again from the run's stored inputs, at full
+// resolution whatever the run stored (force_model::PredictOptions::window: the very rows the whole
+// run gave there). One at a time per process: each walks the motion before its window.
+void recomputed_forces_route(Core& core, Ctx& x) {
+    static std::mutex one_at_a_time;
+    const auto id = x.id();
+    if (x.param("source") == "commanded")
+        bad_request("resolution=full recomputes the actual forces (source=actual); the commanded ones are stored whole");
+    if (!x.given("from_s") || !x.given("to_s"))
+        bad_request(fmt::format("resolution=full needs a window: from_s and to_s, at most {} s apart", kMaxRecomputedWindowS));
+    const double from_s = *x.param_double("from_s"), to_s = *x.param_double("to_s");
+    if (!(to_s > from_s)) bad_request(fmt::format("to_s ({}) must be after from_s ({})", to_s, from_s));
+    if (to_s - from_s > kMaxRecomputedWindowS)
+        bad_request(fmt::format("resolution=full recomputes at most {} s at once; this window spans {:.6g} s",
+                                kMaxRecomputedWindowS, to_s - from_s));
+    const auto max_points = static_cast<std::size_t>(*x.param_int("max_points"));
+    const std::vector<std::string>& ch = series_channels(SeriesId::Forces);
+    const std::vector<bool> wanted = wanted_channels(x, ch);
+    json inputs;
+    fs::path dir;
+    std::optional<std::int64_t> base_run;
+    RunRef run;
+    {
+        auto session = core.session();
+        run = require_done(*session, id);
+        const auto r = session->runs().get(id);
+        if (!r) not_found(fmt::format("run {}", id));
+        dir = core.data_dir / r->upload_dir;
+        inputs = json::parse(r->inputs_json);
+        base_run = r->base_run;
+        double t0 = 0, t1 = 0;
+        if (!series_extent(*session, core.series_cache, run, SeriesId::Forces, &t0, &t1) || to_s < t0 || from_s > t1)
+            bad_request(fmt::format("the window {} .. {} s holds none of run {}'s force rows ({} .. {} s)", from_s, to_s, id,
+                                    t0, t1));
+    }
+    if (inputs.contains("live"))
+        throw ApiError(409, "not_recomputable", fmt::format("run {} was followed live: no log was stored to recompute it from", id));
+    if (inputs.contains("kinematics"))
+        throw ApiError(409, "not_recomputable",
+                       fmt::format("run {} was predicted through a five-axis machine's kinematics: its windows are not "
+                                   "recomputed yet (resolution=stored answers from the stored rows)",
+                                   id));
+    std::unique_lock lock(one_at_a_time, std::try_to_lock);
+    if (!lock) {
+        x.res.set_header("Retry-After", "1");
+        throw ApiError(503, "busy", "another window is being recomputed; try again in a moment");
+    }
+    app::RunInput in = run_input(inputs, dir, core.opt.use_opencl);
+    in.limits = work_limits(core.opt);
+    force_model::StockPtr base = load_base_stock(*core.store, base_run);
+    in.base_stock = base.get();
+    in.keep_final_stock = false;
+    // [from_s, to_s] as the stored answers take it: to_s included.
+    in.window = force_model::TimeWindow{from_s, std::nextafter(to_s, std::numeric_limits<double>::infinity())};
+    app::RunResult r;
+    try {
+        r = app::predict_run(in);
+    } catch (const force_model::SpecError& e) {
+        throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
+    } catch (const app::InputError& e) {
+        throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
+    }
+    SeriesData d;
+    const std::size_t k = ch.size();
+    d.values.resize(r.prediction.samples.size() * k);
+    for (std::size_t i = 0; i < r.prediction.samples.size(); ++i) {
+        d.t_s.push_back(r.prediction.samples[i].t_s);
+        force_row(r.prediction.samples[i], {}, &d.values[i * k]);
+    }
+    const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
+    std::vector<bool> read = wanted;
+    read[block_col] = true;
+    const Window w = window_from_rows(d, from_s, to_s, max_points, read);
+    std::shared_ptr<const BlockNames> names;
+    {
+        auto session = core.session();
+        names = block_names(*session, core.series_cache, run);
+    }
+    const bool csv = x.wants_csv();
+    std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
+                           : series_json(id, from_s, to_s, max_points, w, ch, wanted, block_col, *names, true);
+    if (accepts_gzip(x.req)) {
+        text = gzip_fast(text);
+        x.res.set_header("Content-Encoding", "gzip");
+    }
+    x.res.body = std::move(text);
+    x.res.status = 200;
+    x.res.set_header("Content-Type", csv ? "text/csv" : "application/json");
+}
+
 void series_route(Core& core, Ctx& x, SeriesId s) {
     const auto id = x.id();
+    if (s == SeriesId::Forces && x.param("resolution") == "full") return recomputed_forces_route(core, x);
     if (s == SeriesId::Forces && x.param("source") == "commanded") s = SeriesId::CommandedForces;
     const auto max_points = *x.param_int("max_points");
     // /motion also answers a turning tool's axis per sample (SeriesId::ToolAxis, stored on the
@@ -907,6 +1006,15 @@ void add_run_routes(Core& core) {
                                   "with nc_program; 404 no_program otherwise). Same channels and block_names as actual.")
                          .one_of({"actual", "commanded"})
                          .or_else("actual"));
+    forces.push_back(query_string("resolution",
+                                  "full: the window (from_s and to_s, at most 10 s apart) predicted again from the run's "
+                                  "stored log and inputs, every row at full resolution, the very rows the whole run gave "
+                                  "there, whatever the run stored (a long run keeps envelopes); the answer says "
+                                  "\"recomputed\": true. It walks the motion before the window (about 4 ms a second of it "
+                                  "on 2 cores), one at a time per server (503 busy). Actual forces only; 409 "
+                                  "not_recomputable for live and five-axis runs. stored: from the stored series")
+                         .one_of({"stored", "full"})
+                         .or_else("stored"));
     core.route({"GET", "/api/v1/runs/{id}/forces", Role::Read, forces},
                [&core](Ctx& x) { series_route(core, x, SeriesId::Forces); });
     std::vector<Param> motion = series_params(

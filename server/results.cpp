@@ -41,20 +41,6 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
             {"flags", flags}};
 }
 
-// One row of the forces series (series_channels(Forces) order). `block_of` maps the prediction's
-// block indices to the stored block names (identity: empty).
-void force_row(const force_model::ForceSample& s, const std::vector<std::int32_t>& block_of, float* row) {
-    const float f = std::sqrt(s.fx_N * s.fx_N + s.fy_N * s.fy_N + s.fz_N * s.fz_N);
-    // Wrapped: the unwrapped angle of a long run exceeds float precision.
-    const auto angle = static_cast<float>(std::fmod(s.spindle_angle_deg, 360.0));
-    const std::int32_t block =
-        s.block >= 0 && static_cast<std::size_t>(s.block) < block_of.size() ? block_of[static_cast<std::size_t>(s.block)] : s.block;
-    const float values[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(block), s.fx_N, s.fy_N, s.fz_N, f,
-                            s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
-                            s.axial_engagement_mm};
-    std::copy(std::begin(values), std::end(values), row);
-}
-
 SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of = {}) {
     SeriesData d;
     const std::size_t k = series_channels(SeriesId::Forces).size();
@@ -130,6 +116,19 @@ std::optional<double> metric_value(const std::string& metric, const force_model:
 bool collision_flag(const std::string& flag) { return flag == "rapid_in_material" || flag == "holder_contact"; }
 
 }  // namespace
+
+void force_row(const force_model::ForceSample& s, const std::vector<std::int32_t>& block_of, float* row) {
+    const float f = std::sqrt(s.fx_N * s.fx_N + s.fy_N * s.fy_N + s.fz_N * s.fz_N);
+    // Wrapped: the unwrapped angle of a long run exceeds float precision.
+    const auto angle = static_cast<float>(std::fmod(s.spindle_angle_deg, 360.0));
+    const std::int32_t block =
+        s.block >= 0 && static_cast<std::size_t>(s.block) < block_of.size() ? block_of[static_cast<std::size_t>(s.block)] : s.block;
+    const float values[] = {angle < 0 ? angle + 360.0f : angle, static_cast<float>(block), s.fx_N, s.fy_N, s.fz_N, f,
+                            s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
+                            s.axial_engagement_mm};
+    std::copy(std::begin(values), std::end(values), row);
+}
+
 
 // Evaluates every enabled threshold that applies to this run; inserts alerts and deliveries.
 // `limit_alerts`: a run whose blocks the engine flagged against the run's own limits raises an

@@ -382,4 +382,53 @@ Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, Serie
     return w;
 }
 
+Window window_from_rows(const SeriesData& d, double from_s, double to_s, std::size_t max_points,
+                        const std::vector<bool>& channels) {
+    const std::size_t k = channels.size();
+    Window w;
+    w.lo.resize(k);
+    w.hi.resize(k);
+    std::vector<std::size_t> rows, out;   // rows in the window, and the output element of each
+    for (std::size_t i = 0; i < d.t_s.size(); ++i)
+        if (d.t_s[i] >= from_s && d.t_s[i] <= to_s) rows.push_back(i);
+    w.decimated = rows.size() > max_points;
+    // The buckets query_window makes of level 0 (equal widths of the window, empty ones left out).
+    const double bucket_s = (to_s - from_s) / static_cast<double>(std::max<std::size_t>(max_points, 1));
+    std::int64_t last_bucket = -1;
+    for (const std::size_t i : rows) {
+        const double t = d.t_s[i];
+        if (!w.decimated) {
+            w.t_s.push_back(t);
+        } else {
+            const auto bucket = std::clamp<std::int64_t>(static_cast<std::int64_t>((t - from_s) / bucket_s), 0,
+                                                         static_cast<std::int64_t>(max_points) - 1);
+            if (bucket != last_bucket) {
+                last_bucket = bucket;
+                w.t_s.push_back(t);
+                w.t_end_s.push_back(t);
+            } else {
+                w.t_end_s.back() = t;
+            }
+        }
+        out.push_back(w.t_s.size() - 1);
+    }
+    for (std::size_t j = 0; j < k; ++j) {
+        if (!channels[j]) continue;
+        auto& lo = w.lo[j];
+        if (!w.decimated) {
+            for (const std::size_t i : rows) lo.push_back(d.values[i * k + j]);
+            continue;
+        }
+        auto& hi = w.hi[j];
+        lo.assign(w.t_s.size(), std::numeric_limits<float>::infinity());
+        hi.assign(w.t_s.size(), -std::numeric_limits<float>::infinity());
+        for (std::size_t e = 0; e < rows.size(); ++e) {
+            const float v = d.values[rows[e] * k + j];
+            lo[out[e]] = std::min(lo[out[e]], v);
+            hi[out[e]] = std::max(hi[out[e]], v);
+        }
+    }
+    return w;
+}
+
 }  // namespace cutload::server

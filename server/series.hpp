@@ -152,6 +152,12 @@ struct Window {
 // First and last time stored, or false when the run has no rows in this series.
 bool series_extent(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double* t0_s, double* t1_s);
 
+// The window of rows computed on demand (not stored: /forces?resolution=full), as query_window
+// answers level 0: raw when at most max_points rows lie in [from_s, to_s], else min/max per equal
+// bucket. d.values holds channels.size() values a row.
+Window window_from_rows(const SeriesData& d, double from_s, double to_s, std::size_t max_points,
+                        const std::vector<bool>& channels);
+
 // channels[j]: whether channel j is wanted in the answer.
 Window query_window(db::Session& c, SeriesCache& cache, const RunRef& run, SeriesId s, double from_s, double to_s,
                     std::size_t max_points, const std::vector<bool>& channels);
