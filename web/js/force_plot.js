@@ -49,6 +49,8 @@ const SELECT_TINT = 'rgba(29, 78, 216, 0.10)';
 const OVERVIEW_POINTS = 2000;   // buckets for the whole run: more than a laptop plot has pixels
 const MAX_WINDOW_POINTS = 4000;
 const REFINE_DELAY_MS = 120;
+// The longest window the service recomputes at full resolution (/forces?resolution=full).
+export const MAX_RECOMPUTED_S = 10;
 const PLOT_HEIGHT = 340;
 
 // A window answer as plot columns [x, ...keys]. Decimated buckets become two points (min at the
@@ -168,11 +170,13 @@ function formatValue(v, unit) {
 
 export class ForcePlot {
   // fetchWindow(from_s, to_s, max_points, signal) -> forces window answer; fetchCommanded the same
-  // for the commanded resultant (channel f_N), or null for a run without a program.
+  // for the commanded resultant (channel f_N), or null for a run without a program; fetchFull the
+  // same recomputed at full resolution (for a run that stored envelopes only), or null.
   // onCursor(t or null): the time under the pointer, at most once a frame.
-  constructor(container, { fetchWindow, fetchCommanded = null, limits = {}, onPick, onRange, onCursor }) {
+  constructor(container, { fetchWindow, fetchCommanded = null, fetchFull = null, limits = {}, onPick, onRange, onCursor }) {
     this.container = container;
     this.fetchWindow = fetchWindow;
+    this.fetchFull = fetchFull;
     this.fetchCommanded = fetchCommanded;
     this.fetchMeasured = null;
     this.commanded = null;   // {overview, current, decimated} columns [x, f] of the commanded resultant
@@ -549,6 +553,7 @@ export class ForcePlot {
     if (!needActual && !needCommanded && !needMeasured) {
       // The overviews already are full resolution, or the window is the whole run.
       this.published(this.decimatedOverview ? 'envelope' : 'full', from, to);
+      this.setRecomputable(null, from, to);
       if (cmd) this.publishedCommanded(cmd.decimated ? 'envelope' : 'full', from, to);
       this.actual.setDetail(null);
       cmd?.trace.setDetail(null);
@@ -610,7 +615,39 @@ export class ForcePlot {
     });
     this.published(w ? (w.decimated ? 'envelope' : 'full') : 'full', from, to);
     if (cmd) this.publishedCommanded(wc ? (wc.decimated ? 'envelope' : 'full') : 'full', from, to);
+    this.setRecomputable(w, from, to);
     performance.measure('plot-refine', { start: scaleAt, end: performance.now() });
+  }
+
+  // Whether the window shown can be recomputed at full resolution: the run stored envelopes only
+  // there (the answer's level is above 0) and the window spans at most MAX_RECOMPUTED_S. Said by
+  // data-recomputable and a 'recomputable' event (detail: true or false).
+  setRecomputable(w, from, to) {
+    const can = Boolean(this.fetchFull && w && w.level > 0 && to - from <= MAX_RECOMPUTED_S);
+    this.container.dataset.recomputable = String(can);
+    this.container.dispatchEvent(new CustomEvent('recomputable', { detail: can }));
+  }
+
+  // Recomputes the window shown at full resolution (the service walks the run before it, seconds
+  // for a long run) and draws it in place of the envelopes. data-resolution becomes 'recomputed'.
+  async recompute() {
+    const [from, to] = this.xRange();
+    this.inflight?.abort();
+    const ctl = new AbortController();
+    this.inflight = ctl;
+    this.inflightRange = `${from}:${to}`;
+    const points = Math.min(MAX_WINDOW_POINTS, Math.max(200, Math.round(this.u.over.clientWidth)));
+    const w = await this.fetchFull(from, to, points, ctl.signal);
+    if (ctl.signal.aborted) return;
+    this.fetchedRange = `${from}:${to}`;   // the refine the redraw schedules has nothing to fetch
+    this.actual.setDetail(w, from, to);
+    this.currentData = mergeColumns(this.overview, windowColumns(w), from, to);
+    this.u.batch(() => {
+      this.u.setData(this.plotData(), false);
+      this.u.setScale('x', { min: from, max: to });
+    });
+    this.published('recomputed', from, to);
+    this.setRecomputable(null, from, to);
   }
 
   // What the plot holds for the visible window, as data attributes (read by the browser tests).

@@ -8,7 +8,7 @@ import { api } from './api.js';
 import { h, clear, num, seconds, when, download, statusLine, errorText, lowerBound } from './dom.js';
 import { loadLibraries, toolLabel, stateBadge } from './runs.js';
 import { LiveView } from './live_view.js';
-import { ForcePlot } from './force_plot.js';
+import { ForcePlot, MAX_RECOMPUTED_S } from './force_plot.js';
 import { BlockTable, withComparison } from './block_table.js';
 import { programSection, optimizePanel } from './program.js';
 import { alertTable } from './alerts.js';
@@ -339,6 +339,7 @@ async function showResults(body, run, lib, disposers) {
   const comparing = Boolean(run.links?.program);
   const plot = new ForcePlot(plotBox, {
     fetchWindow: (from_s, to_s, max_points, signal) => api.forces(id, { from_s, to_s, max_points }, signal),
+    fetchFull: (from_s, to_s, max_points, signal) => api.forces(id, { from_s, to_s, max_points, resolution: 'full' }, signal),
     fetchCommanded: comparing ? (from_s, to_s, max_points, signal) => api.commandedForces(id, { from_s, to_s, max_points }, signal) : null,
     limits,
     onPick: (t) => selectTime(t),
@@ -370,6 +371,25 @@ async function showResults(body, run, lib, disposers) {
     commandedBox.checked = e.detail;
   });
   const exportStatus = h('span', { class: 'muted', role: 'status' });
+  // A long run stores envelopes (min/max of 64 rows) rather than every row: a window of up to 10 s
+  // can be predicted again, every row, on request (docs/api.md, "Recomputed windows").
+  const fullButton = h('button', {
+    type: 'button', id: 'plot-full', disabled: true,
+    title: `This run stored envelopes only: predict the window shown again at full resolution (at most ${MAX_RECOMPUTED_S} s; takes a few seconds for a long run)`,
+    onclick: async () => {
+      fullButton.disabled = true;
+      exportStatus.textContent = 'Recomputing the window at full resolution…';
+      try {
+        await plot.recompute();
+        exportStatus.textContent = '';
+      } catch (e) {
+        if (e.name !== 'AbortError') exportStatus.textContent = errorText(e);
+      }
+    },
+  }, 'Full resolution');
+  plotBox.addEventListener('recomputable', (e) => {
+    fullButton.disabled = !e.detail;
+  });
   const controls = h('div', { class: 'plot-controls', role: 'toolbar', 'aria-label': 'Plot controls' },
     channel('torque_Nm', 'Torque'), channel('power_kW', 'Power'),
     comparing ? h('label', { class: 'inline' }, commandedBox, ' Commanded (program)') : null,
@@ -377,6 +397,7 @@ async function showResults(body, run, lib, disposers) {
     btn('−', 'Zoom out', () => plot.zoom(2)), btn('+', 'Zoom in', () => plot.zoom(0.5)),
     btn('◀', 'Pan left', () => plot.pan(-0.25)), btn('▶', 'Pan right', () => plot.pan(0.25)),
     btn('Whole run', 'Show the whole run', () => plot.reset()),
+    fullButton,
     h('span', { class: 'sep' }),
     btn('Export CSV', 'Download the visible window as CSV', async () => {
       const [a, b] = plot.xRange();
