@@ -18,7 +18,8 @@
 // spec uploaded as a run; printed are the time from upload to done, the server's peak resident
 // memory (VmHWM), the bytes stored (database, WAL, uploads), and the latency of /forces windows
 // on the finished run (the whole run, and zooms of 0.05 to 5 s, max_points 2000, the plot's four
-// force channels; one client, p50 and p99).
+// force channels; one client, p50 and p99), then the time of 1 s windows recomputed at full
+// resolution (resolution=full) at 10, 50 and 95 % of the run.
 //
 // Usage: bench_long [--minutes M] [--device cpu|opencl] [--via cli|service|both] [--forces csv|bin] [--cutload PATH] [--keep]
 //   defaults: 60 minutes, opencl, both, csv (the CLI's --out FORCES.csv, or FORCES.bin), ../cli/cutload beside
@@ -233,6 +234,24 @@ int through_service(const fs::path& cutload, const fs::path& dir, const std::str
                 "(200 queries); server RSS now %.0f MB\n",
                 pct(whole_ms, 0.5), pct(whole_ms, 0.99), pct(zoom_ms, 0.5), pct(zoom_ms, 0.99),
                 double(rss_kib(srv.pid)) / 1024);
+    // The same 1 s windows as the CLI's, recomputed at full resolution (resolution=full).
+    for (double at : {0.10, 0.50, 0.95}) {
+        const double from_s = std::floor(at * simulated_s);
+        char path[512];
+        std::snprintf(path, sizeof path, "%s/forces?max_points=20000&from_s=%.0f&to_s=%.0f&resolution=full%s",
+                      run_path.c_str(), from_s, from_s + 1, channels.c_str());
+        const auto q0 = std::chrono::steady_clock::now();
+        auto g = cli.Get(path);
+        const double s_taken = std::chrono::duration<double>(std::chrono::steady_clock::now() - q0).count();
+        if (!g || g->status != 200) {
+            std::printf("  %s: %s\n", path, g ? g->body.c_str() : "no response");
+            return 1;
+        }
+        const json w = json::parse(g->body);
+        std::printf("  /forces?resolution=full %.0f..%.0f s: %.2f s, %d rows (decimated: %s); server RSS now %.0f MB\n",
+                    from_s, from_s + 1, s_taken, w.value("count", 0), w.value("decimated", false) ? "yes" : "no",
+                    double(rss_kib(srv.pid)) / 1024);
+    }
     return 0;
 }
 

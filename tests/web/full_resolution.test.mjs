@@ -3,7 +3,7 @@
 // again (/forces?resolution=full) and draws every row in place of the envelopes.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { skipWithoutChromium, startServer, launchBrowser, openPage, screenshot, straightCutLog } from './harness.mjs';
+import { skipWithoutChromium, finishedRun, startServer, launchBrowser, openPage, screenshot, straightCutLog } from './harness.mjs';
 
 skipWithoutChromium();
 
@@ -31,11 +31,7 @@ test('zoomed into an envelope-only run, Full resolution draws the recomputed row
   }));
   fd.append('name', 'envelopes only');
   const { id } = await server.api('POST', 'runs', fd);
-  let run;
-  do {
-    await new Promise((r) => setTimeout(r, 200));
-    run = await server.api('GET', `runs/${id}`);
-  } while (run.state === 'queued' || run.state === 'running');
+  const run = await finishedRun(server, id);
   assert.equal(run.state, 'done', run.error);
 
   const { page, errors } = await openPage(browser, server);

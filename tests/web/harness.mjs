@@ -96,6 +96,16 @@ export async function startServer({ workers = 1, args = [] } = {}) {
   };
 }
 
+// Polls a run until it is neither queued nor running; returns it.
+export async function finishedRun(server, id) {
+  let run;
+  do {
+    await new Promise((r) => setTimeout(r, 200));
+    run = await server.api('GET', `runs/${id}`);
+  } while (run.state === 'queued' || run.state === 'running');
+  return run;
+}
+
 export async function launchBrowser() {
   const require = createRequire(path.join(env('CUTLOAD_WEB_NODE_DIR'), 'package.json'));
   const { chromium } = require('playwright-core');

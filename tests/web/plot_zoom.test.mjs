@@ -6,7 +6,7 @@
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
-import { skipWithoutChromium, startServer, launchBrowser, openPage, screenshot, dataFile, straightCutLog } from './harness.mjs';
+import { skipWithoutChromium, finishedRun, startServer, launchBrowser, openPage, screenshot, dataFile, straightCutLog } from './harness.mjs';
 
 skipWithoutChromium();
 
@@ -61,11 +61,7 @@ const fmt = (s) => `n=${s.n} median ${s.median.toFixed(2)} ms, p95 ${s.p95.toFix
 test('pan and zoom redraw a 10^6-sample run and fetch the finer window', async () => {
   const t0 = Date.now();
   const { id } = await server.api('POST', 'runs', bigRunForm());
-  let run;
-  do {
-    await new Promise((r) => setTimeout(r, 200));
-    run = await server.api('GET', `runs/${id}`);
-  } while (run.state === 'queued' || run.state === 'running');
+  const run = await finishedRun(server, id);
   assert.equal(run.state, 'done', run.error);
   console.log(`run with ${run.summary.samples} force samples computed and stored in ${((Date.now() - t0) / 1000).toFixed(1)} s`);
   assert.ok(run.summary.samples >= SAMPLES, `only ${run.summary.samples} samples`);
