@@ -5,6 +5,7 @@
 #include "rows_pipe.hpp"
 #include "tracker.hpp"
 
+#include "force_model/engine_settings.hpp"
 #include "force_model/logged_commanded.hpp"
 
 #include <fmt/format.h>
@@ -89,6 +90,26 @@ void count_multi_direction_stock(WorkEstimate& work, const force_model::RunSpec&
     work.memory_mb += (force_model::multi_direction_stock_bytes(spec.stock, spec.resolution.grid_mm) -
                        zmap_cells * double(force_model::stock_bytes_per_cell())) /
                       (1024.0 * 1024.0);
+}
+
+// A window (RunInput::window) predicts its own rows only, and no commanded motion: at most its
+// span at the log's top spindle speed, a row per motion sample in it, and the batch it starts in
+// (evaluated whole, its earlier rows dropped), not the whole log's. The log's motion, and with a
+// program the commanded motion its mapping builds, still count.
+void count_window(WorkEstimate& work, const force_model::TimeWindow& window, double step_s, bool rows_streamed) {
+    const double span_s = std::clamp(window.to_s - window.from_s, 0.0, work.log_duration_s);
+    const double rows = std::min(work.force_rows, span_s * work.spindle_max_rpm * 6 / work.angle_step_deg +
+                                                      span_s / step_s + double(force_model::EngineSettings{}.max_batch_steps) + 2);
+    const double held_before = rows_streamed ? work.commanded_rows : work.total_rows();
+    const double held_after = rows_streamed ? 0 : rows;
+    work.force_rows = rows;
+    work.commanded_rows = 0;
+    work.memory_mb += (held_after - held_before) * kJobBytesPerForceRow / (1024.0 * 1024.0);
+    if (work.stocks > 1) {
+        work.memory_mb -= double(work.stocks - 1) * work.stock_cells * double(force_model::stock_bytes_per_cell()) /
+                          (1024.0 * 1024.0);
+        work.stocks = 1;
+    }
 }
 
 CuttingOrientation orientation_of(const ToolFrame& frame) {
@@ -264,6 +285,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.options.rapid_mm_min = source.settings.rapid_mm_min;
         r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
         if (turning) count_multi_direction_stock(r.work, in.spec);
+        if (in.window) count_window(r.work, *in.window, r.motion.step_s, in.rows_out.has_value());
         check_run_work(r.work, in.limits, orientation_of(frame));
         track.begin(Phase::Mapping, 0, 0);
         // The log is matched to the program where both are: in stock axes (a tilted tool's motion
@@ -287,6 +309,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         commanded.from_log = in.commanded_from_log;
         r.work = estimate_run_work(r.ingest, in.spec, orientation_of(frame), commanded, in.rows_out.has_value());
         if (turning) count_multi_direction_stock(r.work, in.spec);
+        if (in.window) count_window(r.work, *in.window, r.motion.step_s, in.rows_out.has_value());
         check_run_work(r.work, in.limits, orientation_of(frame));
     }
     motion_io::MotionModel logged_commanded;

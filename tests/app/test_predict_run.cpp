@@ -7,6 +7,7 @@
 #include "app/predict_run.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <map>
 #include <set>
 
@@ -188,4 +189,35 @@ TEST_CASE("predict_run: a base stock passed as bytes is the one loaded from a fi
     CHECK(differing == 0);
     CHECK(force_model::save_stock_bytes(*on_bytes.prediction.final_stock) ==
           force_model::save_stock_bytes(*on_file.prediction.final_stock));
+}
+
+TEST_CASE("predict_run: a window counts its own rows against the limits, and is the whole run's rows there",
+          "[app][predict][window]") {
+    const app::RunResult whole = app::predict_run(demo_input(true));
+    REQUIRE(whole.prediction.samples.size() > 100000);
+    app::RunInput in = demo_input(true);
+    in.window = force_model::TimeWindow{5, 6};
+    // Too small for the whole log's rows held in memory, and for its commanded run's: not for 1 s.
+    in.limits.max_force_rows = double(whole.prediction.samples.size()) / 4;
+    const app::RunResult win = app::predict_run(in);
+    CHECK_FALSE(win.commanded);   // the comparison is the whole run's
+    REQUIRE(win.program);         // the program still names the blocks
+    CHECK(win.work.force_rows < in.limits.max_force_rows);
+    CHECK(win.work.commanded_rows == 0);
+    CHECK(win.work.memory_mb < whole.work.memory_mb);
+    std::vector<force_model::ForceSample> expected;
+    for (const auto& s : whole.prediction.samples)
+        if (s.t_s >= 5 && s.t_s < 6) expected.push_back(s);
+    REQUIRE(win.prediction.samples.size() == expected.size());
+    REQUIRE(expected.size() > 10000);
+    CHECK(std::memcmp(win.prediction.samples.data(), expected.data(), expected.size() * sizeof(force_model::ForceSample)) == 0);
+    CHECK(win.prediction.block_names == whole.prediction.block_names);
+    // The whole log's estimate is refused at that limit.
+    in.window.reset();
+    CHECK_THROWS_AS(app::predict_run(in), app::TooMuchWork);
+    // With the log's commanded positions, or a machine, a window is refused by name.
+    in.window = force_model::TimeWindow{5, 6};
+    in.program.reset();
+    in.commanded_from_log = true;
+    CHECK_THROWS_WITH(app::predict_run(in), Catch::Contains("window"));
 }
