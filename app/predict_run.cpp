@@ -93,13 +93,13 @@ void count_multi_direction_stock(WorkEstimate& work, const force_model::RunSpec&
 }
 
 // A window (RunInput::window) predicts its own rows only, and no commanded motion: at most its
-// span at the log's top spindle speed, a row per motion sample in it, and the batch it starts in
-// (evaluated whole, its earlier rows dropped), not the whole log's. The log's motion, and with a
+// span at the log's top spindle speed, a row per motion sample in it, and the batches it starts
+// and ends in (evaluated whole, their rows outside it dropped), not the whole log's. The log's motion, and with a
 // program the commanded motion its mapping builds, still count.
 void count_window(WorkEstimate& work, const force_model::TimeWindow& window, double step_s, bool rows_streamed) {
     const double span_s = std::clamp(window.to_s - window.from_s, 0.0, work.log_duration_s);
     const double rows = std::min(work.force_rows, span_s * work.spindle_max_rpm * 6 / work.angle_step_deg +
-                                                      span_s / step_s + double(force_model::EngineSettings{}.max_batch_steps) + 2);
+                                                      span_s / step_s + 2.0 * double(force_model::EngineSettings{}.max_batch_steps) + 2);
     const double held_before = rows_streamed ? work.commanded_rows : work.total_rows();
     const double held_after = rows_streamed ? 0 : rows;
     work.force_rows = rows;

@@ -300,7 +300,8 @@ struct PredictOptions {
     // motion before the window is walked as the whole run walks it (batches, removal, its lag) for
     // its removal alone: no engagement is evaluated and no row kept before it. Blocks are
     // those the window covers, summarised over it; stats.simulated_s is the window's span and
-    // stats.steps its steps; no final stock comes back. A log of more than one session, a window
+    // stats.steps the steps evaluated (the window's, and the rest of the batches it starts and
+    // ends in); no final stock comes back. A log of more than one session, a window
     // that is empty or outside the motion, and a turning run (predict_turning) are refused
     // (SpecError).
     std::optional<TimeWindow> window;

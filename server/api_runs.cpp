@@ -828,18 +828,29 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     }
     app::RunInput in = run_input(inputs, dir, core.opt.use_opencl);
     in.limits = work_limits(core.opt);
-    force_model::StockPtr base = load_base_stock(*core.store, base_run);
+    force_model::StockPtr base;
+    try {
+        base = load_base_stock(*core.store, base_run);
+    } catch (const std::runtime_error& e) {
+        throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
+    }
     in.base_stock = base.get();
     in.keep_final_stock = false;
     // [from_s, to_s] as the stored answers take it: to_s included.
     in.window = force_model::TimeWindow{from_s, std::nextafter(to_s, std::numeric_limits<double>::infinity())};
+    app::Control control;
+    control.cancel = &core.stopping;   // a server that stops does not wait out a long walk
     app::RunResult r;
     try {
-        r = app::predict_run(in);
+        r = app::predict_run(in, control);
+    } catch (const app::TooMuchWork& e) {
+        throw ApiError(400, "too_much_work", e.what());
     } catch (const force_model::SpecError& e) {
         throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
     } catch (const app::InputError& e) {
         throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
+    } catch (const force_model::Cancelled&) {
+        throw ApiError(503, "stopping", "the server is stopping; the window was not recomputed");
     }
     SeriesData d;
     const std::size_t k = ch.size();

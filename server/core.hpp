@@ -70,6 +70,8 @@ struct Core {
     std::unique_ptr<LiveRuns> live;
     std::vector<RouteSpec> routes;
     std::string openapi;   // the document served, built from `routes` once all are declared
+    // Set as the server stops: work a request does on its own thread (a recomputed window) stops.
+    std::atomic<bool> stopping{false};
     int lock_fd = -1;
 
     db::SessionLease session() { return store->session(); }

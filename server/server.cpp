@@ -460,6 +460,7 @@ void Server::stop() {
         if (c.stopped) return;
         c.stopped = true;
     }
+    c.stopping = true;
     if (c.started) {
         c.http.stop();
         if (c.listener.joinable()) c.listener.join();

@@ -40,7 +40,11 @@ void Engine::run() {
         // The previous session's rows are all written (its batch and removal completed below).
         if (options_.session_begins) options_.session_begins(begin, end, rows_taken_ + rows_.size());
         for (std::size_t i = begin; i + 1 < end; ++i) {
-            if (window_ && motion_.t_s[i] >= window_->to_s && window_rows_final()) break;
+            if (window_ && motion_.t_s[i] >= window_->to_s && window_rows_final()) {
+                // What is in flight and being gathered lies past the window: nothing of it is kept.
+                complete();
+                return;
+            }
             current_interval_ = i;
             walk_interval(i);
         }
@@ -117,7 +121,8 @@ void Engine::walk_interval(std::size_t i) {
     // The window starts. The batch being gathered is the whole run's, so it is evaluated whole
     // (its rows before from_s are dropped later): the stock each of its steps sees is the one the
     // whole run gave it, the removal lag included.
-    if (replaying_ && motion_.t_s[i + 1] > window_->from_s) replaying_ = false;
+    // (A step may fall on the interval's end time itself: >= keeps a window starting there whole.)
+    if (replaying_ && motion_.t_s[i + 1] >= window_->from_s) replaying_ = false;
     check_rows();
     // Rows already written are final (a batch in flight appends its own); the last one may still
     // take a stop's removed volume.

@@ -52,8 +52,9 @@ public:
     // Walks a window (PredictOptions::window): before it, every interval as the whole run walks
     // it (the same batches, the same removal path and lag) but with no engagement evaluated and
     // no rows; after it, on until a row past to_s is written, so that the window's last batch and
-    // the volume booked on its rows are the whole run's. Call before run(). Rows before from_s
-    // (the batch the window starts in is evaluated whole) and from to_s on are the caller's to drop.
+    // the volume booked on its rows are the whole run's, then it stops (the batch then being
+    // gathered is dropped). Call before run(). Rows before from_s (the batch the window starts in
+    // is evaluated whole) and from to_s on are the caller's to drop.
     void limit_to(const TimeWindow& window);
 
     RowTable& rows() { return rows_; }

@@ -86,6 +86,17 @@ inline force_model::RunSpec base_spec(double box_x = 40, double box_y = 20, doub
     return s;
 }
 
+// Every field of two rows equal, bit for bit (ForceSample has padding: memcmp is not a test).
+inline bool same_row(const force_model::ForceSample& a, const force_model::ForceSample& b) {
+    return a.t_s == b.t_s && a.spindle_angle_deg == b.spindle_angle_deg && a.block == b.block && a.tool == b.tool &&
+           a.fx_N == b.fx_N && a.fy_N == b.fy_N && a.fz_N == b.fz_N && a.torque_Nm == b.torque_Nm &&
+           a.power_kW == b.power_kW && a.chip_mm == b.chip_mm && a.bending_MPa == b.bending_MPa &&
+           a.radial_engagement_mm == b.radial_engagement_mm && a.axial_engagement_mm == b.axial_engagement_mm &&
+           a.removed_mm3 == b.removed_mm3 && a.holder_contact == b.holder_contact && a.fx_machine_N == b.fx_machine_N &&
+           a.fy_machine_N == b.fy_machine_N && a.fz_machine_N == b.fz_machine_N && a.tool_axis_x == b.tool_axis_x &&
+           a.tool_axis_y == b.tool_axis_y && a.tool_axis_z == b.tool_axis_z;
+}
+
 inline bool opencl_available() {
     try {
         kernels::OpenClRuntime::instance();

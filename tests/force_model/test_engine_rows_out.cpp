@@ -12,17 +12,6 @@ using namespace cutload;
 using namespace cutload::enginetest;
 using force_model::Device;
 
-namespace {
-
-bool same_row(const force_model::ForceSample& a, const force_model::ForceSample& b) {
-    return a.t_s == b.t_s && a.spindle_angle_deg == b.spindle_angle_deg && a.block == b.block && a.tool == b.tool &&
-           a.fx_N == b.fx_N && a.fy_N == b.fy_N && a.fz_N == b.fz_N && a.torque_Nm == b.torque_Nm &&
-           a.power_kW == b.power_kW && a.chip_mm == b.chip_mm && a.bending_MPa == b.bending_MPa &&
-           a.radial_engagement_mm == b.radial_engagement_mm && a.axial_engagement_mm == b.axial_engagement_mm &&
-           a.removed_mm3 == b.removed_mm3 && a.holder_contact == b.holder_contact;
-}
-
-}  // namespace
 
 TEST_CASE("rows_out: the rows handed out in pieces are predict()'s rows, blocks, stats and stock") {
     // About 3 s of slotting and side cutting at 10000 rpm with an air move and a plunge between:

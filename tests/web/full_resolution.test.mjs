@@ -55,7 +55,7 @@ test('zoomed into an envelope-only run, Full resolution draws the recomputed row
   assert.equal(after.windowTo, before.windowTo);
   assert.equal(await full.isDisabled(), true, 'nothing more to recompute');
 
-  // What it drew is what the service answers for that window: every row, more than the envelopes had.
+  // The service's answer for that window, recomputed: every row, more than the stored envelopes.
   const from = Number(after.windowFrom);
   const to = Number(after.windowTo);
   const stored = await server.api('GET', `runs/${id}/forces?from_s=${from}&to_s=${to}&max_points=4000`);

@@ -529,6 +529,8 @@ export class ForcePlot {
       this.interactionStart = 0;
     }
     this.publishRange();
+    // Offered again once the new range's stored answer says so (refine).
+    this.setRecomputable(null, u.scales.x.min, u.scales.x.max);
     // A window still on its way is for a range the user has since left: drop it, or its arrival
     // would set the plot back to that range (under load a burst of key zooms ended at the second).
     if (this.inflight && this.inflightRange !== `${u.scales.x.min}:${u.scales.x.max}`) this.inflight.abort();
@@ -637,7 +639,18 @@ export class ForcePlot {
     this.inflight = ctl;
     this.inflightRange = `${from}:${to}`;
     const points = Math.min(MAX_WINDOW_POINTS, Math.max(200, Math.round(this.u.over.clientWidth)));
-    const w = await this.fetchFull(from, to, points, ctl.signal);
+    let w;
+    try {
+      w = await this.fetchFull(from, to, points, ctl.signal);
+    } catch (err) {
+      // The stored answer for the range shown is fetched again (the one in flight was dropped),
+      // which also offers the recompute again.
+      if (err.name !== 'AbortError') {
+        this.fetchedRange = null;
+        this.refine(from, to, performance.now());
+      }
+      throw err;
+    }
     if (ctl.signal.aborted) return;
     this.fetchedRange = `${from}:${to}`;   // the refine the redraw schedules has nothing to fetch
     this.actual.setDetail(w, from, to);

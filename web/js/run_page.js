@@ -383,7 +383,8 @@ async function showResults(body, run, lib, disposers) {
         await plot.recompute();
         exportStatus.textContent = '';
       } catch (e) {
-        if (e.name !== 'AbortError') exportStatus.textContent = errorText(e);
+        // Left for another range (the request was dropped): nothing to say.
+        exportStatus.textContent = e.name === 'AbortError' ? '' : errorText(e);
       }
     },
   }, 'Full resolution');
