@@ -403,8 +403,11 @@ async function showResults(body, run, lib, disposers) {
     btn('Export CSV', 'Download the visible window as CSV', async () => {
       const [a, b] = plot.xRange();
       exportStatus.textContent = 'Preparing CSV…';
+      // What the plot shows: recomputed rows when it shows them for this very range.
+      const d = plotBox.dataset;
+      const recomputed = d.resolution === 'recomputed' && Number(d.windowFrom) === a && Number(d.windowTo) === b;
       try {
-        const csv = await api.forcesCsv(id, { from_s: a, to_s: b, max_points: 20000 });
+        const csv = await api.forcesCsv(id, { from_s: a, to_s: b, max_points: 20000, resolution: recomputed ? 'full' : undefined });
         download(`run-${id}-forces-${a.toFixed(3)}-${b.toFixed(3)}.csv`, new Blob([csv], { type: 'text/csv' }));
         exportStatus.textContent = '';
       } catch (e) {
