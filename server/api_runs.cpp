@@ -852,13 +852,7 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     } catch (const force_model::Cancelled&) {
         throw ApiError(503, "stopping", "the server is stopping; the window was not recomputed");
     }
-    SeriesData d;
-    const std::size_t k = ch.size();
-    d.values.resize(r.prediction.samples.size() * k);
-    for (std::size_t i = 0; i < r.prediction.samples.size(); ++i) {
-        d.t_s.push_back(r.prediction.samples[i].t_s);
-        force_row(r.prediction.samples[i], {}, &d.values[i * k]);
-    }
+    const SeriesData d = force_series(r.prediction);
     const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
     std::vector<bool> read = wanted;
     read[block_col] = true;
@@ -1021,7 +1015,7 @@ void add_run_routes(Core& core) {
                                   "full: the window (from_s and to_s, at most 10 s apart) predicted again from the run's "
                                   "stored log and inputs, every row at full resolution, the very rows the whole run gave "
                                   "there, whatever the run stored (a long run keeps envelopes); the answer says "
-                                  "\"recomputed\": true. It walks the motion before the window (about 4 ms a second of it "
+                                  "\"recomputed\": true. It walks the motion before the window (about 6 ms a second of it "
                                   "on 2 cores), one at a time per server (503 busy). Actual forces only; 409 "
                                   "not_recomputable for live and five-axis runs. stored: from the stored series")
                          .one_of({"stored", "full"})

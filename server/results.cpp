@@ -41,17 +41,6 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
             {"flags", flags}};
 }
 
-SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of = {}) {
-    SeriesData d;
-    const std::size_t k = series_channels(SeriesId::Forces).size();
-    d.t_s.reserve(p.samples.size());
-    d.values.resize(p.samples.size() * k);
-    for (std::size_t i = 0; i < p.samples.size(); ++i) {
-        d.t_s.push_back(p.samples[i].t_s);
-        force_row(p.samples[i], block_of, &d.values[i * k]);
-    }
-    return d;
-}
 
 SeriesData motion_series(const motion_io::MotionModel& m) {
     SeriesData d;
@@ -127,6 +116,18 @@ void force_row(const force_model::ForceSample& s, const std::vector<std::int32_t
                             s.torque_Nm, s.power_kW, s.chip_mm, s.bending_MPa, s.radial_engagement_mm,
                             s.axial_engagement_mm};
     std::copy(std::begin(values), std::end(values), row);
+}
+
+SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of) {
+    SeriesData d;
+    const std::size_t k = series_channels(SeriesId::Forces).size();
+    d.t_s.reserve(p.samples.size());
+    d.values.resize(p.samples.size() * k);
+    for (std::size_t i = 0; i < p.samples.size(); ++i) {
+        d.t_s.push_back(p.samples[i].t_s);
+        force_row(p.samples[i], block_of, &d.values[i * k]);
+    }
+    return d;
 }
 
 

@@ -19,6 +19,8 @@ struct ProgramResult;
 // One row of the forces series (series_channels(Forces) order). `block_of` maps the prediction's
 // block indices to the stored block names (identity: empty).
 void force_row(const force_model::ForceSample& s, const std::vector<std::int32_t>& block_of, float* row);
+// A prediction's rows as the forces series, the same way.
+SeriesData force_series(const force_model::Prediction& p, const std::vector<std::int32_t>& block_of = {});
 
 // The stored level a run's forces series starts at: 0 (every row) when the rows it expects fit
 // max_raw_rows (0: no limit), else the first envelope level that fits (docs/api.md, "Long runs").
