@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <iosfwd>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -167,6 +168,9 @@ std::string save_stock_bytes(const Stock& s);
 StockPtr load_stock_bytes(std::string_view bytes, const std::string& source);   // std::runtime_error when bad
 void save_stock(const Stock& s, const std::string& path);
 StockPtr load_stock(const std::string& path);                                  // std::runtime_error when bad
+// The same format through any stream (a compressing one, say); errors start with `source`.
+void save_stock(const Stock& s, std::ostream& out);
+StockPtr load_stock(std::istream& in, const std::string& source);
 double stock_volume_mm3(const Stock& s);
 
 // The stock seen from above, for display (the web page's 3-D view): the top of the material over
@@ -267,6 +271,14 @@ struct TimeWindow {
     double from_s = 0, to_s = 0;
 };
 
+// A clean point of a run's walk: the tool has just moved through air, every batch before it is
+// complete and the whole path before it removed, so the stock there is all a walk resuming at it
+// needs (PredictOptions::checkpoint and resume; docs/force_model.md, "Stock checkpoints").
+struct StockCheckpoint {
+    std::size_t sample = 0;   // the walk resumes with the interval that starts at this motion sample
+    double t_s = 0;           // MotionModel::t_s[sample]: what a resume is checked against
+};
+
 struct PredictOptions {
     Device device = Device::OpenCL;
     const Stock* base_stock = nullptr;                    // start from this stock instead of the box
@@ -305,6 +317,18 @@ struct PredictOptions {
     // that is empty or outside the motion, and a turning run (predict_turning) are refused
     // (SpecError).
     std::optional<TimeWindow> window;
+    // When set (and no window): called at the walk's clean points (StockCheckpoint), at least
+    // checkpoint_every_s of motion apart and not before the first such span, with the stock as it
+    // is there, current on the host (a GPU reads back the tiles cut since the last call). The stock
+    // is only valid during the call. Not called for a log of more than one session.
+    std::function<void(const StockCheckpoint& at, const Stock& stock)> checkpoint;
+    double checkpoint_every_s = 60;
+    // With a window: the walk starts at this checkpoint of a whole run of the same motion, spec and
+    // tools, from its stock given as base_stock (or own_stock), instead of at the log's start. The
+    // window's rows are the very rows the whole run computes there. Refused (SpecError): no window,
+    // no stock, a checkpoint whose sample and time are not this motion's, or one after
+    // window->from_s.
+    std::optional<StockCheckpoint> resume;
 };
 // 8192 rows (0.7 MB): small enough that the pieces in flight (the engine's table, the pipe's
 // copies) stay in cache and a short run's first prediction does not fault in 20 MB of fresh pages

@@ -129,6 +129,19 @@ void check_window(const motion_io::MotionModel& m, const TimeWindow& w) {
                                     m.t_s.front(), m.t_s.back()));
 }
 
+void check_resume(const motion_io::MotionModel& m, const PredictOptions& opt) {
+    const StockCheckpoint& c = *opt.resume;
+    if (!opt.window) throw SpecError("resume: a checkpoint starts the walk of a window; no window was given");
+    if (!opt.base_stock && !(opt.own_stock && *opt.own_stock))
+        throw SpecError("resume: the checkpoint's stock was not given (base_stock)");
+    if (c.sample + 1 >= m.size() || m.t_s[c.sample] != c.t_s)
+        throw SpecError(fmt::format("resume: the checkpoint at sample {} (t = {:.6f} s) is not of this motion", c.sample,
+                                    c.t_s));
+    if (c.t_s > opt.window->from_s)
+        throw SpecError(fmt::format("resume: the checkpoint at t = {:.6f} s lies after the window's start, {:.6f} s", c.t_s,
+                                    opt.window->from_s));
+}
+
 // The rows [first, end) of n (in time order: one session) inside the window.
 std::pair<std::size_t, std::size_t> rows_in_window(const ForceSample* rows, std::size_t n, const TimeWindow& w) {
     const auto before = [](const ForceSample& r, double t_s) { return r.t_s < t_s; };
@@ -169,6 +182,7 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
                           const PredictOptions& opt, const EngineSettings& settings, EnginePhases* phases_out) {
     check_plan(plan);
     if (opt.window) check_window(motion, *opt.window);
+    if (opt.resume) check_resume(motion, opt);
     const auto wall0 = Clock::now();
     EnginePhases phases;
     Prediction p;
@@ -182,6 +196,7 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
         std::optional<RowsOut> rows_out;
         const TimeWindow* window = opt.window ? &*opt.window : nullptr;
         if (window) engine.limit_to(*window);
+        if (opt.resume) engine.resume_at(*opt.resume);
         if (opt.rows_out || window) {
             rows_out.emplace(motion, plan, window);
             engine.take_rows_as_they_come([&](const RowTable& rows, std::size_t n) {

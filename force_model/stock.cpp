@@ -321,6 +321,12 @@ void save_stock(const Stock& s, const std::string& path) {
     std::filesystem::rename(tmp, path);
 }
 
+void save_stock(const Stock& s, std::ostream& out) {
+    if (!write_stock(s, out)) throw std::runtime_error("writing the stock failed");
+}
+
+StockPtr load_stock(std::istream& in, const std::string& source) { return read_stock(in, source); }
+
 StockPtr load_stock(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw std::runtime_error("cannot open stock file " + path);

@@ -20,7 +20,7 @@ Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const 
                const EngineSettings& settings, EngineSetup& setup, EnginePhases& phases)
     : motion_(motion), offset_mm_(spec.offset_mm), angle_step_deg_(spec.resolution.angle_step_deg), options_(opt),
       plan_(plan), tools_(setup.tools), tool_(&setup.tools.at(std::size_t(plan.first_slot()))), slot_(plan.first_slot()),
-      phases_(phases), stock_map_(*setup.stock, setup.fresh_stock),
+      phases_(phases), stock_(*setup.stock), backend_(*setup.backend), stock_map_(*setup.stock, setup.fresh_stock),
       removal_path_(setup.stock->grid.cell_mm, tool_->radius_mm, settings.removal_lag_cells * setup.stock->grid.cell_mm,
                     settings.chord_tolerance_cells * setup.stock->grid.cell_mm),
       batcher_(settings, setup.stock->grid.cell_mm),
@@ -34,12 +34,15 @@ Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const 
 
 void Engine::run() {
     if (motion_.size() < 2) return;
+    const auto sessions = session_ranges(motion_);
+    checkpointing_ = options_.checkpoint && !window_ && sessions.size() == 1;
+    last_checkpoint_t_s_ = motion_.t_s.front();
     // Each session is a separate stretch: batches and pending removal end with it, so nothing is
     // interpolated or swept across the jump to the next one.
-    for (const auto& [begin, end] : session_ranges(motion_)) {
+    for (const auto& [begin, end] : sessions) {
         // The previous session's rows are all written (its batch and removal completed below).
         if (options_.session_begins) options_.session_begins(begin, end, rows_taken_ + rows_.size());
-        for (std::size_t i = begin; i + 1 < end; ++i) {
+        for (std::size_t i = std::max(begin, start_sample_); i + 1 < end; ++i) {
             if (window_ && motion_.t_s[i] >= window_->to_s && window_rows_final()) {
                 // What is in flight and being gathered lies past the window: nothing of it is kept.
                 complete();
@@ -138,6 +141,7 @@ void Engine::walk_interval(std::size_t i) {
         flush_batch();
         remove_all_pending();
         if (!replaying_) rows_.append_motion_sample(motion_, i, false);
+        if (checkpointing_) checkpoint_before(i + 1);
         return;
     }
     const double rpm0 = motion_.spindle_rpm[i], rpm1 = motion_.spindle_rpm[i + 1];
@@ -146,6 +150,16 @@ void Engine::walk_interval(std::size_t i) {
         return;
     }
     walk_angle_steps(i);
+}
+
+// Nothing is in flight or pending here and the batcher is empty: the walk from `sample` on depends
+// on the stock alone (and the motion, the spec and the tools), which is what a resume restores.
+void Engine::checkpoint_before(std::size_t sample) {
+    const double t_s = motion_.t_s[sample];
+    if (sample + 1 >= motion_.size() || t_s - last_checkpoint_t_s_ < options_.checkpoint_every_s) return;
+    last_checkpoint_t_s_ = t_s;
+    backend_.download(stock_);
+    options_.checkpoint(StockCheckpoint{sample, t_s}, stock_);
 }
 
 // Whether the tool and its holder stay clear of the stock over the interval (coarse tile map).

@@ -56,6 +56,9 @@ public:
     // gathered is dropped). Call before run(). Rows before from_s (the batch the window starts in
     // is evaluated whole) and from to_s on are the caller's to drop.
     void limit_to(const TimeWindow& window);
+    // run() starts at this checkpoint (PredictOptions::resume) instead of the log's start: the
+    // stock the set-up holds is the checkpoint's. Call before run().
+    void resume_at(const StockCheckpoint& at) { start_sample_ = at.sample; }
 
     RowTable& rows() { return rows_; }
     std::size_t steps() const { return steps_; }   // angle steps evaluated
@@ -82,6 +85,9 @@ private:
     // Before a window: the batch's path joins the pending removal; nothing is evaluated.
     void replay_batch();
     bool window_rows_final() const;   // every row before the window's end is final
+    // At a clean point (an interval in air just walked): the stock to PredictOptions::checkpoint
+    // when one is due.
+    void checkpoint_before(std::size_t sample);
 
     const motion_io::MotionModel& motion_;
     const double* offset_mm_;   // added to logged positions: tool tip in stock coordinates
@@ -92,6 +98,8 @@ private:
     const ToolGeometry* tool_;   // the cutter in the spindle (the last known one while it is unknown)
     std::int32_t slot_ = 0, number_ = -1;
     EnginePhases& phases_;
+    Stock& stock_;
+    Backend& backend_;
 
     StockMap stock_map_;
     RemovalPath removal_path_;
@@ -106,6 +114,9 @@ private:
 
     std::optional<TimeWindow> window_;   // limit_to
     bool replaying_ = false;             // walking the motion before the window
+    std::size_t start_sample_ = 0;       // resume_at
+    bool checkpointing_ = false;         // run() of one session with PredictOptions::checkpoint
+    double last_checkpoint_t_s_ = 0;
 };
 
 }  // namespace cutload::force_model

@@ -66,7 +66,12 @@ void RemovalPath::take(bool keep_lag, StockMap& map, std::vector<kernels::SweepS
     }
     end_call();
     if (keep_lag) pending_.erase(pending_.begin(), pending_.begin() + std::ptrdiff_t(last));
-    else pending_.clear();
+    else {
+        // Nothing pending: the next path measures from zero, so a walk resumed here (a stock
+        // checkpoint) measures its lag exactly as the whole run does.
+        pending_.clear();
+        path_mm_ = 0;
+    }
 }
 
 void RemovalPath::add_call(std::size_t first, StockMap& map, std::vector<kernels::SweepSegment>& segs,

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <span>
+#include <sstream>
 #include <string>
 
 using namespace cutload;
@@ -190,4 +191,104 @@ TEST_CASE("window: bad windows are refused by name") {
     refused(-5, -1, "outside the log's motion");
     m.session_start = {0, m.size() / 2};
     refused(1, 2, "2 sessions");
+}
+
+namespace {
+
+struct Taken {
+    force_model::StockCheckpoint at;
+    force_model::StockPtr stock;   // through the stock format and back, as a service keeps it
+};
+
+}  // namespace
+
+TEST_CASE("window: resumed at a stock checkpoint, a window gives the whole run's rows") {
+    const auto spec = base_spec(40, 30, 10);
+    const auto m = testref::uniform_motion(pocket_path());
+    std::vector<Device> devices{Device::Cpu};
+    if (opencl_available()) devices.push_back(Device::OpenCL);
+    for (Device device : devices) {
+        INFO((device == Device::Cpu ? "cpu" : "opencl"));
+        const auto plain = run_on(m, spec, device);
+        std::vector<Taken> taken;
+        force_model::PredictOptions o;
+        o.device = device;
+        o.checkpoint_every_s = 1.0;
+        o.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+            std::stringstream bytes;
+            force_model::save_stock(stock, bytes);
+            taken.push_back({at, force_model::load_stock(bytes, "checkpoint")});
+        };
+        const auto full = force_model::predict(m, spec, o);
+        // Taking checkpoints changes nothing of the run.
+        REQUIRE(full.samples.size() == plain.samples.size());
+        std::size_t same = 0;
+        for (std::size_t k = 0; k < full.samples.size(); ++k) same += same_row(full.samples[k], plain.samples[k]) ? 1 : 0;
+        CHECK(same == full.samples.size());
+        // The air moves between the layers and before the far side are clean points; none comes
+        // sooner than a second after the one before, and each is a sample the tool is in air at.
+        REQUIRE(taken.size() >= 2);
+        double last_s = m.t_s.front();
+        for (const Taken& c : taken) {
+            CHECK(c.at.t_s - last_s >= 1.0);
+            CHECK(m.t_s[c.at.sample] == c.at.t_s);
+            last_s = c.at.t_s;
+        }
+        // A checkpoint's stock holds what the whole run had removed by then: less than the box.
+        const double box_mm3 = 40.0 * 30 * 10;
+        CHECK(force_model::stock_volume_mm3(*taken.front().stock) < box_mm3 - 100);
+        double peak_N = 0;
+        for (const Taken& c : taken) {
+            for (const double from_s : {c.at.t_s, c.at.t_s + 0.3, c.at.t_s + 1.1}) {
+                const double to_s = from_s + 0.4;
+                INFO("checkpoint at " << c.at.t_s << " s, window " << from_s << " .. " << to_s << " s");
+                force_model::PredictOptions w;
+                w.device = device;
+                w.window = force_model::TimeWindow{from_s, to_s};
+                w.base_stock = c.stock.get();
+                w.resume = c.at;
+                const auto win = force_model::predict(m, spec, w);
+                const Agreement a = compare(full, win, from_s, to_s);
+                INFO(a.rows << " rows (" << a.full_rows << " in the whole run), " << a.exact << " bit for bit, largest "
+                            << "difference " << a.max_diff_N << " N against a peak of " << a.peak_N << " N");
+                CHECK(a.rows == a.full_rows);
+                CHECK(a.rows > 0);
+                CHECK(a.exact == a.rows);
+                // From the log's start, the same window evaluates the same steps, and perhaps the
+                // last batch before the checkpoint's air move too (its rows lie before from_s).
+                const auto from_start = window_of(m, spec, device, from_s, to_s);
+                CHECK(win.stats.steps <= from_start.stats.steps);
+                CHECK(win.samples.size() == from_start.samples.size());
+                for (const auto& r : win.samples) peak_N = std::max(peak_N, double(std::hypot(r.fx_N, r.fy_N, r.fz_N)));
+            }
+        }
+        // The comparison is not of zeros: some of the resumed windows cut.
+        CHECK(peak_N > 100);
+    }
+}
+
+TEST_CASE("window: a resume that does not fit the motion or the window is refused by name") {
+    const auto spec = base_spec(40, 30, 10);
+    const auto m = testref::uniform_motion(pocket_path());
+    const auto stock = force_model::make_stock(spec.stock, spec.resolution.grid_mm);
+    const std::size_t k = m.size() / 2;
+    auto refused = [&](force_model::PredictOptions o, const std::string& words) {
+        o.device = Device::Cpu;
+        CHECK_THROWS_WITH(force_model::predict(m, spec, o), Catch::Contains(words));
+    };
+    force_model::PredictOptions o;
+    o.base_stock = stock.get();
+    o.resume = force_model::StockCheckpoint{k, m.t_s[k]};
+    refused(o, "no window was given");
+    o.window = force_model::TimeWindow{m.t_s[k] + 0.1, m.t_s[k] + 0.2};
+    o.resume->t_s += 1e-9;
+    refused(o, "is not of this motion");
+    o.resume = force_model::StockCheckpoint{m.size() + 5, 1.0};
+    refused(o, "is not of this motion");
+    o.resume = force_model::StockCheckpoint{k, m.t_s[k]};
+    o.window = force_model::TimeWindow{m.t_s[k] - 0.2, m.t_s[k] - 0.1};
+    refused(o, "lies after the window's start");
+    o.window = force_model::TimeWindow{m.t_s[k] + 0.1, m.t_s[k] + 0.2};
+    o.base_stock = nullptr;
+    refused(o, "stock was not given");
 }
