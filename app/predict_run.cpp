@@ -336,6 +336,11 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
     force_model::PredictOptions po;
     po.window = in.window;
+    po.resume = in.resume;
+    if (!in.window && !in.machine) {
+        po.checkpoint = in.checkpoint;
+        po.checkpoint_every_s = std::max(in.checkpoint_every_s, actual_s / kMaxCheckpoints);
+    }
     po.device = in.device;
     if (in.device_ready.valid()) {
         const DeviceChoice choice = in.device_ready.get();
@@ -397,6 +402,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     po.own_stock = nullptr;
     po.rows_out = nullptr;   // the commanded prediction's rows stay in its result
     po.session_begins = nullptr;
+    po.checkpoint = nullptr;   // the commanded prediction's stock is no state of the run's
     r.rows = rows_out + r.prediction.samples.size();
     if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));
     if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);

@@ -28,6 +28,10 @@ struct Machine;   // machine/machine.hpp (kept out of this header: front ends ne
 
 namespace cutload::app {
 
+// Each checkpoint of an hour's roughing on a 150 x 100 mm stock at 0.1 mm is about 20 MB gzipped and
+// 1 s to write (bench_long): eight bound that to a few percent of the run.
+inline constexpr int kMaxCheckpoints = 8;
+
 struct RunInput {
     std::string log_path;
     motion_io::ReadOptions read;                      // read_options(): format, units, resampling step
@@ -65,6 +69,14 @@ struct RunInput {
     // and the comparison are not made. Refused (InputError "window") with commanded_from_log or a
     // machine; a log of several sessions, an empty window or one outside the log are SpecErrors.
     std::optional<force_model::TimeWindow> window;
+    // When set (and no window, no machine): the actual prediction's stock checkpoints
+    // (force_model::PredictOptions::checkpoint), for a later window to resume from: at least
+    // checkpoint_every_s of motion apart, and at most kMaxCheckpoints over the log.
+    std::function<void(const force_model::StockCheckpoint& at, const force_model::Stock& stock)> checkpoint;
+    double checkpoint_every_s = 60;
+    // With a window: its walk resumes at this checkpoint of the same run, whose stock is base_stock
+    // (force_model::PredictOptions::resume).
+    std::optional<force_model::StockCheckpoint> resume;
 };
 
 // A machine definition file (docs/machines.md), with the errors of an errors file when one is
