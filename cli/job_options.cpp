@@ -37,6 +37,11 @@ void add_job_options(CLI::App& sub, server::ServerOptions& opt, std::string& dev
                    "A run expecting more force rows stores envelopes (min/max per 8, 64, ... rows), not every row; 0: always every row")
         ->check(CLI::Range(0.0, 1e12))
         ->capture_default_str();
+    sub.add_option("--checkpoint-every-s", opt.checkpoint_every_s,
+                   "Seconds of motion between the stock checkpoints a run keeps, from which a window is recomputed "
+                   "(at most 8 a run); 0: none")
+        ->check(CLI::Range(0.0, 1e6))
+        ->capture_default_str();
     sub.add_flag("!--no-limit-alerts", opt.limit_alerts,
                  "Do not raise an alert for blocks over the run's own limits (only thresholds raise alerts)");
     sub.add_option("--drain-s", opt.drain_s, "On shutdown, seconds running jobs may take before re-queueing")

@@ -6,6 +6,7 @@
 #include "app/program_source.hpp"
 #include "app/tool_centre_point.hpp"
 #include "app/work_bounds.hpp"
+#include "checkpoints.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
 #include "spec_refs.hpp"
@@ -33,6 +34,7 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -704,7 +706,7 @@ std::string series_csv(const Window& w, const std::vector<std::string>& ch, cons
 
 std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t max_points, const Window& w,
                         const std::vector<std::string>& ch, const std::vector<bool>& wanted, std::size_t block_col,
-                        const BlockNames& names, bool recomputed = false) {
+                        const BlockNames& names, std::optional<double> recomputed_from_s = std::nullopt) {
     const std::size_t n = w.t_s.size();
     // Block indices that occur in the window, for block_names.
     std::vector<char> seen(names.json.size(), 0);
@@ -730,7 +732,10 @@ std::string series_json(std::int64_t id, double from_s, double to_s, std::size_t
     out << ",\"to_s\":";
     out.time(to_s);
     out << fmt::format(R"(,"decimated":{},"level":{},"count":{})", w.decimated, w.level, n);
-    if (recomputed) out << R"(,"recomputed":true)";
+    if (recomputed_from_s) {
+        out << R"(,"recomputed":true,"walked_from_s":)";
+        out.time(*recomputed_from_s);
+    }
     auto times = [&](const char* key, const std::vector<double>& t) {
         out << ",\"" << key << "\":[";
         for (std::size_t i = 0; i < n; ++i) {
@@ -828,21 +833,48 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     }
     app::RunInput in = run_input(inputs, dir, core.opt.use_opencl);
     in.limits = work_limits(core.opt);
-    force_model::StockPtr base;
-    try {
-        base = load_base_stock(*core.store, base_run);
-    } catch (const std::runtime_error& e) {
-        throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
-    }
-    in.base_stock = base.get();
     in.keep_final_stock = false;
     // [from_s, to_s] as the stored answers take it: to_s included.
     in.window = force_model::TimeWindow{from_s, std::nextafter(to_s, std::numeric_limits<double>::infinity())};
     app::Control control;
     control.cancel = &core.stopping;   // a server that stops does not wait out a long walk
+    // The walk resumes at the run's last stock checkpoint before the window (checkpoints.hpp), else
+    // starts where the run started. A checkpoint is a cache: one that cannot be read, or that does
+    // not fit the log as it reads now, only means the walk from the start.
+    const auto t0 = std::chrono::steady_clock::now();
+    std::optional<CheckpointFile> checkpoint = checkpoint_before(dir, from_s);
+    force_model::StockPtr start;
+    if (checkpoint) {
+        try {
+            start = read_checkpoint(*checkpoint);
+            in.base_stock = start.get();
+            in.resume = checkpoint->at;
+        } catch (const std::runtime_error& e) {
+            spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
+            checkpoint.reset();
+        }
+    }
+    auto from_run_start = [&] {
+        in.resume.reset();
+        try {
+            start = load_base_stock(*core.store, base_run);
+        } catch (const std::runtime_error& e) {
+            throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
+        }
+        in.base_stock = start.get();
+    };
+    if (!checkpoint) from_run_start();
     app::RunResult r;
     try {
-        r = app::predict_run(in, control);
+        try {
+            r = app::predict_run(in, control);
+        } catch (const force_model::SpecError& e) {
+            if (!in.resume) throw;
+            spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
+            checkpoint.reset();
+            from_run_start();
+            r = app::predict_run(in, control);
+        }
     } catch (const app::TooMuchWork& e) {
         throw ApiError(400, "too_much_work", e.what());
     } catch (const force_model::SpecError& e) {
@@ -852,6 +884,10 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     } catch (const force_model::Cancelled&) {
         throw ApiError(503, "stopping", "the server is stopping; the window was not recomputed");
     }
+    const double walked_from_s = checkpoint ? checkpoint->at.t_s : r.motion.t_s.front();
+    spdlog::info("run {}: window {:.3f} .. {:.3f} s recomputed in {:.2f} s, walked from {:.1f} s{}", id, from_s, to_s,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), walked_from_s,
+                 checkpoint ? " (a stock checkpoint)" : "");
     const SeriesData d = force_series(r.prediction);
     const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
     std::vector<bool> read = wanted;
@@ -864,7 +900,8 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     }
     const bool csv = x.wants_csv();
     std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
-                           : series_json(id, from_s, to_s, max_points, w, ch, wanted, block_col, *names, true);
+                           : series_json(id, from_s, to_s, max_points, w, ch, wanted, block_col, *names,
+                                         walked_from_s);
     if (accepts_gzip(x.req)) {
         text = gzip_fast(text);
         x.res.set_header("Content-Encoding", "gzip");
@@ -1015,8 +1052,9 @@ void add_run_routes(Core& core) {
                                   "full: the window (from_s and to_s, at most 10 s apart) predicted again from the run's "
                                   "stored log and inputs, every row at full resolution, the very rows the whole run gave "
                                   "there, whatever the run stored (a long run keeps envelopes); the answer says "
-                                  "\"recomputed\": true. It walks the motion before the window (about 6 ms a second of it "
-                                  "on 2 cores), one at a time per server (503 busy). Actual forces only; 409 "
+                                  "\"recomputed\": true. It walks the motion before the window from the run's last stock "
+                                  "checkpoint before it (walked_from_s; about 6 ms a second of motion on 2 cores), one at "
+                                  "a time per server (503 busy). Actual forces only; 409 "
                                   "not_recomputable for live and five-axis runs. stored: from the stored series")
                          .one_of({"stored", "full"})
                          .or_else("stored"));

@@ -4,6 +4,7 @@
 // it stores, a handler here and one entry in service_job_kinds().
 #include "jobs.hpp"
 
+#include "checkpoints.hpp"
 #include "program.hpp"
 #include "results.hpp"
 #include "db/runs.hpp"
@@ -53,6 +54,23 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         },
         [&](std::span<const force_model::ForceSample> rows) { forces->add(rows); }};
 
+    // Stock checkpoints for the windows recomputed later (checkpoints.hpp). They are a cache: one
+    // that cannot be written is said in the log, and the run goes on without further ones.
+    bool checkpoints_ok = opt.checkpoint_every_s > 0;
+    if (checkpoints_ok) {
+        in.checkpoint_every_s = opt.checkpoint_every_s;
+        in.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+            if (!checkpoints_ok) return;
+            try {
+                write_checkpoint(dir, at, stock);
+            } catch (const std::exception& e) {
+                checkpoints_ok = false;
+                spdlog::warn("run {}: stock checkpoint at t = {:.3f} s not kept ({}); its windows recompute from further back",
+                             id, at.t_s, e.what());
+            }
+        };
+    }
+
     app::Control control;
     control.cancel = &ctx.cancel;
     control.progress = [&](app::Phase, double f) { ctx.progress(f); };
@@ -81,6 +99,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
             const std::string name = e.path().filename().string();
             if (name.starts_with(kSpoolPrefix) && name.ends_with(".spool")) fs::remove(e.path(), ec);
         }
+        remove_unfinished_checkpoints(dir);
         // One run's results are one transaction, so the WAL grew by about their size: empty it
         // now rather than leave it at the journal_size_limit until the next checkpoint
         // (docs/api.md, "Disk").

@@ -40,6 +40,9 @@ struct ServerOptions {
     // A run expecting more force rows stores envelopes from the first pyramid level that fits
     // (docs/api.md, "Long runs"); 0: every row, whatever the run's length.
     double max_raw_rows = 4e6;
+    // Stock checkpoints a run keeps for windows recomputed later (docs/api.md, "Recomputed
+    // windows"): at most one per this much motion and 8 a run; 0: none.
+    double checkpoint_every_s = 60;
     double max_stock_cells = 20e6;
     double max_job_memory_mb = 3000;
     int max_pending_jobs = 64;             // queued + running; beyond: 429

@@ -5,6 +5,10 @@
 #include "harness.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <vector>
 
 using namespace cutload::test;
 
@@ -144,4 +148,125 @@ TEST_CASE("long runs: resolution=full recomputes a window of an envelope-only ru
     refused("/forces?resolution=full&from_s=50&to_s=51", 400, "holds none of run");
     refused("/forces?resolution=full&from_s=1&to_s=2&source=commanded", 400, "actual forces");
     refused("/forces?resolution=fine&from_s=1&to_s=2", 400, "resolution");
+}
+
+namespace {
+
+// Three slot passes along X, each 1 mm deeper, with the tool lifted clear of the stock, brought
+// back and plunged between them (the air moves are the run's clean points, where it keeps stock
+// checkpoints), 2 ms samples.
+std::string passes_with_lifts_csv() {
+    std::ostringstream o;
+    o << "t,x,y,z,feed,spindle,block\n";
+    double t = 0;
+    auto go = [&](double x0, double z0, double x1, double z1, double feed_mm_min, const std::string& block) {
+        const double len = std::hypot(x1 - x0, z1 - z0), dur = len / (feed_mm_min / 60);
+        const int n = std::max(1, static_cast<int>(dur / 0.002));
+        for (int i = 0; i < n; ++i, t += 0.002) {
+            const double u = static_cast<double>(i) / n;
+            o << t << ',' << x0 + u * (x1 - x0) << ",5," << z0 + u * (z1 - z0) << ',' << feed_mm_min << ",10000," << block
+              << '\n';
+        }
+    };
+    for (int pass = 1; pass <= 3; ++pass) {
+        const double z = -pass;
+        go(-6, z, 24, z, 1200, "N" + std::to_string(pass) + "0");
+        go(24, z, 24, 5, 3000, "N" + std::to_string(pass) + "1");
+        go(24, 5, -6, 5, 3000, "N" + std::to_string(pass) + "2");
+        go(-6, 5, -6, z - 1, 3000, "N" + std::to_string(pass) + "3");
+    }
+    return o.str();
+}
+
+std::vector<fs::path> checkpoint_files(const fs::path& data_dir) {
+    std::vector<fs::path> files;
+    for (const auto& e : fs::recursive_directory_iterator(data_dir))
+        if (e.path().filename().string().ends_with(".stock.gz")) files.push_back(e.path());
+    return files;
+}
+
+}  // namespace
+
+TEST_CASE("long runs: a recomputed window resumes at the run's last stock checkpoint before it") {
+    const std::string log = passes_with_lifts_csv();
+    TestServer full([](cutload::server::ServerOptions& o) { o.checkpoint_every_s = 0; });
+    TestServer envelopes([](cutload::server::ServerOptions& o) {
+        o.max_raw_rows = 5000;
+        o.checkpoint_every_s = 0.5;
+    });
+    const json a = run_slot(full, log);
+    const json b = run_slot(envelopes, log);
+    CHECK(checkpoint_files(full.data_dir()).empty());
+    const auto files = checkpoint_files(envelopes.data_dir());
+    REQUIRE(files.size() >= 2);
+    const std::string pa = "/api/v1/runs/" + std::to_string(a["id"].get<std::int64_t>());
+    const std::string pb = "/api/v1/runs/" + std::to_string(b["id"].get<std::int64_t>());
+    auto ca = full.client(full.read_key);
+    auto cb = envelopes.client(envelopes.read_key);
+    // Windows in the second and third passes, and one across the second lift.
+    const double pass_s = 30.0 / 20, lift_s = (6.0 + 30 + 7) / 50;
+    const double second = pass_s + lift_s + 0.1, third = 2 * (pass_s + lift_s) + 0.2;
+    auto window = [](double from_s, double to_s) {
+        std::ostringstream q;
+        q.precision(17);
+        q << "/forces?from_s=" << from_s << "&to_s=" << to_s << "&max_points=20000";
+        return q.str();
+    };
+    auto same_as_full = [&](double from_s, double to_s) {
+        INFO(from_s << " .. " << to_s << " s");
+        const json raw = body(ca.Get((pa + window(from_s, to_s)).c_str()));
+        const json again = body(cb.Get((pb + window(from_s, to_s) + "&resolution=full").c_str()));
+        REQUIRE_FALSE(raw["decimated"].get<bool>());
+        CHECK(again["recomputed"] == true);
+        CHECK(again["count"] == raw["count"]);
+        for (const char* key : {"t_s", "block", "fx_N", "fy_N", "fz_N", "torque_Nm", "chip_mm"}) {
+            INFO(key);
+            CHECK(again[key] == raw[key]);
+        }
+        double peak_N = 0;
+        for (const auto& f : raw["f_N"]) peak_N = std::max(peak_N, f.get<double>());
+        return std::make_pair(again["walked_from_s"].get<double>(), peak_N);
+    };
+    for (const auto& [from_s, to_s] : {std::pair{second, second + 0.5}, std::pair{third, third + 0.3},
+                                       std::pair{pass_s + lift_s - 0.4, pass_s + lift_s + 0.3}}) {
+        const auto [walked_from_s, peak_N] = same_as_full(from_s, to_s);
+        CHECK(walked_from_s > 0.5);
+        CHECK(walked_from_s <= from_s);
+        CHECK(peak_N > 50);
+    }
+    // Before the first checkpoint the walk starts with the log.
+    CHECK(same_as_full(0.5, 0.8).first == 0);
+
+    // A checkpoint that cannot be read only costs the walk from the start: the rows are the same.
+    for (const auto& f : files) {
+        std::ofstream(f, std::ios::binary | std::ios::trunc) << "not a gzip stream";
+    }
+    CHECK(same_as_full(third, third + 0.3).first == 0);
+
+    // The checkpoints go with their run.
+    auto admin = envelopes.client(envelopes.admin_key);
+    const auto del = admin.Delete(pb.c_str());
+    REQUIRE(del);
+    CHECK(del->status == 204);
+    CHECK(checkpoint_files(envelopes.data_dir()).empty());
+}
+
+TEST_CASE("long runs: resolution=full of a log of two sessions is 409 not_recomputable, and it keeps no checkpoints") {
+    // The control restarted: a silence of over 60 s starts a second session (docs/ingest.md).
+    std::ostringstream log;
+    log << "t,x,y,z,feed,spindle,block\n";
+    for (const double t0 : {0.0, 100.0})
+        for (int i = 0; i < 500; ++i) {
+            const double t = i * 0.002;
+            log << t0 + t << ',' << -6.0 + 20 * t + (t0 > 0 ? 20 : 0) << ",5,-2,1200,10000," << (t0 > 0 ? "N20" : "N10")
+                << '\n';
+        }
+    TestServer ts([](cutload::server::ServerOptions& o) { o.checkpoint_every_s = 0.1; });
+    const json run = run_slot(ts, log.str());
+    CHECK(run["summary"]["samples"].get<double>() > 1000);
+    auto c = ts.client(ts.read_key);
+    const std::string p = "/api/v1/runs/" + std::to_string(run["id"].get<std::int64_t>());
+    const auto res = c.Get((p + "/forces?from_s=100.2&to_s=100.4&resolution=full").c_str());
+    require_error(res, 409, "not_recomputable", "2 sessions");
+    CHECK(checkpoint_files(ts.data_dir()).empty());
 }

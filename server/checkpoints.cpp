@@ -1,0 +1,158 @@
+#include "checkpoints.hpp"
+
+#include <fmt/format.h>
+#include <zlib.h>
+
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstdio>
+#include <istream>
+#include <ostream>
+#include <random>
+#include <stdexcept>
+#include <streambuf>
+
+namespace cutload::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kDir = "checkpoints";
+constexpr const char* kSuffix = ".stock.gz";
+constexpr const char* kTmpSuffix = ".tmp";
+
+// std::streambuf over a gzFile, one direction per instance; errors are the stream's.
+class GzBuf : public std::streambuf {
+public:
+    GzBuf(const fs::path& path, const char* mode) : file_(gzopen(path.c_str(), mode)), writing_(mode[0] == 'w') {
+        if (!file_) return;
+        gzbuffer(file_, 1 << 18);
+        if (writing_) setp(buf_.data(), buf_.data() + buf_.size());
+        else setg(buf_.data(), buf_.data(), buf_.data());
+    }
+    ~GzBuf() override {
+        if (file_) gzclose(file_);
+    }
+    bool is_open() const { return file_ != nullptr; }
+    // Flushes and closes; false when anything failed (a full disk shows here).
+    bool close() {
+        if (!file_) return false;
+        const bool flushed = !writing_ || sync() == 0;
+        const int rc = gzclose(file_);
+        file_ = nullptr;
+        return flushed && rc == Z_OK;
+    }
+
+protected:
+    int_type overflow(int_type c) override {
+        if (sync() != 0) return traits_type::eof();
+        if (!traits_type::eq_int_type(c, traits_type::eof())) {
+            *pptr() = traits_type::to_char_type(c);
+            pbump(1);
+        }
+        return traits_type::not_eof(c);
+    }
+    int sync() override {
+        if (!writing_) return 0;
+        const auto n = static_cast<unsigned>(pptr() - pbase());
+        if (n > 0 && gzwrite(file_, pbase(), n) != static_cast<int>(n)) return -1;
+        setp(buf_.data(), buf_.data() + buf_.size());
+        return 0;
+    }
+    int_type underflow() override {
+        const int n = gzread(file_, buf_.data(), static_cast<unsigned>(buf_.size()));
+        if (n <= 0) return traits_type::eof();
+        setg(buf_.data(), buf_.data(), buf_.data() + n);
+        return traits_type::to_int_type(buf_[0]);
+    }
+
+private:
+    gzFile file_;
+    bool writing_;
+    std::array<char, 1 << 16> buf_{};
+};
+
+std::string file_name(const force_model::StockCheckpoint& at) {
+    return fmt::format("at-{}-{:016x}{}", at.sample, std::bit_cast<std::uint64_t>(at.t_s), kSuffix);
+}
+
+std::optional<force_model::StockCheckpoint> parse_name(const std::string& name) {
+    unsigned long long sample = 0, bits = 0;
+    char rest[16] = {};
+    if (std::sscanf(name.c_str(), "at-%llu-%16llx%15s", &sample, &bits, rest) != 3 || std::string(rest) != kSuffix)
+        return std::nullopt;
+    const double t_s = std::bit_cast<double>(static_cast<std::uint64_t>(bits));
+    if (!std::isfinite(t_s)) return std::nullopt;
+    return force_model::StockCheckpoint{static_cast<std::size_t>(sample), t_s};
+}
+
+}  // namespace
+
+void write_checkpoint(const fs::path& run_dir, const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+    const fs::path dir = run_dir / kDir;
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw std::runtime_error(fmt::format("cannot make {}: {}", dir.string(), ec.message()));
+    const std::string name = file_name(at);
+    const fs::path tmp = dir / fmt::format(".{}.{:016x}{}", name, std::random_device{}(), kTmpSuffix);
+    {
+        GzBuf buf(tmp, "wb1");
+        if (!buf.is_open()) throw std::runtime_error(fmt::format("cannot write {}", tmp.string()));
+        std::ostream out(&buf);
+        try {
+            force_model::save_stock(stock, out);
+        } catch (const std::exception&) {
+            fs::remove(tmp, ec);
+            throw;
+        }
+        if (!out.flush() || !buf.close()) {
+            fs::remove(tmp, ec);
+            throw std::runtime_error(fmt::format("writing {} failed (disk full?)", tmp.string()));
+        }
+    }
+    fs::rename(tmp, dir / name, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw std::runtime_error(fmt::format("cannot rename {} into place", tmp.string()));
+    }
+}
+
+std::optional<CheckpointFile> checkpoint_before(const fs::path& run_dir, double t_s) {
+    std::optional<CheckpointFile> best;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
+        const auto at = parse_name(e.path().filename().string());
+        if (!at || at->t_s > t_s) continue;
+        if (!best || at->t_s > best->at.t_s) best = CheckpointFile{e.path(), *at};
+    }
+    return best;
+}
+
+force_model::StockPtr read_checkpoint(const CheckpointFile& file) {
+    GzBuf buf(file.path, "rb");
+    if (!buf.is_open()) throw std::runtime_error(fmt::format("cannot open {}", file.path.string()));
+    std::istream in(&buf);
+    return force_model::load_stock(in, file.path.filename().string());
+}
+
+CheckpointUsage checkpoint_usage(const fs::path& run_dir) {
+    CheckpointUsage u;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
+        if (!parse_name(e.path().filename().string())) continue;
+        ++u.files;
+        u.bytes += e.file_size(ec);
+    }
+    return u;
+}
+
+void remove_unfinished_checkpoints(const fs::path& run_dir) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
+        const std::string name = e.path().filename().string();
+        if (name.starts_with('.') && name.ends_with(kTmpSuffix)) fs::remove(e.path(), ec);
+    }
+}
+
+}  // namespace cutload::server
