@@ -19,7 +19,8 @@
 // memory (VmHWM), the bytes stored (database, WAL, uploads), and the latency of /forces windows
 // on the finished run (the whole run, and zooms of 0.05 to 5 s, max_points 2000, the plot's four
 // force channels; one client, p50 and p99), then the time of 1 s windows recomputed at full
-// resolution (resolution=full) at 10, 50 and 95 % of the run.
+// resolution (resolution=full) at 10, 50 and 95 % of the run, each walked from the run's last stock
+// checkpoint before it.
 //
 // Usage: bench_long [--minutes M] [--device cpu|opencl] [--via cli|service|both] [--forces csv|bin] [--cutload PATH] [--keep]
 //   defaults: 60 minutes, opencl, both, csv (the CLI's --out FORCES.csv, or FORCES.bin), ../cli/cutload beside
@@ -200,11 +201,19 @@ int through_service(const fs::path& cutload, const fs::path& dir, const std::str
     }
     const json& sum = run["summary"];
     const double simulated_s = sum.value("simulated_s", 0.0);
+    std::uintmax_t checkpoint_bytes = 0;
+    int checkpoints = 0;
+    for (const auto& e : fs::recursive_directory_iterator(data))
+        if (e.is_regular_file() && e.path().filename().string().ends_with(".stock.gz")) {
+            checkpoint_bytes += e.file_size();
+            ++checkpoints;
+        }
     std::printf("cutload serve --device %s (upload to done):\n", device.c_str());
     std::printf("  motion %.1f s, wall %.1f s, %.1fx real time, server peak RSS %.0f MB, stored %.1f MB "
                 "(database, WAL and uploads); %lld force rows, %lld blocks\n",
                 simulated_s, wall_s, wall_s > 0 ? simulated_s / wall_s : 0.0, double(rss_kib(srv.pid, "VmHWM:")) / 1024,
                 double(tree_bytes(data)) / 1e6, sum.value("samples", 0LL), sum.value("blocks", 0LL));
+    std::printf("  of which %d stock checkpoints: %.1f MB\n", checkpoints, double(checkpoint_bytes) / 1e6);
 
     // What a plot asks of the finished run: the whole run, then zooms.
     std::vector<double> whole_ms, zoom_ms;
@@ -248,9 +257,10 @@ int through_service(const fs::path& cutload, const fs::path& dir, const std::str
             return 1;
         }
         const json w = json::parse(g->body);
-        std::printf("  /forces?resolution=full %.0f..%.0f s: %.2f s, %d rows (decimated: %s); server RSS now %.0f MB\n",
-                    from_s, from_s + 1, s_taken, w.value("count", 0), w.value("decimated", false) ? "yes" : "no",
-                    double(rss_kib(srv.pid)) / 1024);
+        std::printf("  /forces?resolution=full %.0f..%.0f s: %.2f s, walked from %.1f s, %d rows (decimated: %s); server "
+                    "RSS now %.0f MB\n",
+                    from_s, from_s + 1, s_taken, w.value("walked_from_s", -1.0), w.value("count", 0),
+                    w.value("decimated", false) ? "yes" : "no", double(rss_kib(srv.pid)) / 1024);
     }
     return 0;
 }
