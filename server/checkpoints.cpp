@@ -155,4 +155,9 @@ void remove_unfinished_checkpoints(const fs::path& run_dir) {
     }
 }
 
+void remove_checkpoints(const fs::path& run_dir) {
+    std::error_code ec;
+    fs::remove_all(run_dir / kDir, ec);
+}
+
 }  // namespace cutload::server

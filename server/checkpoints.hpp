@@ -35,5 +35,7 @@ struct CheckpointUsage {
 CheckpointUsage checkpoint_usage(const std::filesystem::path& run_dir);
 // Temporary files a claimant that died left behind.
 void remove_unfinished_checkpoints(const std::filesystem::path& run_dir);
+// All of them (a run that failed or was cancelled is never recomputed).
+void remove_checkpoints(const std::filesystem::path& run_dir);
 
 }  // namespace cutload::server

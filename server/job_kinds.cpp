@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <exception>
 #include <functional>
 #include <string_view>
 
@@ -74,6 +75,15 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
     app::Control control;
     control.cancel = &ctx.cancel;
     control.progress = [&](app::Phase, double f) { ctx.progress(f); };
+    // A run that fails or is stopped is never recomputed: its checkpoints go when anything below
+    // throws (a claim lost to another process returns instead, and leaves that one's files).
+    struct DropCheckpointsOnThrow {
+        const fs::path& dir;
+        int exceptions = std::uncaught_exceptions();
+        ~DropCheckpointsOnThrow() {
+            if (std::uncaught_exceptions() > exceptions) remove_checkpoints(dir);
+        }
+    } drop_on_throw{dir};
     const app::RunResult r = app::predict_run(in, control);
     if (forces) forces->finish();
     const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);

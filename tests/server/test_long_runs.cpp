@@ -270,3 +270,19 @@ TEST_CASE("long runs: resolution=full of a log of two sessions is 409 not_recomp
     require_error(res, 409, "not_recomputable", "2 sessions");
     CHECK(checkpoint_files(ts.data_dir()).empty());
 }
+
+TEST_CASE("long runs: a run cancelled after it kept stock checkpoints leaves none behind") {
+    TestServer ts([](cutload::server::ServerOptions& o) { o.checkpoint_every_s = 0.5; });
+    auto c = ts.admin();
+    json spec = slot_spec();
+    spec["resolution"] = {{"angle_step_deg", 0.1}, {"axial_step_mm", 0.1}, {"grid_mm", 0.1}};   // slow enough to catch
+    const std::int64_t id = body(upload(c, passes_with_lifts_csv(), spec))["id"];
+    const auto t0 = std::chrono::steady_clock::now();
+    while (checkpoint_files(ts.data_dir()).empty() && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    REQUIRE_FALSE(checkpoint_files(ts.data_dir()).empty());
+    REQUIRE(c.Post(("/api/v1/runs/" + std::to_string(id) + "/cancel").c_str())->status == 202);
+    const json run = wait_finished(c, id, 60);
+    REQUIRE(run["state"] == "cancelled");
+    CHECK(checkpoint_files(ts.data_dir()).empty());
+}
