@@ -286,3 +286,38 @@ TEST_CASE("long runs: a run cancelled after it kept stock checkpoints leaves non
     REQUIRE(run["state"] == "cancelled");
     CHECK(checkpoint_files(ts.data_dir()).empty());
 }
+
+TEST_CASE("long runs: one window is recomputed at a time; a second one meanwhile is 503 busy with Retry-After") {
+    TestServer ts([](cutload::server::ServerOptions& o) {
+        o.max_raw_rows = 5000;
+        o.checkpoint_every_s = 0;
+    });
+    const json run = run_slot(ts, slot_log_csv(30.0));
+    const std::string p = "/api/v1/runs/" + std::to_string(run["id"].get<std::int64_t>());
+    // The first walks 29 s of motion before its window: seconds on the scalar path.
+    int first_status = 0;
+    std::thread t([&] {
+        auto c = ts.client(ts.read_key);
+        c.set_read_timeout(120, 0);
+        const auto r = c.Get((p + "/forces?from_s=29&to_s=29.2&resolution=full").c_str());
+        first_status = r ? r->status : -1;
+    });
+    auto c = ts.client(ts.read_key);
+    int second_status = 0;
+    std::string retry_after, second_body;
+    const auto t0 = std::chrono::steady_clock::now();
+    // Asked until it is refused (the first has taken the lock) or 5 s have passed.
+    do {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        const auto r = c.Get((p + "/forces?from_s=1&to_s=1.2&resolution=full").c_str());
+        REQUIRE(r);
+        second_status = r->status;
+        retry_after = r->get_header_value("Retry-After");
+        second_body = r->body;
+    } while (second_status == 200 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5));
+    t.join();
+    CHECK(first_status == 200);
+    CHECK(second_status == 503);
+    CHECK_THAT(second_body, Catch::Contains("\"busy\"") && Catch::Contains("another window"));
+    CHECK(retry_after == "1");
+}
