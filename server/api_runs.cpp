@@ -849,7 +849,7 @@ void recomputed_forces_route(Core& core, Ctx& x) {
             start = read_checkpoint(*checkpoint);
             in.base_stock = start.get();
             in.resume = checkpoint->at;
-        } catch (const std::runtime_error& e) {
+        } catch (const std::exception& e) {   // bad_alloc too: a corrupt header may ask for any size
             spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
             checkpoint.reset();
         }
@@ -868,7 +868,12 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     try {
         try {
             r = app::predict_run(in, control);
-        } catch (const force_model::SpecError& e) {
+        } catch (const force_model::Cancelled&) {
+            throw;
+        } catch (const app::TooMuchWork&) {
+            throw;
+        } catch (const std::exception& e) {
+            // A checkpoint that does not fit (another motion, grid or frame) is only a cache miss.
             if (!in.resume) throw;
             spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
             checkpoint.reset();

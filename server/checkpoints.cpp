@@ -83,8 +83,10 @@ std::optional<force_model::StockCheckpoint> parse_name(const std::string& name) 
     if (std::sscanf(name.c_str(), "at-%llu-%16llx%15s", &sample, &bits, rest) != 3 || std::string(rest) != kSuffix)
         return std::nullopt;
     const double t_s = std::bit_cast<double>(static_cast<std::uint64_t>(bits));
-    if (!std::isfinite(t_s)) return std::nullopt;
-    return force_model::StockCheckpoint{static_cast<std::size_t>(sample), t_s};
+    const force_model::StockCheckpoint at{static_cast<std::size_t>(sample), t_s};
+    // Only names this code writes (sscanf would take "0x", "+" or trailing words).
+    if (!std::isfinite(t_s) || file_name(at) != name) return std::nullopt;
+    return at;
 }
 
 }  // namespace
@@ -92,7 +94,7 @@ std::optional<force_model::StockCheckpoint> parse_name(const std::string& name) 
 void write_checkpoint(const fs::path& run_dir, const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
     const fs::path dir = run_dir / kDir;
     std::error_code ec;
-    fs::create_directories(dir, ec);
+    fs::create_directory(dir, ec);   // not the run's own folder: a run deleted meanwhile stays gone
     if (ec) throw std::runtime_error(fmt::format("cannot make {}: {}", dir.string(), ec.message()));
     const std::string name = file_name(at);
     const fs::path tmp = dir / fmt::format(".{}.{:016x}{}", name, std::random_device{}(), kTmpSuffix);
@@ -134,17 +136,6 @@ force_model::StockPtr read_checkpoint(const CheckpointFile& file) {
     if (!buf.is_open()) throw std::runtime_error(fmt::format("cannot open {}", file.path.string()));
     std::istream in(&buf);
     return force_model::load_stock(in, file.path.filename().string());
-}
-
-CheckpointUsage checkpoint_usage(const fs::path& run_dir) {
-    CheckpointUsage u;
-    std::error_code ec;
-    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
-        if (!parse_name(e.path().filename().string())) continue;
-        ++u.files;
-        u.bytes += e.file_size(ec);
-    }
-    return u;
 }
 
 void remove_unfinished_checkpoints(const fs::path& run_dir) {

@@ -15,7 +15,8 @@
 namespace cutload::server {
 
 // Writes one checkpoint under run_dir (a temporary file renamed into place, so a reader never sees
-// half of one). Throws std::runtime_error when it cannot.
+// half of one). Throws std::runtime_error when it cannot, also when run_dir is gone (the run was
+// deleted meanwhile).
 void write_checkpoint(const std::filesystem::path& run_dir, const force_model::StockCheckpoint& at,
                       const force_model::Stock& stock);
 
@@ -27,12 +28,6 @@ struct CheckpointFile {
 std::optional<CheckpointFile> checkpoint_before(const std::filesystem::path& run_dir, double t_s);
 // Throws std::runtime_error for a file that is not a whole checkpoint.
 force_model::StockPtr read_checkpoint(const CheckpointFile& file);
-// What the run's checkpoints take on disk, and how many there are.
-struct CheckpointUsage {
-    std::uintmax_t bytes = 0;
-    std::size_t files = 0;
-};
-CheckpointUsage checkpoint_usage(const std::filesystem::path& run_dir);
 // Temporary files a claimant that died left behind.
 void remove_unfinished_checkpoints(const std::filesystem::path& run_dir);
 // All of them (a run that failed or was cancelled is never recomputed).

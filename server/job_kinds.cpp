@@ -57,6 +57,9 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
 
     // Stock checkpoints for the windows recomputed later (checkpoints.hpp). They are a cache: one
     // that cannot be written is said in the log, and the run goes on without further ones.
+    // An earlier claim's (a process that died) may be of another device or version: this claim
+    // makes its own.
+    remove_checkpoints(dir);
     bool checkpoints_ok = opt.checkpoint_every_s > 0;
     if (checkpoints_ok) {
         in.checkpoint_every_s = opt.checkpoint_every_s;
@@ -76,14 +79,22 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
     control.cancel = &ctx.cancel;
     control.progress = [&](app::Phase, double f) { ctx.progress(f); };
     // A run that fails or is stopped is never recomputed: its checkpoints go when anything below
-    // throws (a claim lost to another process returns instead, and leaves that one's files).
+    // throws, while this claim still holds the run (a claim lost to another process is cancelled
+    // too, and must leave that one's files).
     struct DropCheckpointsOnThrow {
         const fs::path& dir;
+        db::Store& store;
+        const JobContext& ctx;
         int exceptions = std::uncaught_exceptions();
         ~DropCheckpointsOnThrow() {
-            if (std::uncaught_exceptions() > exceptions) remove_checkpoints(dir);
+            if (std::uncaught_exceptions() <= exceptions) return;
+            try {
+                if (store.session()->jobs().holds(db::kRunQueue, ctx.id, ctx.claim)) remove_checkpoints(dir);
+            } catch (const std::exception& e) {
+                spdlog::warn("run {}: its stock checkpoints were not removed: {}", ctx.id, e.what());
+            }
         }
-    } drop_on_throw{dir};
+    } drop_on_throw{dir, store, ctx};
     const app::RunResult r = app::predict_run(in, control);
     if (forces) forces->finish();
     const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -303,4 +304,58 @@ TEST_CASE("tool table: samples that name no tool take the spec's tool, else a ta
     CHECK(p_none.stats.unknown_tools == std::vector<int>{-1});
     CHECK(has_flag(p_none.blocks[0], "unknown_tool"));
     CHECK(enginetest::load_between(p_none, t_mid - 0.5, t_mid + 0.5).peak_N == 0);
+}
+
+TEST_CASE("three tools: windows resumed at stock checkpoints across the tool changes and an unknown tool are the whole "
+          "run's rows") {
+    const motion_io::MotionModel m = three_tool_motion();
+    for (const bool with_t1 : {true, false}) {   // without T1 in the table its stretch is an unknown tool
+        const force_model::RunSpec spec = three_tool_spec(with_t1);
+        for (const force_model::Device device : devices_under_test()) {
+            INFO((device == force_model::Device::Cpu ? "cpu" : "opencl") << (with_t1 ? "" : ", T1 unknown"));
+            struct Taken {
+                force_model::StockCheckpoint at;
+                force_model::StockPtr stock;
+            };
+            std::vector<Taken> taken;
+            force_model::PredictOptions o;
+            o.device = device;
+            o.checkpoint_every_s = 0.5;
+            o.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+                std::stringstream bytes;
+                force_model::save_stock(stock, bytes);
+                taken.push_back({at, force_model::load_stock(bytes, "checkpoint")});
+            };
+            const auto full = force_model::predict(m, spec, o);
+            REQUIRE(taken.size() >= 3);
+            std::size_t windows = 0, cutting = 0;
+            for (const Taken& c : taken)
+                for (const double dt : {0.0, 0.4}) {
+                    const double from_s = c.at.t_s + dt, to_s = from_s + 0.5;
+                    if (from_s >= m.t_s.back()) continue;
+                    INFO("checkpoint at " << c.at.t_s << " s, window " << from_s << " .. " << to_s << " s");
+                    force_model::PredictOptions w;
+                    w.device = device;
+                    w.window = force_model::TimeWindow{from_s, to_s};
+                    w.base_stock = c.stock.get();
+                    w.resume = c.at;
+                    const auto win = force_model::predict(m, spec, w);
+                    auto first = std::lower_bound(full.samples.begin(), full.samples.end(), from_s,
+                                                  [](const force_model::ForceSample& r, double t) { return r.t_s < t; });
+                    std::size_t k = 0, same = 0;
+                    for (auto it = first; it != full.samples.end() && it->t_s < to_s; ++it, ++k)
+                        same += k < win.samples.size() && enginetest::same_row(*it, win.samples[k]) ? 1 : 0;
+                    CHECK(win.samples.size() == k);
+                    CHECK(same == k);
+                    ++windows;
+                    for (const auto& r : win.samples)
+                        if (std::abs(r.fx_N) + std::abs(r.fy_N) > 10) {
+                            ++cutting;
+                            break;
+                        }
+                }
+            CHECK(windows >= 6);
+            CHECK(cutting >= 2);   // not a comparison of zeros
+        }
+    }
 }

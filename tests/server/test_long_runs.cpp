@@ -5,6 +5,7 @@
 #include "harness.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -237,8 +238,31 @@ TEST_CASE("long runs: a recomputed window resumes at the run's last stock checkp
     // Before the first checkpoint the walk starts with the log.
     CHECK(same_as_full(0.5, 0.8).first == 0);
 
-    // A checkpoint that cannot be read only costs the walk from the start: the rows are the same.
-    for (const auto& f : files) {
+    // A checkpoint that does not fit the motion (its sample is not at its time) only costs the walk
+    // from the start: the rows are the same.
+    {
+        // The one the third pass's window resumes at: the latest at or before its start
+        // (at-<sample>-<time's bits in hex>.stock.gz).
+        auto sample_of = [](const fs::path& f) {
+            const std::string name = f.filename().string();
+            return std::stoull(name.substr(3, name.find('-', 3) - 3));
+        };
+        auto time_of = [](const fs::path& f) {
+            const std::string name = f.filename().string();
+            return std::bit_cast<double>(static_cast<std::uint64_t>(std::stoull(name.substr(name.find('-', 3) + 1, 16), nullptr, 16)));
+        };
+        fs::path latest;
+        for (const auto& f : files)
+            if (time_of(f) <= third && (latest.empty() || time_of(f) > time_of(latest))) latest = f;
+        REQUIRE_FALSE(latest.empty());
+        const std::string name = latest.filename().string();
+        fs::rename(latest, latest.parent_path() / ("at-" + std::to_string(sample_of(latest) + 7) + name.substr(name.find('-', 3))));
+        const auto [walked_from_s, peak_N] = same_as_full(third, third + 0.3);
+        CHECK(walked_from_s == 0);
+        CHECK(peak_N > 50);
+    }
+    // One that cannot be read neither.
+    for (const auto& f : checkpoint_files(envelopes.data_dir())) {
         std::ofstream(f, std::ios::binary | std::ios::trunc) << "not a gzip stream";
     }
     CHECK(same_as_full(third, third + 0.3).first == 0);
