@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -111,6 +112,38 @@ inline force_model::Prediction run_on(const motion_io::MotionModel& m, const for
     force_model::PredictOptions o;
     o.device = d;
     o.base_stock = base;
+    return force_model::predict(m, s, o);
+}
+
+// A stock checkpoint as a service keeps it: through the stock format and back.
+struct TakenCheckpoint {
+    force_model::StockCheckpoint at;
+    force_model::StockPtr stock;
+};
+
+// The whole run, with its stock checkpoints at least every_s apart.
+inline force_model::Prediction run_with_checkpoints(const motion_io::MotionModel& m, const force_model::RunSpec& s,
+                                                    force_model::Device d, double every_s,
+                                                    std::vector<TakenCheckpoint>& taken) {
+    force_model::PredictOptions o;
+    o.device = d;
+    o.checkpoint_every_s = every_s;
+    o.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+        std::stringstream bytes;
+        force_model::save_stock(stock, bytes);
+        taken.push_back({at, force_model::load_stock(bytes, "checkpoint")});
+    };
+    return force_model::predict(m, s, o);
+}
+
+// The window [from_s, to_s) resumed at checkpoint c.
+inline force_model::Prediction resumed_window(const motion_io::MotionModel& m, const force_model::RunSpec& s,
+                                              force_model::Device d, const TakenCheckpoint& c, double from_s, double to_s) {
+    force_model::PredictOptions o;
+    o.device = d;
+    o.window = force_model::TimeWindow{from_s, to_s};
+    o.base_stock = c.stock.get();
+    o.resume = c.at;
     return force_model::predict(m, s, o);
 }
 

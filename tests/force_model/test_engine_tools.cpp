@@ -19,7 +19,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -313,33 +312,16 @@ TEST_CASE("three tools: windows resumed at stock checkpoints across the tool cha
         const force_model::RunSpec spec = three_tool_spec(with_t1);
         for (const force_model::Device device : devices_under_test()) {
             INFO((device == force_model::Device::Cpu ? "cpu" : "opencl") << (with_t1 ? "" : ", T1 unknown"));
-            struct Taken {
-                force_model::StockCheckpoint at;
-                force_model::StockPtr stock;
-            };
-            std::vector<Taken> taken;
-            force_model::PredictOptions o;
-            o.device = device;
-            o.checkpoint_every_s = 0.5;
-            o.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
-                std::stringstream bytes;
-                force_model::save_stock(stock, bytes);
-                taken.push_back({at, force_model::load_stock(bytes, "checkpoint")});
-            };
-            const auto full = force_model::predict(m, spec, o);
+            std::vector<enginetest::TakenCheckpoint> taken;
+            const auto full = enginetest::run_with_checkpoints(m, spec, device, 0.5, taken);
             REQUIRE(taken.size() >= 3);
             std::size_t windows = 0, cutting = 0;
-            for (const Taken& c : taken)
+            for (const enginetest::TakenCheckpoint& c : taken)
                 for (const double dt : {0.0, 0.4}) {
                     const double from_s = c.at.t_s + dt, to_s = from_s + 0.5;
                     if (from_s >= m.t_s.back()) continue;
                     INFO("checkpoint at " << c.at.t_s << " s, window " << from_s << " .. " << to_s << " s");
-                    force_model::PredictOptions w;
-                    w.device = device;
-                    w.window = force_model::TimeWindow{from_s, to_s};
-                    w.base_stock = c.stock.get();
-                    w.resume = c.at;
-                    const auto win = force_model::predict(m, spec, w);
+                    const auto win = enginetest::resumed_window(m, spec, device, c, from_s, to_s);
                     auto first = std::lower_bound(full.samples.begin(), full.samples.end(), from_s,
                                                   [](const force_model::ForceSample& r, double t) { return r.t_s < t; });
                     std::size_t k = 0, same = 0;

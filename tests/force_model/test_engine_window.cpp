@@ -11,7 +11,6 @@
 #include <algorithm>
 #include <cmath>
 #include <span>
-#include <sstream>
 #include <string>
 
 using namespace cutload;
@@ -193,15 +192,6 @@ TEST_CASE("window: bad windows are refused by name") {
     refused(1, 2, "2 sessions");
 }
 
-namespace {
-
-struct Taken {
-    force_model::StockCheckpoint at;
-    force_model::StockPtr stock;   // through the stock format and back, as a service keeps it
-};
-
-}  // namespace
-
 TEST_CASE("window: resumed at a stock checkpoint, a window gives the whole run's rows") {
     const auto spec = base_spec(40, 30, 10);
     const auto m = testref::uniform_motion(pocket_path());
@@ -210,16 +200,8 @@ TEST_CASE("window: resumed at a stock checkpoint, a window gives the whole run's
     for (Device device : devices) {
         INFO((device == Device::Cpu ? "cpu" : "opencl"));
         const auto plain = run_on(m, spec, device);
-        std::vector<Taken> taken;
-        force_model::PredictOptions o;
-        o.device = device;
-        o.checkpoint_every_s = 1.0;
-        o.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
-            std::stringstream bytes;
-            force_model::save_stock(stock, bytes);
-            taken.push_back({at, force_model::load_stock(bytes, "checkpoint")});
-        };
-        const auto full = force_model::predict(m, spec, o);
+        std::vector<TakenCheckpoint> taken;
+        const auto full = run_with_checkpoints(m, spec, device, 1.0, taken);
         // Taking checkpoints changes nothing of the run.
         REQUIRE(full.samples.size() == plain.samples.size());
         std::size_t same = 0;
@@ -229,7 +211,7 @@ TEST_CASE("window: resumed at a stock checkpoint, a window gives the whole run's
         // sooner than a second after the one before, and each is a sample the tool is in air at.
         REQUIRE(taken.size() >= 2);
         double last_s = m.t_s.front();
-        for (const Taken& c : taken) {
+        for (const TakenCheckpoint& c : taken) {
             CHECK(c.at.t_s - last_s >= 1.0);
             CHECK(m.t_s[c.at.sample] == c.at.t_s);
             last_s = c.at.t_s;
@@ -238,16 +220,11 @@ TEST_CASE("window: resumed at a stock checkpoint, a window gives the whole run's
         const double box_mm3 = 40.0 * 30 * 10;
         CHECK(force_model::stock_volume_mm3(*taken.front().stock) < box_mm3 - 100);
         double peak_N = 0;
-        for (const Taken& c : taken) {
+        for (const TakenCheckpoint& c : taken) {
             for (const double from_s : {c.at.t_s, c.at.t_s + 0.3, c.at.t_s + 1.1}) {
                 const double to_s = from_s + 0.4;
                 INFO("checkpoint at " << c.at.t_s << " s, window " << from_s << " .. " << to_s << " s");
-                force_model::PredictOptions w;
-                w.device = device;
-                w.window = force_model::TimeWindow{from_s, to_s};
-                w.base_stock = c.stock.get();
-                w.resume = c.at;
-                const auto win = force_model::predict(m, spec, w);
+                const auto win = resumed_window(m, spec, device, c, from_s, to_s);
                 const Agreement a = compare(full, win, from_s, to_s);
                 INFO(a.rows << " rows (" << a.full_rows << " in the whole run), " << a.exact << " bit for bit, largest "
                             << "difference " << a.max_diff_N << " N against a peak of " << a.peak_N << " N");

@@ -311,7 +311,7 @@ TEST_CASE("long runs: a run cancelled after it kept stock checkpoints leaves non
     CHECK(checkpoint_files(ts.data_dir()).empty());
 }
 
-TEST_CASE("long runs: one window is recomputed at a time; a second one meanwhile is 503 busy with Retry-After") {
+TEST_CASE("long runs: one window is recomputed at a time, a second one meanwhile is 503 busy with Retry-After") {
     TestServer ts([](cutload::server::ServerOptions& o) {
         o.max_raw_rows = 5000;
         o.checkpoint_every_s = 0;
