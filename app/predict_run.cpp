@@ -336,11 +336,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
     force_model::PredictOptions po;
     po.window = in.window;
-    po.resume = in.resume;
-    if (!in.window && !in.machine) {
-        po.checkpoint = in.checkpoint;
-        po.checkpoint_every_s = std::max(in.checkpoint_every_s, actual_s / kMaxCheckpoints);
-    }
     po.device = in.device;
     if (in.device_ready.valid()) {
         const DeviceChoice choice = in.device_ready.get();
@@ -392,7 +387,57 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             if (pipe) pipe->post([&machine_axes, begin, end, first_row] { machine_axes->begin_session(begin, end, first_row); });
             else machine_axes->begin_session(begin, end, first_row);
         };
-    r.prediction = turning ? force_model::predict_turning(r.motion, *turning, spec, po) : force_model::predict(r.motion, spec, po);
+    // Stock checkpoints: a whole run writes them, a window resumes at the last one before it.
+    const bool checkpointing = in.checkpoints && !in.machine;
+    const std::uint64_t key = checkpointing ? force_model::checkpoint_key(r.motion, spec, in.base_stock) : 0;
+    bool writing = checkpointing && !in.window;
+    if (writing) {
+        po.checkpoint_every_s = std::max(in.checkpoints->every_s, actual_s / kMaxCheckpoints);
+        po.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
+            if (!writing) return;
+            try {
+                write_checkpoint(in.checkpoints->dir, key, at, stock);
+            } catch (const std::exception& e) {
+                writing = false;
+                r.warnings.push_back(fmt::format("the stock checkpoint at t = {:.3f} s was not kept ({}), nor any after it: "
+                                                 "windows of this run are recomputed from further back",
+                                                 at.t_s, e.what()));
+            }
+        };
+    }
+    force_model::StockPtr resume_stock;
+    std::optional<CheckpointFile> resume_at;
+    if (checkpointing && in.window) {
+        resume_at = checkpoint_before(in.checkpoints->dir, key, in.window->from_s);
+        if (resume_at) {
+            try {
+                resume_stock = read_checkpoint(*resume_at);
+                po.base_stock = resume_stock.get();
+                po.resume = resume_at->at;
+            } catch (const std::exception& e) {   // bad_alloc too: a corrupt header may ask for any size
+                r.warnings.push_back(fmt::format("stock checkpoint {} not used ({}): the window was walked from the log's start",
+                                                 resume_at->path.filename().string(), e.what()));
+                resume_at.reset();
+            }
+        }
+    }
+    auto predict_actual = [&] {
+        return turning ? force_model::predict_turning(r.motion, *turning, spec, po) : force_model::predict(r.motion, spec, po);
+    };
+    try {
+        r.prediction = predict_actual();
+    } catch (const force_model::SpecError& e) {
+        // Refused before any row: a checkpoint that does not fit is a cache miss.
+        if (!po.resume) throw;
+        r.warnings.push_back(fmt::format("stock checkpoint {} not used ({}): the window was walked from the log's start",
+                                         resume_at->path.filename().string(), e.what()));
+        resume_at.reset();
+        po.resume.reset();
+        po.base_stock = in.base_stock;
+        r.prediction = predict_actual();
+    }
+    r.resumed = resume_at.has_value();
+    r.walked_from_s = resume_at ? resume_at->at.t_s : r.motion.t_s.front();
     if (pipe) pipe->finish();
     if (frame.tilted) {
         turn_forces(r.prediction.samples, frame.tool_to_workpiece);

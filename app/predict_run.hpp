@@ -4,6 +4,7 @@
 // compared block by block with the actual ones.
 #pragma once
 
+#include "app/checkpoints.hpp"
 #include "app/control.hpp"
 #include "app/inputs.hpp"
 #include "app/program_run.hpp"
@@ -27,10 +28,6 @@ struct Machine;   // machine/machine.hpp (kept out of this header: front ends ne
 }
 
 namespace cutload::app {
-
-// Each checkpoint of an hour's roughing on a 150 x 100 mm stock at 0.1 mm is about 20 MB gzipped and
-// 1 s to write (bench_long): eight bound that to a few percent of the run.
-inline constexpr int kMaxCheckpoints = 8;
 
 struct RunInput {
     std::string log_path;
@@ -69,14 +66,10 @@ struct RunInput {
     // and the comparison are not made. Refused (InputError "window") with commanded_from_log or a
     // machine; a log of several sessions, an empty window or one outside the log are SpecErrors.
     std::optional<force_model::TimeWindow> window;
-    // When set (and no window, no machine): the actual prediction's stock checkpoints
-    // (force_model::PredictOptions::checkpoint), for a later window to resume from: at least
-    // checkpoint_every_s of motion apart, and at most kMaxCheckpoints over the log.
-    std::function<void(const force_model::StockCheckpoint& at, const force_model::Stock& stock)> checkpoint;
-    double checkpoint_every_s = 60;
-    // With a window: its walk resumes at this checkpoint of the same run, whose stock is base_stock
-    // (force_model::PredictOptions::resume).
-    std::optional<force_model::StockCheckpoint> resume;
+    // Stock checkpoints (checkpoints.hpp; not with a machine): a whole run writes its own into the
+    // folder, a window resumes its walk at the last one of the same run at or before its start
+    // (RunResult::walked_from_s). One that cannot be written or read is a warning, never an error.
+    std::optional<CheckpointFolder> checkpoints;
 };
 
 // A machine definition file (docs/machines.md), with the errors of an errors file when one is
@@ -144,6 +137,10 @@ struct RunResult {
     std::size_t commanded_samples = 0;           // commanded_from_log: samples of the commanded motion
     WorkEstimate work;                           // the work estimated before predicting
     std::size_t rows = 0;                        // rows of the actual prediction (also those sent to rows_out)
+    // Where the actual prediction's walk began: the log's start, or with a window the stock
+    // checkpoint it resumed at (RunInput::checkpoints).
+    double walked_from_s = 0;
+    bool resumed = false;
     // With a machine: the tool's axis where it cuts, in stock coordinates (unit, tip to spindle),
     // and its lean from +Z. A tool leaning more than kFixedOrientationToleranceRad was predicted
     // in its own frame (a fixed tilt, docs/five_axis.md); motion and forces come back in stock axes.

@@ -17,6 +17,7 @@ struct PredictArgs {
     std::string log, spec, out, blocks, device = "auto", start_stock, save_stock, machine, machine_errors;
     double tool_length_mm = 0;
     std::string window;   // FROM:TO in seconds of the log's time
+    std::string checkpoints;   // folder of stock checkpoints
     bool quiet = false;
     double step_ms = motion_io::ReadOptions{}.step_ms;
     app::LogFormat format;
@@ -62,6 +63,7 @@ void run_predict(const PredictArgs& a) {
     if (!a.machine.empty()) in.machine = app::load_machine_definition(a.machine, a.machine_errors);
     in.tool_length_mm = a.tool_length_mm;
     if (!a.window.empty()) in.window = parse_window(a.window);
+    if (!a.checkpoints.empty()) in.checkpoints = app::CheckpointFolder{a.checkpoints};
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
     // With a machine the rows carry their forces in machine axes too (docs/formats.md, FORCES.csv).
@@ -104,6 +106,7 @@ void run_predict(const PredictArgs& a) {
     std::printf("device: %s\n", s.device.c_str());
     std::printf("simulated %.3f s in %.3f s wall (%.1fx real time); %zu angle steps, %zu cutting\n", s.simulated_s,
                 s.wall_s, s.wall_s > 0 ? s.simulated_s / s.wall_s : 0.0, s.steps, s.cutting_steps);
+    if (in.window) std::printf("window walked from %.3f s (%s)\n", r.walked_from_s, r.resumed ? "a stock checkpoint" : "the log's start");
     std::size_t flagged = 0;
     for (const auto& b : p.blocks) {
         if (b.flags.empty()) continue;
@@ -155,6 +158,12 @@ void add_predict(CLI::App& app) {
                                    "FROM:TO, seconds of the log's time: only that stretch is predicted, at full "
                                    "resolution, the very rows the whole run gives there (the motion before it is walked "
                                    "for its removal alone; docs/force_model.md, \"A window on demand\")");
+    auto* checkpoints = cmd->add_option("--checkpoints", a->checkpoints,
+                                        "Folder of stock checkpoints: a whole run keeps up to eight there (one a minute of "
+                                        "motion at most, where the tool moves in air), a --window of the same log, spec and "
+                                        "start stock walks from the last one before it (docs/force_model.md, \"Stock "
+                                        "checkpoints\")");
+    checkpoints->excludes("--machine");
     cmd->add_flag("-q,--quiet", a->quiet, "No progress display");
     add_work_limit_options(*cmd, a->limits.max_force_rows, a->limits.max_stock_cells, a->limits.max_job_memory_mb);
     add_program_options(*cmd, a->program, true);

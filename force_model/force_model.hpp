@@ -278,6 +278,10 @@ struct StockCheckpoint {
     std::size_t sample = 0;   // the walk resumes with the interval that starts at this motion sample
     double t_s = 0;           // MotionModel::t_s[sample]: what a resume is checked against
 };
+// What a run's checkpoints belong to: a hash of everything the walk reads (the motion model's
+// samples, blocks, tools and sessions, the run spec, the base stock's rays and walls) and of this
+// build's checkpoint rules. A checkpoint is resumed only by a run of the same key.
+std::uint64_t checkpoint_key(const motion_io::MotionModel& motion, const RunSpec& spec, const Stock* base_stock);
 
 struct PredictOptions {
     Device device = Device::OpenCL;

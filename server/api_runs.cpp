@@ -6,7 +6,6 @@
 #include "app/program_source.hpp"
 #include "app/tool_centre_point.hpp"
 #include "app/work_bounds.hpp"
-#include "checkpoints.hpp"
 #include "core.hpp"
 #include "json_in.hpp"
 #include "spec_refs.hpp"
@@ -838,48 +837,20 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     in.window = force_model::TimeWindow{from_s, std::nextafter(to_s, std::numeric_limits<double>::infinity())};
     app::Control control;
     control.cancel = &core.stopping;   // a server that stops does not wait out a long walk
-    // The walk resumes at the run's last stock checkpoint before the window (checkpoints.hpp), else
-    // starts where the run started. A checkpoint is a cache: one that cannot be read, or that does
-    // not fit the log as it reads now, only means the walk from the start.
+    // The walk resumes at the run's last stock checkpoint before the window (app/checkpoints.hpp),
+    // else starts where the run started; one that cannot be used is a warning, logged.
     const auto t0 = std::chrono::steady_clock::now();
-    std::optional<CheckpointFile> checkpoint = checkpoint_before(dir, from_s);
-    force_model::StockPtr start;
-    if (checkpoint) {
-        try {
-            start = read_checkpoint(*checkpoint);
-            in.base_stock = start.get();
-            in.resume = checkpoint->at;
-        } catch (const std::exception& e) {   // bad_alloc too: a corrupt header may ask for any size
-            spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
-            checkpoint.reset();
-        }
+    force_model::StockPtr base;
+    try {
+        base = load_base_stock(*core.store, base_run);
+    } catch (const std::runtime_error& e) {
+        throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
     }
-    auto from_run_start = [&] {
-        in.resume.reset();
-        try {
-            start = load_base_stock(*core.store, base_run);
-        } catch (const std::runtime_error& e) {
-            throw ApiError(409, "not_recomputable", fmt::format("run {}: {}", id, e.what()));
-        }
-        in.base_stock = start.get();
-    };
-    if (!checkpoint) from_run_start();
+    in.base_stock = base.get();
+    in.checkpoints = app::CheckpointFolder{checkpoints_dir(dir)};
     app::RunResult r;
     try {
-        try {
-            r = app::predict_run(in, control);
-        } catch (const force_model::Cancelled&) {
-            throw;
-        } catch (const app::TooMuchWork&) {
-            throw;
-        } catch (const std::exception& e) {
-            // A checkpoint that does not fit (another motion, grid or frame) is only a cache miss.
-            if (!in.resume) throw;
-            spdlog::warn("run {}: stock checkpoint {} not used: {}", id, checkpoint->path.filename().string(), e.what());
-            checkpoint.reset();
-            from_run_start();
-            r = app::predict_run(in, control);
-        }
+        r = app::predict_run(in, control);
     } catch (const app::TooMuchWork& e) {
         throw ApiError(400, "too_much_work", e.what());
     } catch (const force_model::SpecError& e) {
@@ -889,10 +860,10 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     } catch (const force_model::Cancelled&) {
         throw ApiError(503, "stopping", "the server is stopping; the window was not recomputed");
     }
-    const double walked_from_s = checkpoint ? checkpoint->at.t_s : r.motion.t_s.front();
+    for (const std::string& w : r.warnings) spdlog::warn("run {}: {}", id, w);
     spdlog::info("run {}: window {:.3f} .. {:.3f} s recomputed in {:.2f} s, walked from {:.1f} s{}", id, from_s, to_s,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), walked_from_s,
-                 checkpoint ? " (a stock checkpoint)" : "");
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), r.walked_from_s,
+                 r.resumed ? " (a stock checkpoint)" : "");
     const SeriesData d = force_series(r.prediction);
     const std::size_t block_col = static_cast<std::size_t>(std::find(ch.begin(), ch.end(), "block") - ch.begin());
     std::vector<bool> read = wanted;
@@ -906,7 +877,7 @@ void recomputed_forces_route(Core& core, Ctx& x) {
     const bool csv = x.wants_csv();
     std::string text = csv ? series_csv(w, ch, wanted, block_col, *names)
                            : series_json(id, from_s, to_s, max_points, w, ch, wanted, block_col, *names,
-                                         walked_from_s);
+                                         r.walked_from_s);
     if (accepts_gzip(x.req)) {
         text = gzip_fast(text);
         x.res.set_header("Content-Encoding", "gzip");

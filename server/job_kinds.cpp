@@ -4,7 +4,6 @@
 // it stores, a handler here and one entry in service_job_kinds().
 #include "jobs.hpp"
 
-#include "checkpoints.hpp"
 #include "program.hpp"
 #include "results.hpp"
 #include "db/runs.hpp"
@@ -55,25 +54,12 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         },
         [&](std::span<const force_model::ForceSample> rows) { forces->add(rows); }};
 
-    // Stock checkpoints for the windows recomputed later (checkpoints.hpp). They are a cache: one
-    // that cannot be written is said in the log, and the run goes on without further ones.
+    // Stock checkpoints for the windows recomputed later (app/checkpoints.hpp), beside the uploads.
     // An earlier claim's (a process that died) may be of another device or version: this claim
     // makes its own.
-    remove_checkpoints(dir);
-    bool checkpoints_ok = opt.checkpoint_every_s > 0;
-    if (checkpoints_ok) {
-        in.checkpoint_every_s = opt.checkpoint_every_s;
-        in.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
-            if (!checkpoints_ok) return;
-            try {
-                write_checkpoint(dir, at, stock);
-            } catch (const std::exception& e) {
-                checkpoints_ok = false;
-                spdlog::warn("run {}: stock checkpoint at t = {:.3f} s not kept ({}); its windows recompute from further back",
-                             id, at.t_s, e.what());
-            }
-        };
-    }
+    const fs::path checkpoints = checkpoints_dir(dir);
+    app::remove_checkpoints(checkpoints);
+    if (opt.checkpoint_every_s > 0) in.checkpoints = app::CheckpointFolder{checkpoints, opt.checkpoint_every_s};
 
     app::Control control;
     control.cancel = &ctx.cancel;
@@ -89,14 +75,15 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         ~DropCheckpointsOnThrow() {
             if (std::uncaught_exceptions() <= exceptions) return;
             try {
-                if (store.session()->jobs().holds(db::kRunQueue, ctx.id, ctx.claim)) remove_checkpoints(dir);
+                if (store.session()->jobs().holds(db::kRunQueue, ctx.id, ctx.claim)) app::remove_checkpoints(dir);
             } catch (const std::exception& e) {
                 spdlog::warn("run {}: its stock checkpoints were not removed: {}", ctx.id, e.what());
             }
         }
-    } drop_on_throw{dir, store, ctx};
+    } drop_on_throw{checkpoints, store, ctx};
     const app::RunResult r = app::predict_run(in, control);
     if (forces) forces->finish();
+    for (const std::string& w : r.warnings) spdlog::info("run {}: {}", id, w);
     const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
 
     if (ctx.cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
@@ -120,7 +107,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
             const std::string name = e.path().filename().string();
             if (name.starts_with(kSpoolPrefix) && name.ends_with(".spool")) fs::remove(e.path(), ec);
         }
-        remove_unfinished_checkpoints(dir);
+        app::remove_unfinished_checkpoints(checkpoints);
         // One run's results are one transaction, so the WAL grew by about their size: empty it
         // now rather than leave it at the journal_size_limit until the next checkpoint
         // (docs/api.md, "Disk").

@@ -46,6 +46,10 @@ app::WorkLimits work_limits(const ServerOptions& opt);
 // The final stock of base_run, from its bytes in the store (null without a base run).
 force_model::StockPtr load_base_stock(db::Store& store, std::optional<std::int64_t> base_run);
 
+// Where a run keeps its stock checkpoints (app/checkpoints.hpp): beside its uploads, so they go
+// with its folder.
+inline std::filesystem::path checkpoints_dir(const std::filesystem::path& upload_dir) { return upload_dir / "checkpoints"; }
+
 // What a handler gets for the job it computes.
 struct JobContext {
     std::int64_t id;

@@ -81,4 +81,31 @@ TEST_CASE("cli window: bad windows and what a window cannot be combined with end
     refused("--window 5:2", "must be below");
     refused("--window 500:501", "outside the log's motion");
     refused("--window 1:2 --save-stock " + (dir / "s.bin").string(), "excludes");
+    refused("--checkpoints " + (dir / "ck").string() + " --machine " + source("data/machines/ac_table_table.json"), "excludes");
+}
+
+TEST_CASE("cli window: --checkpoints keeps a whole run's stock checkpoints, and a window of the same inputs walks from one") {
+    const fs::path dir = scratch("window_cli_checkpoints");
+    const std::string common = source("data/demo2_dryrun.csv") + " --spec " + source("data/demo2_run.json") + " -q";
+    const std::string folder = (dir / "checkpoints").string();
+    const Result whole = run("predict " + common + " --out " + (dir / "whole.csv").string() + " --checkpoints " + folder);
+    REQUIRE(whole.exit_code == 0);
+    // The 72 s demo: one checkpoint, at the first air move a minute in.
+    std::size_t files = 0;
+    for (const auto& e : fs::directory_iterator(folder)) files += e.path().filename().string().ends_with(".stock.gz") ? 1 : 0;
+    CHECK(files == 1);
+    const fs::path out = dir / "window.csv";
+    const Result r = run("predict " + common + " --out " + out.string() + " --checkpoints " + folder + " --window 65:66");
+    REQUIRE(r.exit_code == 0);
+    CHECK(r.output.find("window walked from 60.4") != std::string::npos);
+    CHECK(r.output.find("(a stock checkpoint)") != std::string::npos);
+    const std::string rows = lines_between(out, -1e300, 1e300);
+    CHECK(rows.size() > 10000);
+    CHECK(rows == lines_between(dir / "whole.csv", 65, 66));
+    // Other inputs (here the motion resampled at 2 ms) do not take another run's checkpoint.
+    const Result other = run("predict " + common + " --step-ms 2 --out " + out.string() + " --checkpoints " + folder +
+                             " --window 65:66");
+    REQUIRE(other.exit_code == 0);
+    CHECK(other.output.find("window walked from 0.0") != std::string::npos);
+    CHECK(other.output.find("(the log's start)") != std::string::npos);
 }

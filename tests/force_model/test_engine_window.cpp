@@ -269,3 +269,31 @@ TEST_CASE("window: a resume that does not fit the motion or the window is refuse
     o.base_stock = nullptr;
     refused(o, "stock was not given");
 }
+
+TEST_CASE("window: a checkpoint's key changes with anything the walk reads") {
+    const auto spec = base_spec(40, 30, 10);
+    const auto m = testref::uniform_motion(pocket_path());
+    const std::uint64_t key = force_model::checkpoint_key(m, spec, nullptr);
+    CHECK(force_model::checkpoint_key(m, spec, nullptr) == key);   // a key, not a nonce
+    auto other_motion = m;
+    other_motion.z_mm[m.size() / 2] += 1e-9;
+    CHECK(force_model::checkpoint_key(other_motion, spec, nullptr) != key);
+    other_motion = m;
+    other_motion.block[m.size() / 3] += 1;
+    CHECK(force_model::checkpoint_key(other_motion, spec, nullptr) != key);
+    auto other_spec = spec;
+    other_spec.material.Krc_N_mm2 *= 1.001;
+    CHECK(force_model::checkpoint_key(m, other_spec, nullptr) != key);
+    other_spec = spec;
+    other_spec.resolution.angle_step_deg = 1;
+    CHECK(force_model::checkpoint_key(m, other_spec, nullptr) != key);
+    // A base stock counts by its contents: a fresh box and one cut by a whole run differ.
+    const auto box = force_model::make_stock(spec.stock, spec.resolution.grid_mm);
+    const std::uint64_t with_box = force_model::checkpoint_key(m, spec, box.get());
+    CHECK(with_box != key);
+    force_model::PredictOptions o;
+    o.device = Device::Cpu;
+    const auto cut = force_model::predict(m, spec, o).final_stock;
+    REQUIRE(cut);
+    CHECK(force_model::checkpoint_key(m, spec, cut.get()) != with_box);
+}

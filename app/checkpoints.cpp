@@ -1,4 +1,4 @@
-#include "checkpoints.hpp"
+#include "app/checkpoints.hpp"
 
 #include <fmt/format.h>
 #include <zlib.h>
@@ -13,12 +13,11 @@
 #include <stdexcept>
 #include <streambuf>
 
-namespace cutload::server {
+namespace cutload::app {
 namespace fs = std::filesystem;
 
 namespace {
 
-constexpr const char* kDir = "checkpoints";
 constexpr const char* kSuffix = ".stock.gz";
 constexpr const char* kTmpSuffix = ".tmp";
 
@@ -73,30 +72,36 @@ private:
     std::array<char, 1 << 16> buf_{};
 };
 
-std::string file_name(const force_model::StockCheckpoint& at) {
-    return fmt::format("at-{}-{:016x}{}", at.sample, std::bit_cast<std::uint64_t>(at.t_s), kSuffix);
+std::string file_name(const force_model::StockCheckpoint& at, std::uint64_t key) {
+    return fmt::format("at-{}-{:016x}-{:016x}{}", at.sample, std::bit_cast<std::uint64_t>(at.t_s), key, kSuffix);
 }
 
-std::optional<force_model::StockCheckpoint> parse_name(const std::string& name) {
-    unsigned long long sample = 0, bits = 0;
+struct Parsed {
+    force_model::StockCheckpoint at;
+    std::uint64_t key;
+};
+
+std::optional<Parsed> parse_name(const std::string& name) {
+    unsigned long long sample = 0, bits = 0, key = 0;
     char rest[16] = {};
-    if (std::sscanf(name.c_str(), "at-%llu-%16llx%15s", &sample, &bits, rest) != 3 || std::string(rest) != kSuffix)
+    if (std::sscanf(name.c_str(), "at-%llu-%16llx-%16llx%15s", &sample, &bits, &key, rest) != 4 ||
+        std::string(rest) != kSuffix)
         return std::nullopt;
     const double t_s = std::bit_cast<double>(static_cast<std::uint64_t>(bits));
-    const force_model::StockCheckpoint at{static_cast<std::size_t>(sample), t_s};
+    const Parsed p{{static_cast<std::size_t>(sample), t_s}, key};
     // Only names this code writes (sscanf would take "0x", "+" or trailing words).
-    if (!std::isfinite(t_s) || file_name(at) != name) return std::nullopt;
-    return at;
+    if (!std::isfinite(t_s) || file_name(p.at, p.key) != name) return std::nullopt;
+    return p;
 }
 
 }  // namespace
 
-void write_checkpoint(const fs::path& run_dir, const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
-    const fs::path dir = run_dir / kDir;
+void write_checkpoint(const fs::path& dir, std::uint64_t key, const force_model::StockCheckpoint& at,
+                      const force_model::Stock& stock) {
     std::error_code ec;
-    fs::create_directory(dir, ec);   // not the run's own folder: a run deleted meanwhile stays gone
+    fs::create_directory(dir, ec);   // not its parent: a service's run deleted meanwhile stays gone
     if (ec) throw std::runtime_error(fmt::format("cannot make {}: {}", dir.string(), ec.message()));
-    const std::string name = file_name(at);
+    const std::string name = file_name(at, key);
     const fs::path tmp = dir / fmt::format(".{}.{:016x}{}", name, std::random_device{}(), kTmpSuffix);
     {
         GzBuf buf(tmp, "wb1");
@@ -120,13 +125,13 @@ void write_checkpoint(const fs::path& run_dir, const force_model::StockCheckpoin
     }
 }
 
-std::optional<CheckpointFile> checkpoint_before(const fs::path& run_dir, double t_s) {
+std::optional<CheckpointFile> checkpoint_before(const fs::path& dir, std::uint64_t key, double t_s) {
     std::optional<CheckpointFile> best;
     std::error_code ec;
-    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
-        const auto at = parse_name(e.path().filename().string());
-        if (!at || at->t_s > t_s) continue;
-        if (!best || at->t_s > best->at.t_s) best = CheckpointFile{e.path(), *at};
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+        const auto p = parse_name(e.path().filename().string());
+        if (!p || p->key != key || p->at.t_s > t_s) continue;
+        if (!best || p->at.t_s > best->at.t_s) best = CheckpointFile{e.path(), p->at};
     }
     return best;
 }
@@ -138,17 +143,17 @@ force_model::StockPtr read_checkpoint(const CheckpointFile& file) {
     return force_model::load_stock(in, file.path.filename().string());
 }
 
-void remove_unfinished_checkpoints(const fs::path& run_dir) {
+void remove_unfinished_checkpoints(const fs::path& dir) {
     std::error_code ec;
-    for (const auto& e : fs::directory_iterator(run_dir / kDir, ec)) {
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
         const std::string name = e.path().filename().string();
         if (name.starts_with('.') && name.ends_with(kTmpSuffix)) fs::remove(e.path(), ec);
     }
 }
 
-void remove_checkpoints(const fs::path& run_dir) {
+void remove_checkpoints(const fs::path& dir) {
     std::error_code ec;
-    fs::remove_all(run_dir / kDir, ec);
+    fs::remove_all(dir, ec);
 }
 
-}  // namespace cutload::server
+}  // namespace cutload::app
