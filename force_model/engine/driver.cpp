@@ -13,6 +13,7 @@ namespace cutload::force_model {
 namespace {
 
 constexpr std::size_t kMaxReservedRows = std::size_t(1) << 22;
+constexpr std::size_t kRowsWatchPiece = 4096;
 
 }  // namespace
 
@@ -75,7 +76,17 @@ void Engine::hand_out_rows(std::size_t keep) {
     rows_taken_ += take;
 }
 
-void Engine::drain_rows() { hand_out_rows(0); }
+void Engine::show_rows(std::size_t keep) {
+    const std::size_t n = rows_.size();
+    if (!watch_rows_ || n <= rows_shown_ + keep) return;
+    watch_rows_(rows_, rows_shown_, n - keep);
+    rows_shown_ = n - keep;
+}
+
+void Engine::drain_rows() {
+    hand_out_rows(0);
+    show_rows(0);
+}
 
 void Engine::use_tool(std::int32_t slot, std::int32_t number) {
     // What the old cutter walked is removed with its own shape before the next one cuts.
@@ -130,6 +141,8 @@ void Engine::walk_interval(std::size_t i) {
     // Rows already written are final (a batch in flight appends its own); the last one may still
     // take a stop's removed volume.
     if (rows_.size() >= kRowsOutPiece) hand_out_rows(1);
+    // Small pieces, so that the watcher reads rows still in the cache they were written through.
+    if (rows_.size() >= rows_shown_ + kRowsWatchPiece) show_rows(1);
     if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)
         use_tool(slot, number);
     if (slot_ < 0) {
@@ -207,7 +220,7 @@ void Engine::flush_batch() {
         replay_batch();
         return;
     }
-    complete();
+    complete(true);
     steps_ += n;
     const TipBounds b = batcher_.tip_bounds();
     // Elements higher than the highest material under the batch cannot engage: skip them.
@@ -222,6 +235,7 @@ void Engine::flush_batch() {
     engagement_.queue_batch(batcher_, b, element_end);
     removal_path_.add_batch(engagement_.in_flight().steps);
     queue_removal(true);
+    write_done_rows();
 }
 
 void Engine::replay_batch() {
@@ -247,29 +261,50 @@ void Engine::remove_all_pending() {
     complete();
 }
 
-void Engine::complete() {
+void Engine::complete(bool defer_rows) {
+    write_done_rows();
     InFlight& f = engagement_.in_flight();
     if (!f.active) return;
     engagement_.wait();
-    const std::size_t first_row = rows_.size();
-    if (f.has_batch) {
-        PhaseTimer timer(phases_.rows_s);
-        rows_.append_steps(f.meta, f.results);
-    }
-    double removed_mm3 = 0;
+    Done& d = done_;
+    d.removed_mm3 = 0;
     if (!f.calls.empty()) {
         PhaseTimer timer(phases_.removal_s);
-        removed_mm3 = stock_map_.apply_sweep(f.calls, f.sweep_out.data());
+        d.removed_mm3 = stock_map_.apply_sweep(f.calls, f.sweep_out.data());
     }
-    const std::size_t batch_rows = f.has_batch ? f.steps.size() : 0;
-    rows_.attribute_removed(first_row, batch_rows, removed_mm3);
+    d.has_batch = f.has_batch;
+    if (f.has_batch) {
+        // The slot's vectors trade places, so the next batch reuses the capacity of the one before.
+        std::swap(d.steps, f.steps);
+        std::swap(d.meta, f.meta);
+        std::swap(d.results, f.results);
+        d.bounds = f.bounds;
+    }
+    d.waiting = true;
+    engagement_.release();
+    if (!defer_rows) write_done_rows();
+    report_progress();
+}
+
+void Engine::write_done_rows() {
+    Done& d = done_;
+    if (!d.waiting) return;
+    d.waiting = false;
+    const std::size_t first_row = rows_.size();
+    if (d.has_batch) {
+        PhaseTimer timer(phases_.rows_s);
+        rows_.append_steps(d.meta, d.results);
+    }
+    const std::size_t batch_rows = d.has_batch ? d.steps.size() : 0;
+    rows_.attribute_removed(first_row, batch_rows, d.removed_mm3);
     if (batch_rows > 0) {
         PhaseTimer timer(phases_.holder_s);
-        mark_holder_contact(stock_map_, *tool_, f.steps, f.bounds, rows_.samples.data() + first_row,
+        // The tile map is the one this batch's removal left: nothing has been applied to it since.
+        mark_holder_contact(stock_map_, *tool_, d.steps, d.bounds, rows_.samples.data() + first_row,
                             rows_.extra.data() + first_row);
     }
-    engagement_.release();
-    report_progress();
+    d.steps.clear();
+    d.meta.clear();
 }
 
 // The estimate before a run is an upper bound; this is the net under it should it ever be wrong.

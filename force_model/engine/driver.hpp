@@ -47,6 +47,12 @@ public:
     // left once every batch is complete.
     using RowTaker = std::function<void(const RowTable& rows, std::size_t n)>;
     void take_rows_as_they_come(RowTaker take);
+    // Or the rows stay in the table and `watch(rows, first, end)` sees [first, end) once they are
+    // final, a piece at a time during the walk (while the device works on the batch in flight)
+    // rather than all at the end.
+    using RowWatcher = std::function<void(const RowTable& rows, std::size_t first, std::size_t end)>;
+    void watch_rows_as_they_come(RowWatcher watch) { watch_rows_ = std::move(watch); }
+    // The rows left over to the taker or the watcher, once every batch is complete.
     void drain_rows();
 
     // Walks a window (PredictOptions::window): before it, every interval as the whole run walks
@@ -76,12 +82,15 @@ private:
     void queue_removal(bool keep_lag);
     // Completes what is in flight, then removes the whole pending path (the tool stops or leaves).
     void remove_all_pending();
-    // Waits for the batch in flight and applies its results: rows, removed volume, stock tops,
-    // holder checks.
-    void complete();
+    // Waits for the batch in flight and applies its results: stock tops, then rows, removed volume
+    // and holder checks. With `defer_rows` the rows wait in done_ until write_done_rows(), so that
+    // flush_batch can queue the next batch first and the device works while the host writes them.
+    void complete(bool defer_rows = false);
+    void write_done_rows();
     void report_progress();
     void check_rows() const;   // TooManyRows past options_.max_rows
     void hand_out_rows(std::size_t keep);
+    void show_rows(std::size_t keep);   // to watch_rows_: all but the last `keep` rows not yet shown
     // Before a window: the batch's path joins the pending removal; nothing is evaluated.
     void replay_batch();
     bool window_rows_final() const;   // every row before the window's end is final
@@ -105,9 +114,21 @@ private:
     RemovalPath removal_path_;
     StepBatcher batcher_;       // the batch being walked
     Engagement engagement_;     // the batch (and removal) queued on the backend
+    // A completed batch whose rows are not written yet (complete(true)); nothing else writes rows
+    // while it waits, so rows stay in time order and a stop's volume lands on the same row.
+    struct Done {
+        kernels::StepBatch steps;
+        std::vector<StepMeta> meta;
+        std::vector<kernels::StepResult> results;
+        TipBounds bounds;
+        double removed_mm3 = 0;
+        bool has_batch = false, waiting = false;
+    } done_;
     RowTable rows_;
     RowTaker take_rows_;
     std::size_t rows_taken_ = 0;   // rows handed out and dropped from rows_
+    RowWatcher watch_rows_;
+    std::size_t rows_shown_ = 0;   // rows_[0, rows_shown_) went to watch_rows_
     std::size_t steps_ = 0;
     std::size_t current_interval_ = 0;   // for progress
     double last_progress_ = -1;
