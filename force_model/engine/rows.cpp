@@ -16,10 +16,17 @@ void RowTable::reserve(std::size_t rows) {
 }
 
 void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results) {
-    for (std::size_t k = 0; k < meta.size(); ++k) {
+    // Written in place (resize, then fill) rather than built and pushed: the rows are a large share
+    // of what a prediction writes, and each push copied a 96-byte row through the stack.
+    const std::size_t first = samples.size(), n = meta.size();
+    samples.resize(first + n);
+    extra.resize(first + n);
+    ForceSample* out = samples.data() + first;
+    RowExtra* out_x = extra.data() + first;
+    for (std::size_t k = 0; k < n; ++k) {
         const kernels::StepResult& r = results[k];
         const StepMeta& step = meta[k];
-        ForceSample s;
+        ForceSample& s = out[k];
         s.t_s = step.t_s;
         s.spindle_angle_deg = step.angle_deg;
         s.block = step.block;
@@ -33,13 +40,11 @@ void RowTable::append_steps(const std::vector<StepMeta>& meta, const std::vector
         s.bending_MPa = bending_stress_MPa(r.mx_Nmm, r.my_Nmm, section_modulus_mm3_);
         s.radial_engagement_mm = r.q_max_mm - r.q_min_mm;
         s.axial_engagement_mm = r.z_max_mm - r.z_min_mm;
-        samples.push_back(s);
-        RowExtra x;
+        RowExtra& x = out_x[k];
         x.slot = slot_;
         x.feed_mm_min = float(step.feed_mm_min);
         x.engaged = r.engaged;
         x.spindle_rpm = float(step.rpm);
-        extra.push_back(x);
     }
 }
 
