@@ -139,6 +139,25 @@ OpenClRuntime::OpenClRuntime() {
     check_cl(e, "clCreateContext");
 }
 
+bool OpenClRuntime::wraps_host_arrays_in_place() {
+    std::call_once(in_place_once_, [this] {
+        if (!host_unified_) return;
+        constexpr std::size_t kPage = 4096;
+        std::unique_ptr<void, decltype(&std::free)> page(std::aligned_alloc(kPage, kPage), &std::free);
+        if (!page) return;
+        cl_int e = CL_SUCCESS;
+        ClMem probe(clCreateBuffer(context_.get(), CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, kPage, page.get(), &e));
+        if (e != CL_SUCCESS) return;
+        ClQueue q = make_queue();
+        void* p = clEnqueueMapBuffer(q.get(), probe.get(), CL_TRUE, CL_MAP_READ, 0, kPage, 0, nullptr, nullptr, &e);
+        if (e != CL_SUCCESS) return;
+        in_place_ = p == page.get();
+        clEnqueueUnmapMemObject(q.get(), probe.get(), p, 0, nullptr, nullptr);
+        clFinish(q.get());
+    });
+    return in_place_;
+}
+
 ClQueue OpenClRuntime::make_queue() const {
     cl_int e = CL_SUCCESS;
     ClQueue q(clCreateCommandQueue(context_.get(), device_, 0, &e));

@@ -131,6 +131,11 @@ public:
     // True when device and host share memory (CPU devices): buffers can wrap host arrays.
     // CUTLOAD_OPENCL_DISCRETE=1 says false on any device, so the tests run a GPU's transfers on PoCL.
     bool host_unified_memory() const { return host_unified_; }
+    // True when, on top of that, a CL_MEM_USE_HOST_PTR buffer over a page-aligned host array is
+    // that array itself (PoCL): the device reads what the host wrote there after the last wait,
+    // with no write command. Asked of the device once per process (a wrapped page mapped: the
+    // device hands back the array itself).
+    bool wraps_host_arrays_in_place();
 
     ClQueue make_queue() const;
     // The built program for an embedded kernels/*.cl file; built once per (name, options) in a
@@ -161,6 +166,8 @@ private:
     ClContext context_;
     std::string device_name_;
     bool is_gpu_ = false, host_unified_ = false;
+    std::once_flag in_place_once_;
+    bool in_place_ = false;
     std::mutex mutex_;
     std::map<std::string, ClProgram> programs_;
 

@@ -3,7 +3,8 @@
 // result reads are non-blocking, the host staging arrays stay untouched until the driver's next
 // wait(). The queue, kernels and buffers are leased from the runtime's pool and given back at the
 // end, so a later prediction in the process creates none of them; staging buffers grow by doubling.
-// On CPU devices (PoCL) the stock buffers wrap the host arrays (no copy). On a GPU the stock lives
+// On CPU devices (PoCL) the stock buffers wrap the host arrays (no copy), and so does the batch's
+// step array where the device reads it in place (no write per batch). On a GPU the stock lives
 // in pooled device buffers: a fresh stock is zero bytes (the codec's "never cut"), filled on the
 // device; at the end only the tiles a removal touched are read back (docs/force_model.md,
 // "Device state").
@@ -15,7 +16,10 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <memory>
+#include <new>
 #include <numbers>
 #include <optional>
 
@@ -45,6 +49,7 @@ public:
         remove_ = rt_.lease_kernel("remove.cl", "remove_sweep");
         wrap_host_ = rt_.host_unified_memory();
         group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
+        steps_in_place_ = wrap_host_ && rt_.wraps_host_arrays_in_place();
         if (wrap_host_) {
             host_pages_.emplace(stock);
             wrapped_cells_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.storage.bytes(), stock.stored());
@@ -92,18 +97,25 @@ public:
     void engage(const kernels::StepBatch& steps, const kernels::EngageParams& p, kernels::StepResult* out) override {
         const std::size_t n = steps.size();
         if (n == 0) return;
-        coef_host_ = {float(p.k.Ktc),           float(p.k.Krc),         float(p.k.Kac),
-                      float(p.k.Kte),           float(p.k.Kre),         float(p.k.Kae),
-                      float(p.holder_face_z_mm), float(p.min_chip_mm),   float(stock_.grid.cell_mm),
-                      float(p.wall_tolerance_mm)};
-        check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(), 0,
-                                      nullptr, nullptr),
-                 "write coefficients");
-        grow(steps_buf_, n * 8 * sizeof(float), CL_MEM_READ_ONLY);
+        const std::array<float, 10> coef{float(p.k.Ktc),           float(p.k.Krc),         float(p.k.Kac),
+                                         float(p.k.Kte),           float(p.k.Kre),         float(p.k.Kae),
+                                         float(p.holder_face_z_mm), float(p.min_chip_mm),   float(stock_.grid.cell_mm),
+                                         float(p.wall_tolerance_mm)};
+        // Written only when they change (a tool change): on PoCL every command costs tens of
+        // microseconds of both cores, and the coefficients of a run's batches are mostly the same.
+        if (!coef_written_ || coef != coef_host_) {
+            // The queue is in order and this host array is not changed again until the next wait, so
+            // batches queued before keep the values they were queued with.
+            coef_host_ = coef;
+            coef_written_ = true;
+            check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(),
+                                          0, nullptr, nullptr),
+                     "write coefficients");
+        }
         grow(out_buf_, n * sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
-        host_steps_.resize(8 * n);
+        float* const staged = stage_steps(8 * n);
         for (std::size_t i = 0; i < n; ++i) {
-            float* s = host_steps_.data() + 8 * i;
+            float* s = staged + 8 * i;
             s[0] = float(steps.tip_x[i]);
             s[1] = float(steps.tip_y[i]);
             s[2] = float(steps.tip_z[i]);
@@ -113,9 +125,10 @@ public:
             s[6] = float(steps.cos_a[i]);
             s[7] = float(steps.sin_a[i]);
         }
-        check_cl(clEnqueueWriteBuffer(queue_.get(), steps_buf_.get(), CL_FALSE, 0, 8 * n * sizeof(float),
-                                      host_steps_.data(), 0, nullptr, nullptr),
-                 "write steps");
+        if (!steps_in_place_)
+            check_cl(clEnqueueWriteBuffer(queue_.get(), steps_buf_.get(), CL_FALSE, 0, 8 * n * sizeof(float),
+                                          host_steps_.data(), 0, nullptr, nullptr),
+                     "write steps");
         const DeviceTool& t = *tool_;
         const cl_int n_steps = cl_int(n), n_elems = cl_int(t.stride), n_flutes = t.flutes, bottom = t.bottom_count,
                      end = p.element_end, nx = stock_.grid.nx, ny = stock_.grid.ny;
@@ -124,7 +137,7 @@ public:
         cl_kernel k = engage_.get();
         int a = 0;
         kernels::set_arg(k, a++, n_steps);
-        kernels::set_arg(k, a++, steps_buf_.get());
+        kernels::set_arg(k, a++, steps_in_place_ ? in_place_steps_.get() : steps_buf_.get());
         kernels::set_arg(k, a++, spin);
         kernels::set_arg(k, a++, t.elems.get());
         kernels::set_arg(k, a++, t.rot.get());
@@ -356,6 +369,30 @@ private:
         return m;
     }
 
+    // Where the batch's steps are packed for the kernel, `floats` of them. On a CPU device that
+    // reads wrapped host arrays in place (OpenClRuntime::wraps_host_arrays_in_place), a page-aligned
+    // array wrapped as a buffer: the batch queues no write. On PoCL's CPU device that write was the
+    // command that woke its sleeping threads after each wait, which preempted the host for about
+    // 0.2 ms per batch on two cores. Called only after the wait that completed the last kernel that
+    // read the array.
+    float* stage_steps(std::size_t floats) {
+        if (!steps_in_place_) {
+            grow(steps_buf_, floats * sizeof(float), CL_MEM_READ_ONLY);
+            host_steps_.resize(floats);
+            return host_steps_.data();
+        }
+        if (floats * sizeof(float) > in_place_bytes_) {
+            constexpr std::size_t kPage = 4096;
+            const std::size_t bytes = (std::max(floats * sizeof(float), 2 * in_place_bytes_) + kPage - 1) / kPage * kPage;
+            in_place_steps_ = {};
+            in_place_host_.reset(static_cast<float*>(std::aligned_alloc(kPage, bytes)));
+            if (!in_place_host_) throw std::bad_alloc();
+            in_place_steps_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, bytes, in_place_host_.get());
+            in_place_bytes_ = bytes;
+        }
+        return in_place_host_.get();
+    }
+
     // A staging buffer too small is given back and a larger one leased (at least double). Called
     // only while no queued command uses the buffer (each kind has at most one call in flight, and
     // its call comes after the wait that completes the one before).
@@ -389,7 +426,15 @@ private:
         }
     };
     std::array<float, 10> coef_host_{};
+    bool coef_written_ = false;
     std::vector<float> host_steps_, host_segs_;
+    struct Free {
+        void operator()(float* p) const { std::free(p); }
+    };
+    std::unique_ptr<float, Free> in_place_host_;   // stage_steps: the array a CPU device reads in place
+    std::size_t in_place_bytes_ = 0;
+    bool steps_in_place_ = false;
+    ClMem in_place_steps_;                         // released before its array (declared after it)
     Drain drain_;   // last: destroyed first
 };
 
