@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstdlib>
 #include <optional>
 #include <vector>
@@ -139,21 +140,48 @@ OpenClRuntime::OpenClRuntime() {
     check_cl(e, "clCreateContext");
 }
 
+namespace {
+
+struct FreeDeleter {
+    void operator()(void* p) const { std::free(p); }
+};
+
+// The device copies a wrapped page out twice, each time after the host wrote the page anew without
+// a map: it must copy what the host wrote. (A map cannot tell: the standard has it hand back the
+// host's array on every device, whether or not the device works on a copy of it.)
+bool device_reads_host_writes(cl_context context, cl_command_queue queue) {
+    constexpr std::size_t kPage = 4096, kWords = kPage / sizeof(std::uint32_t);
+    std::unique_ptr<std::uint32_t, FreeDeleter> page(static_cast<std::uint32_t*>(std::aligned_alloc(kPage, kPage)));
+    if (!page) return false;
+    std::fill_n(page.get(), kWords, 0u);
+    cl_int e = CL_SUCCESS;
+    ClMem wrapped(clCreateBuffer(context, CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, kPage, page.get(), &e));
+    if (e != CL_SUCCESS) return false;
+    ClMem copy(clCreateBuffer(context, CL_MEM_READ_WRITE, kPage, nullptr, &e));
+    if (e != CL_SUCCESS) return false;
+    std::vector<std::uint32_t> back(kWords);
+    for (std::uint32_t round = 1; round <= 2; ++round) {
+        const std::uint32_t pattern = 0x9e3779b9u * round;
+        std::fill_n(page.get(), kWords, pattern);
+        if (clEnqueueCopyBuffer(queue, wrapped.get(), copy.get(), 0, 0, kPage, 0, nullptr, nullptr) != CL_SUCCESS ||
+            clEnqueueReadBuffer(queue, copy.get(), CL_TRUE, 0, kPage, back.data(), 0, nullptr, nullptr) != CL_SUCCESS)
+            return false;
+        if (!std::all_of(back.begin(), back.end(), [&](std::uint32_t w) { return w == pattern; })) return false;
+    }
+    return clFinish(queue) == CL_SUCCESS;
+}
+
+}  // namespace
+
 bool OpenClRuntime::wraps_host_arrays_in_place() {
     std::call_once(in_place_once_, [this] {
         if (!host_unified_) return;
-        constexpr std::size_t kPage = 4096;
-        std::unique_ptr<void, decltype(&std::free)> page(std::aligned_alloc(kPage, kPage), &std::free);
-        if (!page) return;
-        cl_int e = CL_SUCCESS;
-        ClMem probe(clCreateBuffer(context_.get(), CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, kPage, page.get(), &e));
-        if (e != CL_SUCCESS) return;
-        ClQueue q = make_queue();
-        void* p = clEnqueueMapBuffer(q.get(), probe.get(), CL_TRUE, CL_MAP_READ, 0, kPage, 0, nullptr, nullptr, &e);
-        if (e != CL_SUCCESS) return;
-        in_place_ = p == page.get();
-        clEnqueueUnmapMemObject(q.get(), probe.get(), p, 0, nullptr, nullptr);
-        clFinish(q.get());
+        try {
+            const ClQueue q = make_queue();
+            in_place_ = device_reads_host_writes(context_.get(), q.get());
+        } catch (const std::exception&) {   // no queue to be had: the steps are written
+            in_place_ = false;
+        }
     });
     return in_place_;
 }

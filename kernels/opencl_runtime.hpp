@@ -131,10 +131,10 @@ public:
     // True when device and host share memory (CPU devices): buffers can wrap host arrays.
     // CUTLOAD_OPENCL_DISCRETE=1 says false on any device, so the tests run a GPU's transfers on PoCL.
     bool host_unified_memory() const { return host_unified_; }
-    // True when, on top of that, a CL_MEM_USE_HOST_PTR buffer over a page-aligned host array is
-    // that array itself (PoCL): the device reads what the host wrote there after the last wait,
-    // with no write command. Asked of the device once per process (a wrapped page mapped: the
-    // device hands back the array itself).
+    // True when, on top of that, the device reads a CL_MEM_USE_HOST_PTR buffer over a page-aligned
+    // host array where it lies (PoCL's CPU devices): it sees what the host wrote there since the
+    // last wait, with no write command. The standard does not promise that, so the device is asked
+    // once per process: it copies out a wrapped page twice, each after the host rewrote it.
     bool wraps_host_arrays_in_place();
 
     ClQueue make_queue() const;

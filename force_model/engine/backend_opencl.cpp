@@ -2,7 +2,8 @@
 // engagement always sees the removals queued before it. Nothing blocks until wait(): writes and
 // result reads are non-blocking, the host staging arrays stay untouched until the driver's next
 // wait(). The queue, kernels and buffers are leased from the runtime's pool and given back at the
-// end, so a later prediction in the process creates none of them; staging buffers grow by doubling.
+// end, so a later prediction in the process creates none of them (but for the wrapped arrays
+// below, which belong to their host memory); staging buffers grow by doubling.
 // On CPU devices (PoCL) the stock buffers wrap the host arrays (no copy), and so does the batch's
 // step array where the device reads it in place (no write per batch). On a GPU the stock lives
 // in pooled device buffers: a fresh stock is zero bytes (the codec's "never cut"), filled on the
@@ -107,10 +108,11 @@ public:
             // The queue is in order and this host array is not changed again until the next wait, so
             // batches queued before keep the values they were queued with.
             coef_host_ = coef;
-            coef_written_ = true;
+            coef_written_ = false;
             check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(),
                                           0, nullptr, nullptr),
                      "write coefficients");
+            coef_written_ = true;
         }
         grow(out_buf_, n * sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
         float* const staged = stage_steps(8 * n);
@@ -385,6 +387,7 @@ private:
             constexpr std::size_t kPage = 4096;
             const std::size_t bytes = (std::max(floats * sizeof(float), 2 * in_place_bytes_) + kPage - 1) / kPage * kPage;
             in_place_steps_ = {};
+            in_place_bytes_ = 0;   // until the new array is wrapped
             in_place_host_.reset(static_cast<float*>(std::aligned_alloc(kPage, bytes)));
             if (!in_place_host_) throw std::bad_alloc();
             in_place_steps_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, bytes, in_place_host_.get());

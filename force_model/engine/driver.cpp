@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace cutload::force_model {
 
@@ -59,6 +60,7 @@ void Engine::run() {
 }
 
 void Engine::take_rows_as_they_come(RowTaker take) {
+    if (watch_rows_) throw std::logic_error("engine: rows are either taken or watched, not both");
     take_rows_ = std::move(take);
     // A piece and the batch that completes past it, not the whole run.
     rows_.samples = {};
@@ -74,6 +76,11 @@ void Engine::hand_out_rows(std::size_t keep) {
     rows_.samples.erase(rows_.samples.begin(), rows_.samples.begin() + std::ptrdiff_t(take));
     rows_.extra.erase(rows_.extra.begin(), rows_.extra.begin() + std::ptrdiff_t(take));
     rows_taken_ += take;
+}
+
+void Engine::watch_rows_as_they_come(RowWatcher watch) {
+    if (take_rows_) throw std::logic_error("engine: rows are either taken or watched, not both");
+    watch_rows_ = std::move(watch);
 }
 
 void Engine::show_rows(std::size_t keep) {
@@ -141,7 +148,8 @@ void Engine::walk_interval(std::size_t i) {
     // Rows already written are final (a batch in flight appends its own); the last one may still
     // take a stop's removed volume.
     if (rows_.size() >= kRowsOutPiece) hand_out_rows(1);
-    // Small pieces, so that the watcher reads rows still in the cache they were written through.
+    // Small pieces (4096 rows and at most a batch more), so that the watcher reads rows the cache
+    // may still hold.
     if (rows_.size() >= rows_shown_ + kRowsWatchPiece) show_rows(1);
     if (const std::int32_t slot = plan_.slot_at(i), number = plan_.number_at(i); slot != slot_ || number != number_)
         use_tool(slot, number);
@@ -305,6 +313,7 @@ void Engine::write_done_rows() {
     }
     d.steps.clear();
     d.meta.clear();
+    check_rows();   // the rows' limit counts these too (complete(true) checked before them)
 }
 
 // The estimate before a run is an upper bound; this is the net under it should it ever be wrong.

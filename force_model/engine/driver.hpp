@@ -46,12 +46,12 @@ public:
     // row always stays (the volume of a stop's path is booked onto it). drain_rows() takes what is
     // left once every batch is complete.
     using RowTaker = std::function<void(const RowTable& rows, std::size_t n)>;
-    void take_rows_as_they_come(RowTaker take);
+    void take_rows_as_they_come(RowTaker take);   // not with a watcher (below)
     // Or the rows stay in the table and `watch(rows, first, end)` sees [first, end) once they are
-    // final, a piece at a time during the walk (while the device works on the batch in flight)
-    // rather than all at the end.
+    // final, in pieces of at least 4096 rows during the walk (while the device works on the batch
+    // in flight) rather than all at the end. Not with a taker, which drops rows from the table.
     using RowWatcher = std::function<void(const RowTable& rows, std::size_t first, std::size_t end)>;
-    void watch_rows_as_they_come(RowWatcher watch) { watch_rows_ = std::move(watch); }
+    void watch_rows_as_they_come(RowWatcher watch);
     // The rows left over to the taker or the watcher, once every batch is complete.
     void drain_rows();
 

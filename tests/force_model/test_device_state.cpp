@@ -4,6 +4,8 @@
 #include "engine_fixtures.hpp"
 #include "force_model/stock.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 using namespace cutload;
@@ -89,4 +91,36 @@ TEST_CASE("a prediction that does not keep its final stock returns none and the 
             CHECK(kept.blocks[b].removed_mm3 == dropped.blocks[b].removed_mm3);
         }
     }
+}
+
+TEST_CASE("a CPU device that reads wrapped host arrays in place is told apart, and its steps then queue no write",
+          "[engine][opencl][device_state]") {
+    if (!opencl_available()) {
+        WARN("no OpenCL device: nothing to ask");
+        return;
+    }
+    kernels::OpenClRuntime& rt = kernels::OpenClRuntime::instance();
+    const bool in_place = rt.wraps_host_arrays_in_place();
+    CHECK(rt.wraps_host_arrays_in_place() == in_place);   // asked once, the same answer after
+    // Only a device that shares the host's memory can read the host's arrays where they lie.
+    if (!rt.host_unified_memory()) CHECK_FALSE(in_place);
+    // PoCL's CPU device does (its buffers over host arrays are those arrays): the suite's device
+    // then runs the in-place path, and tests/cli/test_device_state_cli.cpp holds its forces to the
+    // written path's (CUTLOAD_OPENCL_DISCRETE=1) byte for byte.
+    if (rt.host_unified_memory() && rt.device_name().find("pthread") != std::string::npos) CHECK(in_place);
+    // Two predictions with batches of different sizes (the array grows) give the twins' rows.
+    const auto spec = base_spec();
+    const auto m = two_passes();
+    const force_model::Prediction cl = run_on(m, spec, force_model::Device::OpenCL);
+    const force_model::Prediction again = run_on(m, spec, force_model::Device::OpenCL);
+    CHECK(same_rows(cl, again));
+    const force_model::Prediction twin = run_on(m, spec, force_model::Device::Cpu);
+    REQUIRE(cl.samples.size() == twin.samples.size());
+    double peak_cl = 0, peak_twin = 0;
+    for (std::size_t i = 0; i < cl.samples.size(); ++i) {
+        peak_cl = std::max(peak_cl, double(std::abs(cl.samples[i].fx_N)));
+        peak_twin = std::max(peak_twin, double(std::abs(twin.samples[i].fx_N)));
+    }
+    CHECK(peak_twin > 10);
+    CHECK(peak_cl == Approx(peak_twin).epsilon(0.005));
 }
