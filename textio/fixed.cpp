@@ -3,6 +3,7 @@
 #include <array>
 #include <bit>
 #include <cstdint>
+#include <cmath>
 #include <cstring>
 
 namespace cutload::textio {
@@ -11,6 +12,7 @@ namespace {
 __extension__ typedef unsigned __int128 U128;   // m * 10^9 needs 83 bits
 
 constexpr int kFastDecimals = 9;
+constexpr double kPow10Double[kFastDecimals + 1] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
 constexpr std::uint64_t kPow10[kFastDecimals + 1] = {1,         10,         100,         1000,         10000,
                                                      100000,    1000000,    10000000,    100000000,    1000000000};
 
@@ -104,6 +106,22 @@ std::to_chars_result format_fixed(char* first, char* last, double value, int dec
     // The count of 10^-decimals units, |value| * 10^decimals rounded half to even, in integers:
     // the product is exact (under 2^83), so no rounding of a double product can move a tie.
     std::uint64_t units = 0;
+    // Most values need no 128-bit arithmetic. Below 2^52 every half unit k + 1/2 is a double, and
+    // rounding to nearest never steps over a double: the double product |value| * 10^decimals lies
+    // on the same side of every half unit as the exact product, or on one. Off the half units it
+    // therefore rounds to the same count; on one (a tie, or a value a rounding away from one) the
+    // exact count below decides. (A float's value, 24 bits, times 10^5 or less is even exact.)
+    const double scaled_d = std::fabs(value) * kPow10Double[decimals];
+    if (scaled_d < 0x1p52) {
+        const double whole_d = double(std::int64_t(scaled_d));   // truncation is floor here
+        // Exact where it matters: scaled_d - whole_d is (Sterbenz), and so is the half taken off
+        // it unless scaled_d < 1/4, where the difference is below -1/4 whatever its rounding.
+        const double above_half = scaled_d - whole_d - 0.5;
+        if (above_half != 0) {
+            units = std::uint64_t(whole_d) + (above_half > 0 ? 1 : 0);
+            goto write;
+        }
+    }
     if (shift < 84) {   // otherwise the product is below half a unit: 0
         const U128 scaled = U128(mantissa) * kPow10[decimals];
         const U128 whole = scaled >> shift;
@@ -114,6 +132,7 @@ std::to_chars_result format_fixed(char* first, char* last, double value, int dec
         units = std::uint64_t(rounded);
     }
 
+write:
     switch (decimals) {
         case 0: p = put_units<0>(p, units); break;
         case 1: p = put_units<1>(p, units); break;
