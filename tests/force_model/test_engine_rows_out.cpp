@@ -18,20 +18,31 @@ using namespace cutload;
 using namespace cutload::enginetest;
 using force_model::Device;
 
+namespace {
+
+// About 3 s of slotting and side cutting at 10000 rpm with an air move and a plunge between (120 x
+// 20 x 10 mm stock): some 100 000 rows, so the rows leave in several pieces, one of them in the
+// air stretch.
+motion_io::MotionModel slot_air_side() {
+    return legs_motion({-6, 10, 7}, {{{126, 10, 7}, 3000, "slot"},
+                                     {{126, 10, 20}, 3000, "up"},
+                                     {{-6, 16, 20}, 6000, "back"},
+                                     {{-6, 16, 4}, 3000, "down"},
+                                     {{126, 16, 4}, 3000, "side"}});
+}
+
+std::vector<Device> devices() {
+    std::vector<Device> d{Device::Cpu};
+    if (opencl_available()) d.push_back(Device::OpenCL);
+    return d;
+}
+
+}  // namespace
 
 TEST_CASE("rows_out: the rows handed out in pieces are predict()'s rows, blocks, stats and stock") {
-    // About 3 s of slotting and side cutting at 10000 rpm with an air move and a plunge between:
-    // some 100 000 rows, so the rows leave in several pieces, one of them in the air stretch.
     const auto spec = base_spec(120, 20, 10);
-    const auto m = legs_motion({-6, 10, 7},
-                               {{{126, 10, 7}, 3000, "slot"},
-                                {{126, 10, 20}, 3000, "up"},
-                                {{-6, 16, 20}, 6000, "back"},
-                                {{-6, 16, 4}, 3000, "down"},
-                                {{126, 16, 4}, 3000, "side"}});
-    std::vector<Device> devices{Device::Cpu};
-    if (opencl_available()) devices.push_back(Device::OpenCL);
-    for (Device device : devices) {
+    const auto m = slot_air_side();
+    for (Device device : devices()) {
         INFO((device == Device::Cpu ? "cpu" : "opencl"));
         force_model::PredictOptions held;
         held.device = device;
@@ -85,17 +96,10 @@ TEST_CASE("rows_out: the row limit counts the rows already handed out") {
 }
 
 TEST_CASE("rows: a kept run's block summaries are those of its rows, summed here in row order") {
-    // The same slot, air move and side cut as above: several watch pieces, five blocks.
+    // Several watch pieces, five blocks.
     const auto spec = base_spec(120, 20, 10);
-    const auto m = legs_motion({-6, 10, 7},
-                               {{{126, 10, 7}, 3000, "slot"},
-                                {{126, 10, 20}, 3000, "up"},
-                                {{-6, 16, 20}, 6000, "back"},
-                                {{-6, 16, 4}, 3000, "down"},
-                                {{126, 16, 4}, 3000, "side"}});
-    std::vector<Device> devices{Device::Cpu};
-    if (opencl_available()) devices.push_back(Device::OpenCL);
-    for (Device device : devices) {
+    const auto m = slot_air_side();
+    for (Device device : devices()) {
         INFO((device == Device::Cpu ? "cpu" : "opencl"));
         force_model::PredictOptions o;
         o.device = device;
@@ -135,9 +139,7 @@ TEST_CASE("rows: a non-finite force is refused, whether the rows are kept or han
     auto spec = base_spec(40, 20, 10);
     spec.material.Ktc_N_mm2 = 1e300;
     const auto m = legs_motion({-6, 10, 7}, {{{30, 10, 7}, 3000, "slot"}});
-    std::vector<Device> devices{Device::Cpu};
-    if (opencl_available()) devices.push_back(Device::OpenCL);
-    for (Device device : devices) {
+    for (Device device : devices()) {
         INFO((device == Device::Cpu ? "cpu" : "opencl"));
         force_model::PredictOptions kept;
         kept.device = device;
