@@ -1,7 +1,7 @@
 // StreamingPrediction: the engine driver (engine/driver.hpp) over a motion model that grows. Rows
 // are taken out as they become final so memory stays bounded by the motion grid (about 100 bytes
 // a sample) rather than by the rows (one per angle step). Each block's summary is accumulated
-// row by row across batches by the BlockAccumulator that summarise_blocks() (predict) uses, and
+// row by row across batches by the BlockAccumulator that predict()'s BlockSummaries use, and
 // handed out when the block has ended, so it equals the offline summary.
 #include "force_model/streaming.hpp"
 #include "cutters/cutter.hpp"
