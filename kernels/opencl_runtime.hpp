@@ -68,6 +68,7 @@ using ClKernel = ClHandle<cl_kernel, clReleaseKernel>;
 using ClMem = ClHandle<cl_mem, clReleaseMemObject>;
 using ClProgram = ClHandle<cl_program, clReleaseProgram>;
 using ClContext = ClHandle<cl_context, clReleaseContext>;
+using ClEvent = ClHandle<cl_event, clReleaseEvent>;
 
 class OpenClRuntime;
 

@@ -6,6 +6,7 @@
 #include "kernels/engine_kernels.hpp"
 #include "stock.hpp"
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,10 +15,12 @@ namespace cutload::force_model {
 
 // engage() evaluates a batch of time steps against the stock, sweep() removes the tool's swept
 // volume along path segments from it. Both only queue the work, in order (an engagement sees every
-// removal queued before it); the results are valid after wait(). The inputs may be reused as soon
-// as the call returns; the outputs must stay in place until wait(). At most one engage() and one
-// sweep() call may be outstanding between waits. Both use the tool chosen by use_tool() (the
-// first one until then): the backend holds every tool's tables, built once.
+// removal queued before it); the results are valid after wait(), or after wait_for() a fence()
+// taken once they were queued. The inputs may be reused as soon as the call returns; the outputs
+// must stay in place until then. At most two engage() calls and one sweep() call may be
+// outstanding: a third engage() or a second sweep() comes after waiting for the oldest. Both use
+// the tool chosen by use_tool() (the first one until then): the backend holds every tool's tables,
+// built once.
 class Backend {
 public:
     virtual ~Backend() = default;
@@ -28,6 +31,10 @@ public:
     virtual void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
                        const kernels::SweepParams& p, kernels::SweepCellResult* out) = 0;
     virtual void wait() = 0;
+    // A name for the work queued so far, and a wait for just that work: what was queued after the
+    // fence may still run (the driver queues the next batch before it completes the one before).
+    virtual std::uint64_t fence() = 0;
+    virtual void wait_for(std::uint64_t fence) = 0;
     // The tool (an index into the tools the backend was made with) of the calls that follow.
     // Work already queued keeps its tool.
     virtual void use_tool(std::size_t slot) = 0;

@@ -1,5 +1,5 @@
 // The scalar path: the kernels' C++ twins on the host stock, one thread. Work runs when it is
-// queued, so wait() has nothing to wait for.
+// queued, so wait() and wait_for() have nothing to wait for.
 #include "engine/backend.hpp"
 #include "engine/stock_pages.hpp"
 
@@ -24,6 +24,8 @@ public:
         }
     }
     void wait() override {}
+    std::uint64_t fence() override { return 0; }
+    void wait_for(std::uint64_t) override {}
     void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
     void download(Stock&) override {}
     void will_cut(int i0, int j0, int i1, int j1) override { pages_.prepare(i0, j0, i1, j1); }

@@ -1,9 +1,11 @@
 // The OpenCL path: engage.cl and remove.cl on the runtime's device, on one in-order queue, so an
-// engagement always sees the removals queued before it. Nothing blocks until wait(): writes and
-// result reads are non-blocking, the host staging arrays stay untouched until the driver's next
-// wait(). The queue, kernels and buffers are leased from the runtime's pool and given back at the
-// end, so a later prediction in the process creates none of them (but for the wrapped arrays
-// below, which belong to their host memory); staging buffers grow by doubling.
+// engagement always sees the removals queued before it. Nothing blocks until wait() or
+// wait_for(): writes and result reads are non-blocking, and a host staging array stays untouched
+// until the driver has waited for the work that reads it (engagements alternate between two
+// staging sets, as two batches may be queued). The queue, kernels and buffers are leased from the
+// runtime's pool and given back at the end, so a later prediction in the process creates none of
+// them (but for the wrapped arrays below, which belong to their host memory); staging buffers grow
+// by doubling.
 // On CPU devices (PoCL) the stock buffers wrap the host arrays (no copy), and so does the batch's
 // step array where the device reads it in place (no write per batch). On a GPU the stock lives
 // in pooled device buffers: a fresh stock is zero bytes (the codec's "never cut"), filled on the
@@ -29,6 +31,7 @@ namespace cutload::force_model {
 namespace {
 
 using kernels::check_cl;
+using kernels::ClEvent;
 using kernels::ClMem;
 
 // Work-group size on CPU devices: small groups keep both cores busy when the cutting steps of a
@@ -114,8 +117,12 @@ public:
                      "write coefficients");
             coef_written_ = true;
         }
-        grow(out_buf_, n * sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
-        float* const staged = stage_steps(8 * n);
+        // Two batches may be outstanding: each engage() call stages in the set the one before the
+        // last used, which the driver has waited for by now.
+        set_ ^= 1;
+        EngageStaging& st = staging_[set_];
+        grow(st.out_buf, n * sizeof(kernels::StepResult), CL_MEM_WRITE_ONLY);
+        float* const staged = stage_steps(st, 8 * n);
         for (std::size_t i = 0; i < n; ++i) {
             float* s = staged + 8 * i;
             s[0] = float(steps.tip_x[i]);
@@ -128,8 +135,8 @@ public:
             s[7] = float(steps.sin_a[i]);
         }
         if (!steps_in_place_)
-            check_cl(clEnqueueWriteBuffer(queue_.get(), steps_buf_.get(), CL_FALSE, 0, 8 * n * sizeof(float),
-                                          host_steps_.data(), 0, nullptr, nullptr),
+            check_cl(clEnqueueWriteBuffer(queue_.get(), st.steps_buf.get(), CL_FALSE, 0, 8 * n * sizeof(float),
+                                          st.host_steps.data(), 0, nullptr, nullptr),
                      "write steps");
         const DeviceTool& t = *tool_;
         const cl_int n_steps = cl_int(n), n_elems = cl_int(t.stride), n_flutes = t.flutes, bottom = t.bottom_count,
@@ -139,7 +146,7 @@ public:
         cl_kernel k = engage_.get();
         int a = 0;
         kernels::set_arg(k, a++, n_steps);
-        kernels::set_arg(k, a++, steps_in_place_ ? in_place_steps_.get() : steps_buf_.get());
+        kernels::set_arg(k, a++, steps_in_place_ ? st.in_place_steps.get() : st.steps_buf.get());
         kernels::set_arg(k, a++, spin);
         kernels::set_arg(k, a++, t.elems.get());
         kernels::set_arg(k, a++, t.rot.get());
@@ -157,11 +164,13 @@ public:
         kernels::set_arg(k, a++, nx);
         kernels::set_arg(k, a++, ny);
         kernels::set_arg(k, a++, coef_.get());
-        kernels::set_arg(k, a++, out_buf_.get());
+        kernels::set_arg(k, a++, st.out_buf.get());
         kernels::launch_1d(queue_.get(), k, n, group_);
-        check_cl(clEnqueueReadBuffer(queue_.get(), out_buf_.get(), CL_FALSE, 0, n * sizeof(kernels::StepResult), out, 0,
-                                     nullptr, nullptr),
+        cl_event read = nullptr;
+        check_cl(clEnqueueReadBuffer(queue_.get(), st.out_buf.get(), CL_FALSE, 0, n * sizeof(kernels::StepResult), out, 0,
+                                     nullptr, &read),
                  "read step results");
+        last_read_ = ClEvent(read);
     }
 
     void sweep(const std::vector<kernels::SweepSegment>& segs, const std::vector<kernels::SweepCall>& calls,
@@ -216,12 +225,40 @@ public:
             kernels::launch_1d(queue_.get(), k, c.cells(), group_);
             out_first += c.cells();
         }
+        cl_event read = nullptr;
         check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
-                                     out, 0, nullptr, nullptr),
+                                     out, 0, nullptr, &read),
                  "read sweep results");
+        last_read_ = ClEvent(read);
     }
 
     void wait() override { check_cl(clFinish(queue_.get()), "clFinish"); }
+
+    // The queue is in order and every engage() and sweep() ends with a read of its results, so the
+    // last read's event completes after everything queued before it.
+    std::uint64_t fence() override {
+        if (!last_read_) return 0;
+        check_cl(clRetainEvent(last_read_.get()), "clRetainEvent");
+        Fence& f = fences_[++fences_made_ % fences_.size()];
+        f.id = fences_made_;
+        f.done = ClEvent(last_read_.get());
+        return f.id;
+    }
+
+    void wait_for(std::uint64_t id) override {
+        if (id == 0) return;
+        Fence& f = fences_[id % fences_.size()];
+        if (f.id != id || !f.done) {   // not kept (never in the driver's use): everything, to be safe
+            wait();
+            return;
+        }
+        const cl_event e = f.done.get();
+        check_cl(clWaitForEvents(1, &e), "clWaitForEvents");
+        cl_int status = CL_COMPLETE;
+        check_cl(clGetEventInfo(e, CL_EVENT_COMMAND_EXECUTION_STATUS, sizeof status, &status, nullptr), "clGetEventInfo");
+        check_cl(status, "queued work");
+        f.done.reset();
+    }
 
     // Kernel arguments are taken when a kernel is queued, so queued work keeps its tool's tables.
     void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
@@ -371,34 +408,35 @@ private:
         return m;
     }
 
-    // Where the batch's steps are packed for the kernel, `floats` of them. On a CPU device that
+    // Where the batch's steps are packed for the kernel, `floats` of them, in staging set `st`. On a CPU device that
     // reads wrapped host arrays in place (OpenClRuntime::wraps_host_arrays_in_place), a page-aligned
     // array wrapped as a buffer: the batch queues no write. On PoCL's CPU device that write was the
     // command that woke its sleeping threads after each wait, which preempted the host for about
     // 0.2 ms per batch on two cores. Called only after the wait that completed the last kernel that
-    // read the array.
-    float* stage_steps(std::size_t floats) {
+    // read the set's array.
+    struct EngageStaging;
+    float* stage_steps(EngageStaging& st, std::size_t floats) {
         if (!steps_in_place_) {
-            grow(steps_buf_, floats * sizeof(float), CL_MEM_READ_ONLY);
-            host_steps_.resize(floats);
-            return host_steps_.data();
+            grow(st.steps_buf, floats * sizeof(float), CL_MEM_READ_ONLY);
+            st.host_steps.resize(floats);
+            return st.host_steps.data();
         }
-        if (floats * sizeof(float) > in_place_bytes_) {
+        if (floats * sizeof(float) > st.in_place_bytes) {
             constexpr std::size_t kPage = 4096;
-            const std::size_t bytes = (std::max(floats * sizeof(float), 2 * in_place_bytes_) + kPage - 1) / kPage * kPage;
-            in_place_steps_ = {};
-            in_place_bytes_ = 0;   // until the new array is wrapped
-            in_place_host_.reset(static_cast<float*>(std::aligned_alloc(kPage, bytes)));
-            if (!in_place_host_) throw std::bad_alloc();
-            in_place_steps_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, bytes, in_place_host_.get());
-            in_place_bytes_ = bytes;
+            const std::size_t bytes = (std::max(floats * sizeof(float), 2 * st.in_place_bytes) + kPage - 1) / kPage * kPage;
+            st.in_place_steps = {};
+            st.in_place_bytes = 0;   // until the new array is wrapped
+            st.in_place_host.reset(static_cast<float*>(std::aligned_alloc(kPage, bytes)));
+            if (!st.in_place_host) throw std::bad_alloc();
+            st.in_place_steps = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_ONLY, bytes, st.in_place_host.get());
+            st.in_place_bytes = bytes;
         }
-        return in_place_host_.get();
+        return st.in_place_host.get();
     }
 
     // A staging buffer too small is given back and a larger one leased (at least double). Called
-    // only while no queued command uses the buffer (each kind has at most one call in flight, and
-    // its call comes after the wait that completes the one before).
+    // only while no queued command uses the buffer (a sweep comes after the wait that completes the
+    // sweep before it, an engagement after the one that completes the last use of its set).
     void grow(kernels::BufferLease& buf, std::size_t bytes, cl_mem_flags flags) {
         if (buf && bytes <= buf.bytes()) return;
         const std::size_t want = std::max(bytes, 2 * buf.bytes());
@@ -421,7 +459,7 @@ private:
     std::vector<std::uint8_t> dirty_;                    // tiles a removal may have changed
     kernels::BufferLease base_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
-    kernels::BufferLease steps_buf_, out_buf_, segs_buf_, sweep_buf_;
+    kernels::BufferLease segs_buf_, sweep_buf_;
     struct Drain {
         kernels::QueueLease* queue = nullptr;
         ~Drain() {
@@ -430,14 +468,27 @@ private:
     };
     std::array<float, 10> coef_host_{};
     bool coef_written_ = false;
-    std::vector<float> host_steps_, host_segs_;
+    std::vector<float> host_segs_;
     struct Free {
         void operator()(float* p) const { std::free(p); }
     };
-    std::unique_ptr<float, Free> in_place_host_;   // stage_steps: the array a CPU device reads in place
-    std::size_t in_place_bytes_ = 0;
     bool steps_in_place_ = false;
-    ClMem in_place_steps_;                         // released before its array (declared after it)
+    struct EngageStaging {
+        kernels::BufferLease steps_buf, out_buf;
+        std::vector<float> host_steps;
+        std::unique_ptr<float, Free> in_place_host;   // stage_steps: the array a CPU device reads in place
+        std::size_t in_place_bytes = 0;
+        ClMem in_place_steps;                         // released before its array (declared after it)
+    };
+    std::array<EngageStaging, 2> staging_;   // engage() alternates between them
+    int set_ = 0;
+    ClEvent last_read_;   // of the last engage() or sweep() that queued work
+    struct Fence {
+        std::uint64_t id = 0;
+        ClEvent done;
+    };
+    std::array<Fence, 4> fences_;   // the driver waits for at most the one before the last
+    std::uint64_t fences_made_ = 0;
     Drain drain_;   // last: destroyed first
 };
 
