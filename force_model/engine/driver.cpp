@@ -228,10 +228,11 @@ void Engine::flush_batch() {
         replay_batch();
         return;
     }
-    complete(true);
     steps_ += n;
     const TipBounds b = batcher_.tip_bounds();
-    // Elements higher than the highest material under the batch cannot engage: skip them.
+    // Elements higher than the highest material under the batch cannot engage: skip them. The tops
+    // may not hold the removal of the batch still in flight yet; removal only lowers them, so the
+    // count is never too small (an element above all material finds none: the same forces).
     const double R = tool_->radius_mm;
     const double reach_mm = double(stock_map_.max_top(b.x0_mm - R, b.y0_mm - R, b.x1_mm + R, b.y1_mm + R)) - b.z_min_mm;
     const int element_end = tool_->elements_reaching(reach_mm);
@@ -240,7 +241,12 @@ void Engine::flush_batch() {
     if (CellRect under; element_end > 0 && stock_map_.cells_covering(b.x0_mm - near_mm, b.y0_mm - near_mm,
                                                                      b.x1_mm + near_mm, b.y1_mm + near_mm, under))
         engagement_.will_cut(under.i0, under.j0, under.i1, under.j1);
+    // This batch is queued before the one in flight is completed, so the device works on it while
+    // the host applies the older one's removal to the tops. Its own removal waits for those tops
+    // (RemovalPath::take reads them), and the device runs both in the order they were queued:
+    // engagement, removal, engagement, removal, as when each batch was queued after the last.
     engagement_.queue_batch(batcher_, b, element_end);
+    if (engagement_.two_in_flight()) complete(true);
     removal_path_.add_batch(engagement_.in_flight().steps);
     queue_removal(true);
     write_done_rows();
@@ -271,7 +277,7 @@ void Engine::remove_all_pending() {
 
 void Engine::complete(bool defer_rows) {
     write_done_rows();
-    InFlight& f = engagement_.in_flight();
+    InFlight& f = engagement_.completing();
     if (!f.active) return;
     engagement_.wait();
     Done& d = done_;

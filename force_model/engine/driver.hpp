@@ -76,15 +76,16 @@ private:
     bool interval_in_air(std::size_t i);
     void walk_stopped_spindle(std::size_t i);
     void walk_angle_steps(std::size_t i);
-    // Queues the batch's engagement and the removal of the pending path up to the lag behind it,
-    // after completing the batch before it.
+    // Queues the batch's engagement, completes the batch before it, then queues the removal of the
+    // pending path up to the lag behind the new batch.
     void flush_batch();
     void queue_removal(bool keep_lag);
     // Completes what is in flight, then removes the whole pending path (the tool stops or leaves).
     void remove_all_pending();
-    // Waits for the batch in flight and applies its results: stock tops, then rows, removed volume
-    // and holder checks. With `defer_rows` the rows wait in done_ until write_done_rows(), so that
-    // flush_batch can queue the next batch first and the device works while the host writes them.
+    // Waits for the batch in flight (the older of two) and applies its results: stock tops, then
+    // rows, removed volume and holder checks. With `defer_rows` the rows wait in done_ until
+    // write_done_rows(), so that flush_batch can queue the removal after the next batch first and
+    // the device works while the host writes them.
     void complete(bool defer_rows = false);
     void write_done_rows();
     void report_progress();

@@ -15,8 +15,10 @@ Engagement::Engagement(Backend& backend, const ToolGeometry& tool, const LinearE
     // An edge point lies within half a cell diagonal of its ray's centre: walls farther than that
     // from the centre cannot change a test. A whole cell keeps a margin.
     sweep_params_.wall_band_mm = grid.cell_mm;
-    in_flight_.steps.reserve(settings.max_batch_steps);
-    in_flight_.meta.reserve(settings.max_batch_steps);
+    for (InFlight& f : slots_) {
+        f.steps.reserve(settings.max_batch_steps);
+        f.meta.reserve(settings.max_batch_steps);
+    }
 }
 
 void Engagement::set_tool_params(const ToolGeometry& tool) {
@@ -27,13 +29,13 @@ void Engagement::set_tool_params(const ToolGeometry& tool) {
 }
 
 void Engagement::use_tool(const ToolGeometry& tool, std::size_t slot) {
-    if (in_flight_.active) throw std::logic_error("engine: a tool change with work in flight");
+    if (any_in_flight()) throw std::logic_error("engine: a tool change with work in flight");
     set_tool_params(tool);
     backend_.use_tool(slot);
 }
 
 Engagement::~Engagement() {
-    if (!in_flight_.active) return;
+    if (!any_in_flight()) return;
     try {
         backend_.wait();
     } catch (const std::exception&) {   // already unwinding from the first error
@@ -41,7 +43,11 @@ Engagement::~Engagement() {
 }
 
 void Engagement::queue_batch(StepBatcher& batcher, const TipBounds& bounds, int element_end) {
-    InFlight& f = in_flight_;
+    if (slots_[newest_].active) {
+        if (slots_[newest_ ^ 1].active) throw std::logic_error("engine: a third batch queued with two in flight");
+        newest_ ^= 1;
+    }
+    InFlight& f = slots_[newest_];
     f.bounds = bounds;
     engage_params_.element_end = element_end;
     f.results.assign(batcher.size(), kernels::StepResult{});
@@ -53,10 +59,12 @@ void Engagement::queue_batch(StepBatcher& batcher, const TipBounds& bounds, int 
     batcher.hand_over(f.steps, f.meta);
     f.has_batch = true;
     f.active = true;
+    f.fence = backend_.fence();
 }
 
 void Engagement::queue_sweep() {
-    InFlight& f = in_flight_;
+    if (two_in_flight()) throw std::logic_error("engine: a removal queued with two batches in flight");
+    InFlight& f = slots_[newest_];
     if (f.calls.empty()) return;
     std::size_t cells = 0;
     for (const auto& c : f.calls) cells += c.cells();
@@ -65,15 +73,17 @@ void Engagement::queue_sweep() {
     f.active = true;
     PhaseTimer timer(phases_.queue_s);
     backend_.sweep(f.segs, f.calls, sweep_params_, f.sweep_out.data());
+    f.fence = backend_.fence();
 }
 
 void Engagement::wait() {
     PhaseTimer timer(phases_.wait_s);
-    backend_.wait();
+    if (two_in_flight()) backend_.wait_for(completing().fence);
+    else backend_.wait();
 }
 
 void Engagement::release() {
-    InFlight& f = in_flight_;
+    InFlight& f = completing();
     f.active = f.has_batch = false;
     f.steps.clear();
     f.meta.clear();
