@@ -16,9 +16,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -65,37 +68,7 @@ void check_plan(const ToolPlan& plan) {
         }
 }
 
-// A float or double is NaN or infinite exactly when its exponent bits are all ones.
-inline std::uint32_t not_finite(float v) {
-    return (std::bit_cast<std::uint32_t>(v) & 0x7f800000u) == 0x7f800000u;
-}
-inline std::uint32_t not_finite(double v) {
-    return (std::bit_cast<std::uint64_t>(v) & 0x7ff0000000000000u) == 0x7ff0000000000000u;
-}
-
-// No NaN or infinity reaches FORCES.csv, BLOCKS.csv or a JSON answer: a row or summary that holds
-// one is an engine fault, reported as one rather than written.
-void check_rows(std::span<const ForceSample> rows) {
-    // The flags are OR-ed, not summed: no chain of floating-point additions runs through the rows
-    // (a dependent addition per value made this pass about 4 % of bench_force's CPU time), and the
-    // rows are searched only when one is set, for the message.
-    std::uint32_t any_bad = 0;
-    for (const ForceSample& s : rows)
-        any_bad |= not_finite(s.t_s) | not_finite(s.spindle_angle_deg) | not_finite(s.fx_N) | not_finite(s.fy_N) |
-                   not_finite(s.fz_N) | not_finite(s.torque_Nm) | not_finite(s.power_kW) | not_finite(s.chip_mm) |
-                   not_finite(s.bending_MPa) | not_finite(s.radial_engagement_mm) |
-                   not_finite(s.axial_engagement_mm) | not_finite(s.removed_mm3);
-    if (any_bad == 0) return;
-    for (const ForceSample& s : rows)
-        for (const double v : {s.t_s, s.spindle_angle_deg, double(s.fx_N), double(s.fy_N), double(s.fz_N),
-                               double(s.torque_Nm), double(s.power_kW), double(s.chip_mm), double(s.bending_MPa),
-                               double(s.radial_engagement_mm), double(s.axial_engagement_mm), double(s.removed_mm3)})
-            if (!std::isfinite(v))
-                throw std::runtime_error("predict: the engine computed a non-finite value at t = " +
-                                         std::to_string(s.t_s) + " s; nothing is written");
-}
-
-// The rows of a Prediction are checked as they leave the engine (check_rows); this checks the rest.
+// The rows of a Prediction are checked as they leave the engine (check_finite_rows); this checks the rest.
 void check_summaries(const Prediction& p) {
     for (const BlockSummary& b : p.blocks)
         for (const double v : {b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N, b.peak_torque_Nm, b.peak_power_kW,
@@ -112,7 +85,7 @@ void check_summaries(const Prediction& p) {
 }
 
 void check_outputs(const Prediction& p) {
-    check_rows(p.samples);
+    check_finite_rows(p.samples);
     check_summaries(p);
 }
 
@@ -209,7 +182,7 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
         if (!rows_taken) {
             engine.watch_rows_as_they_come([&](const RowTable& rows, std::size_t first, std::size_t end) {
                 const std::span<const ForceSample> piece(rows.samples.data() + first, end - first);
-                check_rows(piece);
+                check_finite_rows(piece);
                 rows_out.blocks.add_rows(piece.data(), rows.extra.data() + first, piece.size());
                 for (std::size_t r = first; r < end; ++r) rows_out.cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
             });
@@ -218,7 +191,7 @@ Prediction run_prediction(const motion_io::MotionModel& motion, const RunSpec& s
                 const auto [first, end] = window ? rows_in_window(rows.samples.data(), n, *window)
                                                  : std::pair<std::size_t, std::size_t>{0, n};
                 const std::span<const ForceSample> piece(rows.samples.data() + first, end - first);
-                check_rows(piece);
+                check_finite_rows(piece);
                 rows_out.blocks.add_rows(piece.data(), rows.extra.data() + first, piece.size());
                 for (std::size_t r = first; r < end; ++r) rows_out.cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
                 if (opt.rows_out) opt.rows_out(piece);
@@ -270,7 +243,7 @@ Prediction predict_turning(const motion_io::MotionModel& motion, const ToolPoses
     if (opt.window) throw SpecError("window: a run whose tool turns as it cuts is not recomputed by window");
     const ToolPlan plan = plan_tools(motion, spec);
     check_plan(plan);
-    Prediction p = run_turning(motion, poses, spec, plan, opt, check_rows);
+    Prediction p = run_turning(motion, poses, spec, plan, opt, check_finite_rows);
     check_outputs(p);
     return p;
 }

@@ -307,10 +307,11 @@ void Engine::write_done_rows() {
     const std::size_t first_row = rows_.size();
     if (d.has_batch) {
         PhaseTimer timer(phases_.rows_s);
-        rows_.append_steps(d.meta, d.results);
+        rows_.append_steps(d.meta, d.results, d.removed_mm3);
+    } else {
+        rows_.attribute_removed(d.removed_mm3);
     }
-    const std::size_t batch_rows = d.has_batch ? d.steps.size() : 0;
-    rows_.attribute_removed(first_row, batch_rows, d.removed_mm3);
+    const std::size_t batch_rows = rows_.size() - first_row;
     if (batch_rows > 0) {
         PhaseTimer timer(phases_.holder_s);
         // The tile map is the one this batch's removal left: nothing has been applied to it since.

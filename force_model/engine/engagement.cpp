@@ -50,7 +50,9 @@ void Engagement::queue_batch(StepBatcher& batcher, const TipBounds& bounds, int 
     InFlight& f = slots_[newest_];
     f.bounds = bounds;
     engage_params_.element_end = element_end;
-    f.results.assign(batcher.size(), kernels::StepResult{});
+    // The engagement writes every step's result whole: only a batch it skips needs zeros.
+    if (element_end > 0) f.results.resize(batcher.size());
+    else f.results.assign(batcher.size(), kernels::StepResult{});
     if (element_end > 0) {
         ++phases_.batches;
         PhaseTimer timer(phases_.queue_s);

@@ -8,9 +8,15 @@
 #include "kernels/engine_kernels.hpp"
 
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace cutload::force_model {
+
+// No NaN or infinity reaches FORCES.csv, BLOCKS.csv or a JSON answer: throws std::runtime_error
+// (an engine fault, nothing written) when a row's time, angle or any of its values from fx_N to
+// removed_mm3 is not finite.
+void check_finite_rows(std::span<const ForceSample> rows);
 
 // What the engine knows about a row beyond the public ForceSample.
 struct RowExtra {
@@ -32,15 +38,17 @@ public:
     void reserve(std::size_t rows);
     std::size_t size() const { return samples.size(); }
 
-    // One row per step of a completed batch, from the kernel's results.
-    void append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results);
+    // One row per step of a completed batch, from the kernel's results; the batch's removed volume
+    // is spread evenly over its rows (with no rows, as attribute_removed).
+    void append_steps(const std::vector<StepMeta>& meta, const std::vector<kernels::StepResult>& results,
+                      double removed_mm3);
     // One zero-force row at motion sample i, of the current tool.
     void append_motion_sample(const motion_io::MotionModel& m, std::size_t i, bool stopped_in_material);
     // One zero-force row at motion sample i whose tool the run does not have (T number, -1: none).
     void append_unknown_tool(const motion_io::MotionModel& m, std::size_t i, std::int32_t number);
-    // Spreads a batch's removed volume evenly over its rows [first_row, size()); with no rows there,
-    // the volume goes to the last row written (the tail of the path, removed at a stop).
-    void attribute_removed(std::size_t first_row, std::size_t batch_rows, double removed_mm3);
+    // Volume removed with no rows of its own (the tail of the path, removed at a stop): added to the
+    // last row written.
+    void attribute_removed(double removed_mm3);
 
     std::vector<ForceSample> samples;
     std::vector<RowExtra> extra;

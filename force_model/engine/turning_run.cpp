@@ -342,7 +342,7 @@ void TurningWalk::leave() {
     flush();
     const double before = engine_->removed_mm3();
     engine_->finish();
-    rows_.attribute_removed(rows_.size(), 0, engine_->removed_mm3() - before);
+    rows_.attribute_removed(engine_->removed_mm3() - before);
 }
 
 void TurningWalk::flush() {
@@ -350,13 +350,12 @@ void TurningWalk::flush() {
     const double before = engine_->removed_mm3();
     engine_->run(chunk_, results_, chunk_spin_, &body_);
     const std::size_t first = rows_.size();
-    rows_.append_steps(meta_, results_);
+    rows_.append_steps(meta_, results_, engine_->removed_mm3() - before);
     for (std::size_t k = 0; k < body_.size(); ++k) {
         rows_.samples[first + k].holder_contact = body_[k].contact;
         if (body_[k].clearance_mm < tool().geometry.holder_clearance_mm)
             rows_.extra[first + k].holder_clearance_mm = float(body_[k].clearance_mm);
     }
-    rows_.attribute_removed(first, meta_.size(), engine_->removed_mm3() - before);
     for (const kernels::StepResult& r : results_) cutting_steps_ += r.engaged > 0 ? 1 : 0;
     steps_ += chunk_.size();
     chunk_.clear();
