@@ -51,6 +51,10 @@ DeviceChoice choose_device(std::string_view name);
 // that fails to open is left for the engine to report, as without this. The last copy of the
 // future waits for the work when it is destroyed: no thread outlives it.
 std::shared_future<DeviceChoice> prepare_device(std::string name);
+// For a front end that runs prediction after prediction in one process (the service and its
+// workers): the heap memory a finished prediction frees stays for the next one instead of being
+// faulted in again (force_model::keep_freed_heap_for_next_prediction). Once, before the first.
+void prepare_for_repeated_runs();
 
 // A complete, valid run spec: replace one part (tool, material, limits) to have the engine check
 // that part alone, with its own error naming the key.

@@ -139,6 +139,9 @@ int main(int argc, char** argv) {
                 m.t_s.back(), spec.resolution.angle_step_deg, spec.resolution.axial_step_mm, spec.resolution.grid_mm);
     std::printf("  load average at start: %s\n", load_average().c_str());
     const std::string only = argc > 2 ? argv[2] : "";   // "opencl" or "cpu": profile one path
+    // Prediction after prediction in one process, as the service's workers run them, with the
+    // service's allocator settings.
+    force_model::keep_freed_heap_for_next_prediction();
     const Result cl = only == "cpu" ? Result{} : measure(m, spec, force_model::Device::OpenCL, runs);
     const Result cpu = only == "opencl" ? Result{} : measure(m, spec, force_model::Device::Cpu, std::max(1, runs / 2 + 1));
     // What a caller that keeps the final stock (the service, --save-stock) pays on top: on a GPU,

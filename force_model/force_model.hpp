@@ -365,6 +365,16 @@ std::size_t stock_bytes_per_cell();
 
 Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, const PredictOptions& opt);
 
+// For a process that runs prediction after prediction (the service, its workers, the benches that
+// stand for them): the heap memory a finished prediction frees (its rows, its batches) stays with
+// the process for the next one, instead of going back to the OS only for the next prediction to
+// fault its pages in again. glibc otherwise trims the top of the heap when a large block at it is
+// freed, depending on what else happens to lie above it: bench_force's device path with the stock
+// in device buffers faulted 9 000 pages a prediction, 9 ms of its 45 ms. Fixes the allocator's
+// thresholds (blocks under 64 MiB from the heap, up to 256 MiB of free heap kept per arena); call
+// once, before the first prediction. A no-op without glibc.
+void keep_freed_heap_for_next_prediction();
+
 // ---- A tool that turns while it cuts (simultaneous five-axis work; docs/five_axis.md, 3.4) ------
 // Per motion sample: the tool's orientation against the stock (row-major; its columns are the
 // tool's x, y and z axes in stock coordinates, z from the tip toward the spindle) and the tool

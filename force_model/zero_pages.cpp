@@ -19,6 +19,7 @@
 // were made writable travels with a pooled mapping, so a later prediction does not ask again.
 #include "stock.hpp"
 
+#include <malloc.h>
 #include <sys/mman.h>
 #include <sys/sysinfo.h>
 #include <unistd.h>
@@ -174,6 +175,14 @@ Pool& pool() {
 }
 
 }  // namespace
+
+void keep_freed_heap_for_next_prediction() {
+#ifdef __GLIBC__
+    // A fixed mmap threshold also stops glibc from moving both thresholds as blocks are freed.
+    mallopt(M_MMAP_THRESHOLD, 64 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
+}
 
 ZeroPages::ZeroPages(std::size_t bytes) : bytes_(bytes) {
     if (bytes == 0) return;
