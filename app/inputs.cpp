@@ -41,7 +41,7 @@ DeviceChoice choose_device(std::string_view name) {
     }
 }
 
-void prepare_for_repeated_runs() { force_model::keep_freed_heap_for_next_prediction(); }
+bool prepare_for_repeated_runs() { return force_model::keep_freed_heap_for_next_prediction(); }
 
 std::shared_future<DeviceChoice> prepare_device(std::string name) {
     if (name == "cpu") {

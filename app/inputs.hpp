@@ -53,8 +53,9 @@ DeviceChoice choose_device(std::string_view name);
 std::shared_future<DeviceChoice> prepare_device(std::string name);
 // For a front end that runs prediction after prediction in one process (the service and its
 // workers): the heap memory a finished prediction frees stays for the next one instead of being
-// faulted in again (force_model::keep_freed_heap_for_next_prediction). Once, before the first.
-void prepare_for_repeated_runs();
+// faulted in again (force_model::keep_freed_heap_for_next_prediction). Once, from main, before
+// any thread starts; false when the allocator refused.
+bool prepare_for_repeated_runs();
 
 // A complete, valid run spec: replace one part (tool, material, limits) to have the engine check
 // that part alone, with its own error naming the key.

@@ -141,7 +141,8 @@ int main(int argc, char** argv) {
     const std::string only = argc > 2 ? argv[2] : "";   // "opencl" or "cpu": profile one path
     // Prediction after prediction in one process, as the service's workers run them, with the
     // service's allocator settings.
-    force_model::keep_freed_heap_for_next_prediction();
+    if (!force_model::keep_freed_heap_for_next_prediction())
+        std::printf("  (the allocator refused the service's thresholds: freed heap may be faulted in again)\n");
     const Result cl = only == "cpu" ? Result{} : measure(m, spec, force_model::Device::OpenCL, runs);
     const Result cpu = only == "opencl" ? Result{} : measure(m, spec, force_model::Device::Cpu, std::max(1, runs / 2 + 1));
     // What a caller that keeps the final stock (the service, --save-stock) pays on top: on a GPU,

@@ -23,6 +23,10 @@ void run_serve(ServeArgs& a) {
     a.opt.max_body_bytes = static_cast<std::size_t>(a.max_body_mb * 1024 * 1024);
     a.opt.cache_bytes = static_cast<std::size_t>(a.cache_mb * 1024 * 1024);
     a.opt.use_opencl = a.device == "opencl";
+    // Job threads run prediction after prediction: keep what one frees for the next. Before any
+    // thread starts.
+    if (a.opt.workers > 0 && !app::prepare_for_repeated_runs())
+        std::fprintf(stderr, "cutload: note: the allocator kept its own thresholds (freed heap may be faulted in again)\n");
 
     // Signals go to this thread only, via sigwait: no work in a signal handler.
     sigset_t set = block_stop_signals();

@@ -22,6 +22,9 @@ void run_worker(WorkerArgs& a) {
     a.opt.port = -1;
     if (!a.metrics_listen.empty()) split_listen(a.metrics_listen, "--metrics-listen", a.opt.host, a.opt.port);
     a.opt.use_opencl = a.device == "opencl";
+    // Prediction after prediction: keep what one frees for the next. Before any thread starts.
+    if (!app::prepare_for_repeated_runs())
+        std::fprintf(stderr, "cutload: note: the allocator kept its own thresholds (freed heap may be faulted in again)\n");
 
     sigset_t set = block_stop_signals();
 

@@ -370,10 +370,11 @@ Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, co
 // the process for the next one, instead of going back to the OS only for the next prediction to
 // fault its pages in again. glibc otherwise trims the top of the heap when a large block at it is
 // freed, depending on what else happens to lie above it: bench_force's device path with the stock
-// in device buffers faulted 9 000 pages a prediction, 9 ms of its 45 ms. Fixes the allocator's
-// thresholds (blocks under 64 MiB from the heap, up to 256 MiB of free heap kept per arena); call
-// once, before the first prediction. A no-op without glibc.
-void keep_freed_heap_for_next_prediction();
+// in device buffers faulted 7 000 pages a prediction, about 9 ms of its 45 ms. Fixes the
+// allocator's thresholds (blocks under 32 MiB from the heap, up to 256 MiB of free heap kept per
+// arena). Call once from the process's main, before its threads start (mallopt is not thread
+// safe). False when the allocator refused (or is not glibc's): nothing changed then.
+bool keep_freed_heap_for_next_prediction();
 
 // ---- A tool that turns while it cuts (simultaneous five-axis work; docs/five_axis.md, 3.4) ------
 // Per motion sample: the tool's orientation against the stock (row-major; its columns are the

@@ -176,11 +176,15 @@ Pool& pool() {
 
 }  // namespace
 
-void keep_freed_heap_for_next_prediction() {
+bool keep_freed_heap_for_next_prediction() {
 #ifdef __GLIBC__
-    // A fixed mmap threshold also stops glibc from moving both thresholds as blocks are freed.
-    mallopt(M_MMAP_THRESHOLD, 64 << 20);
-    mallopt(M_TRIM_THRESHOLD, 256 << 20);
+    // Setting either threshold stops glibc from moving both as blocks are freed, so the trim
+    // threshold is set only once the mmap one took. 32 MiB is the largest mmap threshold every
+    // 64-bit glibc accepts (mallopt(3)).
+    if (mallopt(M_MMAP_THRESHOLD, 32 << 20) != 1) return false;
+    return mallopt(M_TRIM_THRESHOLD, 256 << 20) == 1;
+#else
+    return false;
 #endif
 }
 

@@ -114,7 +114,6 @@ void Jobs::start() {
     // On a store this server owns, 'running' means the previous process died mid-job: its
     // results were never committed, so run it again. On a shared store only an ended lease says so.
     requeue(opt_.shared_store);
-    if (opt_.workers > 0) app::prepare_for_repeated_runs();
     for (int i = 0; i < std::max(0, opt_.workers); ++i) threads_.emplace_back([this] { worker(); });
     if (opt_.shared_store) keeper_ = std::thread([this] { keeper(); });
     if (opt_.shared_store && opt_.workers > 0) listener_ = std::thread([this] { listener(); });

@@ -8,6 +8,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -164,4 +166,27 @@ TEST_CASE("pages made writable keep what they hold, and only the pages asked for
     CHECK(std::all_of(p + 2 * page, p + 3 * page, [](unsigned char b) { return b == 0x5a; }));
     CHECK(std::all_of(p, p + 2 * page, [](unsigned char b) { return b == 0; }));
     CHECK(std::all_of(p + 3 * page, p + kPages * page, [](unsigned char b) { return b == 0; }));
+}
+
+TEST_CASE("keep_freed_heap_for_next_prediction: glibc takes both thresholds, and a freed block stays with the process",
+          "[zero_pages]") {
+#ifdef __GLIBC__
+    REQUIRE(force_model::keep_freed_heap_for_next_prediction());
+    // A block the size of bench_force's rows, written and freed: its pages stay mapped and resident
+    // for the next request. By default glibc maps a block this large on its own and unmaps it when
+    // it is freed (mincore then fails with ENOMEM).
+    constexpr std::size_t kBytes = 13u << 20;
+    auto* block = static_cast<unsigned char*>(std::malloc(kBytes));
+    REQUIRE(block != nullptr);
+    std::memset(block, 1, kBytes);
+    const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+    unsigned char* first_page = block + (page - reinterpret_cast<std::uintptr_t>(block) % page) + page;
+    const std::size_t pages = kBytes / page - 3;   // whole pages well inside the block
+    std::free(block);
+    std::vector<unsigned char> resident(pages);
+    REQUIRE(mincore(first_page, pages * page, resident.data()) == 0);
+    CHECK(std::all_of(resident.begin(), resident.end(), [](unsigned char r) { return (r & 1) != 0; }));
+#else
+    CHECK_FALSE(force_model::keep_freed_heap_for_next_prediction());
+#endif
 }
