@@ -30,6 +30,10 @@ struct EngineSettings {
     // position off its chord by this much shows as material on a later pass along the same wall
     // (a quarter cell left up to 109 N on a re-cut of the demo; a sixteenth, 68 N).
     double chord_tolerance_cells = 1.0 / 16;
+    // A batch's engagement is queued before the batch in flight is completed (docs/force_model.md,
+    // "Pipeline"). False: each batch is completed before the next is queued, the order the
+    // pipeline must give the same rows and stock as (tests/force_model/test_engine_pipeline.cpp).
+    bool queue_before_completing = true;
 };
 
 // Where a prediction's wall time went (bench_force prints these). The backend works asynchronously:

@@ -108,8 +108,9 @@ public:
         // Written only when they change (a tool change): on PoCL every command costs tens of
         // microseconds of both cores, and the coefficients of a run's batches are mostly the same.
         if (!coef_written_ || coef != coef_host_) {
-            // The queue is in order and this host array is not changed again until the next wait, so
-            // batches queued before keep the values they were queued with.
+            // The queue is in order, and the values change only at a tool change, which comes after
+            // a full wait (Engagement::use_tool: nothing in flight): the write has been read by
+            // then, and batches queued before keep the values they were queued with.
             coef_host_ = coef;
             coef_written_ = false;
             check_cl(clEnqueueWriteBuffer(queue_.get(), coef_.get(), CL_FALSE, 0, sizeof coef_host_, coef_host_.data(),

@@ -26,7 +26,8 @@ Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const 
       removal_path_(setup.stock->grid.cell_mm, tool_->radius_mm, settings.removal_lag_cells * setup.stock->grid.cell_mm,
                     settings.chord_tolerance_cells * setup.stock->grid.cell_mm),
       batcher_(settings, setup.stock->grid.cell_mm),
-      engagement_(*setup.backend, *tool_, setup.law, settings, setup.stock->grid, phases) {
+      engagement_(*setup.backend, *tool_, setup.law, settings, setup.stock->grid, phases),
+      queue_before_completing_(settings.queue_before_completing) {
     setup.backend->use_tool(std::size_t(slot_));
     number_ = motion.size() > 0 ? plan.number_at(0) : -1;
     if (motion.size() > 0 && plan.slot_at(0) < 0) slot_ = -1;
@@ -228,6 +229,7 @@ void Engine::flush_batch() {
         replay_batch();
         return;
     }
+    if (!queue_before_completing_) complete(true);
     steps_ += n;
     const TipBounds b = batcher_.tip_bounds();
     // Elements higher than the highest material under the batch cannot engage: skip them. The tops

@@ -125,6 +125,7 @@ private:
         double removed_mm3 = 0;
         bool has_batch = false, waiting = false;
     } done_;
+    const bool queue_before_completing_;   // EngineSettings::queue_before_completing
     RowTable rows_;
     RowTaker take_rows_;
     std::size_t rows_taken_ = 0;   // rows handed out and dropped from rows_
