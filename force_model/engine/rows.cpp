@@ -16,16 +16,21 @@ namespace cutload::force_model {
 namespace {
 
 // A float or double is NaN or infinite exactly when its exponent bits are all ones.
-// check_finite_rows tests a row as its 32-bit words: per word the exponent mask to test and the
-// value meaning "all ones" (for a double, its high word; a word not tested wants a value its zero
-// mask cannot give).
-constexpr std::size_t kRowWords = sizeof(ForceSample) / sizeof(std::uint32_t);
-static_assert(sizeof(ForceSample) % sizeof(std::uint32_t) == 0);
+// check_finite_rows tests a row's first kTestedWords 32-bit words, from t_s to removed_mm3 (no
+// padding among them): per word the exponent mask to test and the value meaning "all ones" (for a
+// double, its high word; a word not tested wants a value its zero mask cannot give).
+constexpr std::size_t kTestedWords = offsetof(ForceSample, removed_mm3) / sizeof(std::uint32_t) + 1;
+static_assert(offsetof(ForceSample, t_s) == 0 && offsetof(ForceSample, removed_mm3) % sizeof(std::uint32_t) == 0);
 static_assert(std::endian::native == std::endian::little, "a double's exponent is in its high (second) word");
+// The words before fx_N are t_s, spindle_angle_deg, block and tool; the ten floats from fx_N to
+// removed_mm3 lie side by side: nothing in between is padding.
+static_assert(offsetof(ForceSample, spindle_angle_deg) == 8 && offsetof(ForceSample, block) == 16 &&
+              offsetof(ForceSample, tool) == 20 && offsetof(ForceSample, fx_N) == 24);
+static_assert(offsetof(ForceSample, removed_mm3) - offsetof(ForceSample, fx_N) == 9 * sizeof(float));
 struct RowWordTest {
-    std::array<std::uint32_t, kRowWords> mask{}, all_ones{};
+    std::array<std::uint32_t, kTestedWords> mask{}, all_ones{};
     constexpr RowWordTest() {
-        for (std::size_t k = 0; k < kRowWords; ++k) all_ones[k] = 1;
+        for (std::size_t k = 0; k < kTestedWords; ++k) all_ones[k] = 1;
         const auto test_double = [&](std::size_t offset) {
             mask[offset / 4 + 1] = all_ones[offset / 4 + 1] = 0x7ff00000u;
         };
@@ -35,8 +40,6 @@ struct RowWordTest {
         for (std::size_t o = offsetof(ForceSample, fx_N); o <= offsetof(ForceSample, removed_mm3); o += 4) test_float(o);
     }
 };
-// The ten floats from fx_N to removed_mm3 lie side by side (each tested above).
-static_assert(offsetof(ForceSample, removed_mm3) - offsetof(ForceSample, fx_N) == 9 * sizeof(float));
 
 }  // namespace
 
@@ -46,11 +49,11 @@ void check_finite_rows(std::span<const ForceSample> rows) {
     // `v - v` cost 4 % of bench_force's CPU time, testing field by field 3 %). The rows are searched
     // only when a flag is set, for the message.
     static constexpr RowWordTest test;
-    std::array<std::uint32_t, kRowWords> flags{};
+    std::array<std::uint32_t, kTestedWords> flags{};
     const auto* bytes = reinterpret_cast<const unsigned char*>(rows.data());
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const unsigned char* row = bytes + i * sizeof(ForceSample);
-        for (std::size_t k = 0; k < kRowWords; ++k) {
+        for (std::size_t k = 0; k < kTestedWords; ++k) {
             std::uint32_t word;
             std::memcpy(&word, row + k * sizeof word, sizeof word);
             flags[k] |= std::uint32_t((word & test.mask[k]) == test.all_ones[k]);
