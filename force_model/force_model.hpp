@@ -371,9 +371,11 @@ Prediction predict(const motion_io::MotionModel& motion, const RunSpec& spec, co
 // fault its pages in again. glibc otherwise trims the top of the heap when a large block at it is
 // freed, depending on what else happens to lie above it: bench_force's device path with the stock
 // in device buffers faulted 7 000 pages a prediction, about 9 ms of its 45 ms. Fixes the
-// allocator's thresholds (blocks under 32 MiB from the heap, up to 256 MiB of free heap kept per
-// arena). Call once from the process's main, before its threads start (mallopt is not thread
-// safe). False when the allocator refused (or is not glibc's): nothing changed then.
+// allocator's thresholds: blocks under 32 MiB from the heap, up to 32 MiB of free heap kept per
+// arena (256 MiB kept cost the service 60 to 100 MB of resident memory on bench_long; 32 MiB
+// leaves its peak where it was). Call once from the process's main, before its threads start
+// (mallopt is not thread safe). False when the allocator refused (or is not glibc's): nothing
+// changed then.
 bool keep_freed_heap_for_next_prediction();
 
 // ---- A tool that turns while it cuts (simultaneous five-axis work; docs/five_axis.md, 3.4) ------

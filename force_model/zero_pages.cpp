@@ -180,9 +180,10 @@ bool keep_freed_heap_for_next_prediction() {
 #ifdef __GLIBC__
     // Setting either threshold stops glibc from moving both as blocks are freed, so the trim
     // threshold is set only once the mmap one took. 32 MiB is the largest mmap threshold every
-    // 64-bit glibc accepts (mallopt(3)).
+    // 64-bit glibc accepts (mallopt(3)); as much free heap kept covers a prediction's rows and
+    // batches without holding more.
     if (mallopt(M_MMAP_THRESHOLD, 32 << 20) != 1) return false;
-    return mallopt(M_TRIM_THRESHOLD, 256 << 20) == 1;
+    return mallopt(M_TRIM_THRESHOLD, 32 << 20) == 1;
 #else
     return false;
 #endif
