@@ -50,13 +50,14 @@ void Engagement::queue_batch(StepBatcher& batcher, const TipBounds& bounds, int 
     InFlight& f = slots_[newest_];
     f.bounds = bounds;
     engage_params_.element_end = element_end;
-    // The engagement writes every step's result whole: only a batch it skips needs zeros.
-    if (element_end > 0) f.results.resize(batcher.size());
-    else f.results.assign(batcher.size(), kernels::StepResult{});
     if (element_end > 0) {
+        // The engagement writes every step's result whole: only a batch it skips needs zeros.
+        f.results.resize(batcher.size());
         ++phases_.batches;
         PhaseTimer timer(phases_.queue_s);
         backend_.engage(batcher.steps(), engage_params_, f.results.data());
+    } else {
+        f.results.assign(batcher.size(), kernels::StepResult{});
     }
     batcher.hand_over(f.steps, f.meta);
     f.has_batch = true;
