@@ -10,6 +10,7 @@ void prepare_opencl() {
     // Leased and given back at once: they wait in the pool for the engine's backend.
     rt.lease_kernel("engage.cl", "engage");
     rt.lease_kernel("remove.cl", "remove_sweep");
+    rt.lease_kernel("remove.cl", "refresh_tops");
 }
 
 }  // namespace cutload::force_model

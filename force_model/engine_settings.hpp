@@ -34,6 +34,10 @@ struct EngineSettings {
     // "Pipeline"). False: each batch is completed before the next is queued, the order the
     // pipeline must give the same rows and stock as (tests/force_model/test_engine_pipeline.cpp).
     bool queue_before_completing = true;
+    // OpenCL: edge points over rays whose material lies wholly below them are not looked up
+    // (docs/force_model.md, "Lookups skipped"). False: every point is, which must give the same
+    // rows (tests/force_model/test_skipped_lookups.cpp).
+    bool skip_lookups_below_tops = true;
 };
 
 // Where a prediction's wall time went (bench_force prints these). The backend works asynchronously:

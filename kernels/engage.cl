@@ -14,6 +14,10 @@
 // cells:  2 float4 per ray: lo[4], hi[4], each XOR-ed with base_lo / base_hi (RayCodec)
 // walls:  2 float4 per ray, the deepest wall then the lowest (empty when it is the same): clearance
 //         (bits XOR-ed with NO_WALL's), z_from, normal x, y (Wall)
+// tops:   per ray, the top of its material (bits XOR-ed with top_base's, so a ray never cut is 0),
+//         for a ray with the wall mark the highest of its own and its eight neighbours' (remove.cl's
+//         refresh_tops keeps them); skip_below_tops: whether lanes over a ray no higher than the
+//         element are left out
 // coef:   Ktc, Krc, Kac, Kte, Kre, Kae, holder face height, minimum chip thickness, cell size,
 //         wall tolerance
 // out:    12 floats per step (StepResult)
@@ -101,8 +105,10 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                      __global const float* rot, const int stride, const int n_flutes, const int bottom_count,
                      const int element_end, __global const float4* cells, __global const float4* walls,
                      const uint4 base_lo,
-                     const uint4 base_hi, const float x0, const float y0, const float inv_cell, const int nx,
-                     const int ny, __constant float* coef, __global float* out) {
+                     const uint4 base_hi, __global const uint* tops, const uint top_base, const int skip_below_tops,
+                     const float x0,
+                     const float y0, const float inv_cell, const int nx, const int ny, __constant float* coef,
+                     __global float* out) {
     const int i = get_global_id(0);
     if (i >= n_steps) return;
     const float4 s0 = vload4(0, steps + 8 * i);
@@ -168,6 +174,13 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
             for (int l = 0; l < 8; ++l) {
                 weight[l] = 0.0f;
                 if (!lane_ok[l]) continue;
+                // Nothing a lookup may read at this ray (the ray itself, or the one across its wall)
+                // reaches above the ray's top: when that is not above the element's lowest point, the
+                // weight is 0 (no overlap over the sliver, and a flat-bottom point is inside nothing),
+                // so the lookup is left out. In a pocket three quarters of the edge points ahead of
+                // the tool lie over stock cut down already, and their lookups were most of this
+                // kernel's work.
+                if (skip_below_tops && as_float(tops[cell[l]] ^ top_base) <= min(lane_a[l], lane_z[l])) continue;
                 float4 lo, hi;
                 material_at(cells, walls, base_lo, base_hi, cell[l], lane_u[l], lane_v[l], nx, ny, cell_mm, wall_tol, &lo,
                             &hi);

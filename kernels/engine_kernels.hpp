@@ -234,6 +234,9 @@ struct EngageParams {
     // An edge point counts as past a recorded wall (in material) only when it is deeper than this.
     double wall_tolerance_mm = kSliverMm;
     int element_end = 0;            // elements [0, element_end) may reach material in this batch
+    // OpenCL: an edge point over a ray whose top (refresh_tops_twin) is not above the element is not
+    // looked up. The weights are the same either way; the twin looks up every point.
+    bool skip_lookups_below_tops = true;
 };
 
 // ---- Swept-volume removal ------------------------------------------------------------------------
@@ -278,6 +281,13 @@ float ray_top(const float* ray);
 bool ray_contains(const float* ray, double z_mm);
 inline double ray_length(const Ray& ray) { return ray_length(ray.data()); }
 inline float ray_top(const Ray& ray) { return ray_top(ray.data()); }
+// The per-ray tops by which engage.cl skips the lookups that cannot find material (nothing an edge
+// point may read from a ray reaches above its top), for the rays [i0, i1) x [j0, j1): a ray's top,
+// or for a ray with the wall mark the highest top of it and its eight neighbours (its material may
+// be the ray's one cell across its wall). Stored as the bits of the top XOR-ed with those of
+// stock.codec.base_top(), so a ray never cut is 0; written only where the value changes. Twin of
+// remove.cl's refresh_tops; the OpenCL backend keeps the tops of its stock beside it.
+void refresh_tops_twin(const DexelView& stock, int i0, int j0, int i1, int j1, std::uint32_t* tops);
 // Length of [a, b) inside the ray's material (pieces over kSliverMm), and the lowest and highest
 // material point in it.
 double ray_overlap(const float* ray, double a_mm, double b_mm, double& lo_mm, double& hi_mm);

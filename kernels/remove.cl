@@ -12,6 +12,8 @@
 //        starts lowest (z_from; within `band` of height, the smaller clearance), empty when that is
 //        the first one; each written only when it changes
 // out:   per ray: removed length, new top
+// all_changed: per ray (from out_first on, like out), 1 where the ray was written, else 0 (for
+//        refresh_tops)
 #define K 4
 #define EMPTY_LO 1e30f
 #define EMPTY_HI -1e30f
@@ -57,7 +59,7 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
                            __global const float* all_segs, const int seg_first, const int n_segs,
                            __global const float* lower, const int n_lower, const float radius,
                            const float cut_length, __global float2* all_out, const int out_first,
-                           __global float4* walls, const float band) {
+                           __global float4* walls, const float band, __global uchar* all_changed) {
     const int g = get_global_id(0);
     if (g >= width * height) return;
     __global const float* segs = all_segs + 6 * seg_first;
@@ -175,4 +177,65 @@ __kernel void remove_sweep(__global uint* cells, __constant uint* base, const in
     if (changed)
         for (int k = 0; k < 2 * K; ++k) stored[k] = as_uint(out_ray[k]) ^ base[k];
     out[g] = (float2)(before - after, top);
+    all_changed[out_first + g] = changed ? 1 : 0;
+}
+
+// The ray's top (its highest interval end, EMPTY_HI when it holds none), and whether it carries the
+// wall mark.
+float ray_top_at(__global const uint* cells, __constant uint* base, const int index, bool* marked) {
+    const uint8 stored = vload8(index, cells) ^ vload8(0, base);
+    const float4 lo = as_float4(stored.lo), hi = as_float4(stored.hi);
+    const float4 top = select((float4)(EMPTY_HI), hi, isgreater(hi, lo));
+    *marked = lo.w == WALL_MARK;
+    return max(max(top.x, top.y), max(top.z, top.w));
+}
+
+// The per-ray tops engage.cl skips lookups by, refreshed after a flush's removal calls: a ray's
+// top, or for a ray with the wall mark the highest top of it and its eight neighbours, since its
+// material may be that of the ray one cell across its wall (engage.cl's material_at). Bits XOR-ed
+// with top_base's, so a ray never cut is 0; written only where the value changes. A ray's value
+// depends on its own ray and, with the mark, its neighbours: of each call's rectangle and one ray
+// around it, only the rays the call wrote and the marked rays next to one are computed. A kernel
+// of its own, queued after the calls, because it reads neighbours that remove_sweep may be
+// writing. Twin: refresh_tops_twin (which computes every ray of the rectangle it is given).
+//
+// calls: from table_first on in the segments' buffer (it rides along with them), per call 6 ints:
+//        its rectangle i0, j0, width, height (on the grid), where its flags start in all_changed (row
+//        by row), its first work item; then the number of work items (one per ray of each rectangle
+//        grown by one ray and clipped to the grid)
+__kernel void refresh_tops(__global const uint* cells, __constant uint* base, const int nx, const int ny,
+                           __global const float* all_segs, const int table_first, const int n_calls,
+                           __global const uchar* all_changed, __global uint* tops, const uint top_base) {
+    __global const int* calls = (__global const int*)(all_segs + table_first);
+    const int g = get_global_id(0);
+    if (g >= calls[6 * n_calls]) return;
+    int r = 0;
+    while (r + 1 < n_calls && g >= calls[6 * (r + 1) + 5]) ++r;
+    __global const int* call = calls + 6 * r;
+    const int i0 = call[0], j0 = call[1], width = call[2], height = call[3];
+    __global const uchar* changed = all_changed + call[4];
+    const int gi0 = max(i0 - 1, 0), gj0 = max(j0 - 1, 0), grown_width = min(i0 + width + 1, nx) - gi0;
+    const int i = gi0 + (g - call[5]) % grown_width, j = gj0 + (g - call[5]) / grown_width;
+    const bool inside = i >= i0 && i < i0 + width && j >= j0 && j < j0 + height;
+    // A ray the call wrote takes its new value. One it did not write changes only when it has the
+    // wall mark (read first: one word) and a neighbour was written.
+    if (!(inside && changed[(j - j0) * width + (i - i0)])) {
+        if (as_float(cells[8 * (j * nx + i) + K - 1] ^ base[K - 1]) != WALL_MARK) return;
+        bool near_change = false;
+        for (int b = max(j - 1, j0); b <= min(j + 1, j0 + height - 1); ++b)
+            for (int a = max(i - 1, i0); a <= min(i + 1, i0 + width - 1); ++a)
+                near_change |= changed[(b - j0) * width + (a - i0)] != 0;
+        if (!near_change) return;
+    }
+    bool marked = false;
+    float top = ray_top_at(cells, base, j * nx + i, &marked);
+    if (marked) {
+        for (int b = max(j - 1, 0); b <= min(j + 1, ny - 1); ++b)
+            for (int a = max(i - 1, 0); a <= min(i + 1, nx - 1); ++a) {
+                bool unused = false;
+                top = max(top, ray_top_at(cells, base, b * nx + a, &unused));
+            }
+    }
+    const uint value = as_uint(top) ^ top_base;
+    if (tops[j * nx + i] != value) tops[j * nx + i] = value;
 }

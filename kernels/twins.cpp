@@ -99,6 +99,23 @@ float ray_top(const float* ray) {
     return top;
 }
 
+void refresh_tops_twin(const DexelView& stock, int i0, int j0, int i1, int j1, std::uint32_t* tops) {
+    const GridInfo& g = stock.grid;
+    const std::uint32_t base = std::bit_cast<std::uint32_t>(stock.codec.base_top());
+    for (int j = std::max(j0, 0); j < std::min(j1, g.ny); ++j)
+        for (int i = std::max(i0, 0); i < std::min(i1, g.nx); ++i) {
+            const Ray ray = stock.load(std::size_t(j) * g.nx + std::size_t(i));
+            float top = ray_top(ray);
+            if (has_wall_mark(ray.data()))
+                for (int b = std::max(j - 1, 0); b <= std::min(j + 1, g.ny - 1); ++b)
+                    for (int a = std::max(i - 1, 0); a <= std::min(i + 1, g.nx - 1); ++a)
+                        top = std::max(top, ray_top(stock.load(std::size_t(b) * g.nx + std::size_t(a))));
+            const std::uint32_t value = std::bit_cast<std::uint32_t>(top) ^ base;
+            std::uint32_t& stored = tops[std::size_t(j) * g.nx + std::size_t(i)];
+            if (stored != value) stored = value;
+        }
+}
+
 double subtract_interval(float* ray, double a_mm, double b_mm) {
     std::array<std::pair<double, double>, kDexelIntervals + 1> piece{};
     int n = 0;

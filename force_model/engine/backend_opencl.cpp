@@ -16,6 +16,7 @@
 #include "kernels/opencl_runtime.hpp"
 
 #include <array>
+#include <bit>
 #include <cmath>
 #include <algorithm>
 #include <cstdint>
@@ -51,16 +52,23 @@ public:
         drain_.queue = &queue_;
         engage_ = rt_.lease_kernel("engage.cl", "engage");
         remove_ = rt_.lease_kernel("remove.cl", "remove_sweep");
+        refresh_ = rt_.lease_kernel("remove.cl", "refresh_tops");
         wrap_host_ = rt_.host_unified_memory();
         group_ = rt_.is_gpu() ? 0 : kCpuGroupSize;
         steps_in_place_ = wrap_host_ && rt_.wraps_host_arrays_in_place();
+        top_base_ = std::bit_cast<cl_uint>(stock.codec.base_top());
+        const std::size_t tops_bytes = stock.rays() * sizeof(cl_uint);
         if (wrap_host_) {
-            host_pages_.emplace(stock);
+            host_tops_ = ZeroPages(tops_bytes);
+            if (!fresh_stock) fill_tops(static_cast<cl_uint*>(host_tops_.data()));
+            host_pages_.emplace(stock, &host_tops_);
             wrapped_cells_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.storage.bytes(), stock.stored());
             wrapped_walls_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, stock.walls.bytes(), stock.stored_walls());
+            wrapped_tops_ = host_buffer(CL_MEM_USE_HOST_PTR | CL_MEM_READ_WRITE, tops_bytes, host_tops_.data());
         } else {
             cells_lease_ = rt_.lease_buffer(stock.storage.bytes(), CL_MEM_READ_WRITE);
             walls_lease_ = rt_.lease_buffer(stock.walls.bytes(), CL_MEM_READ_WRITE);
+            tops_lease_ = rt_.lease_buffer(tops_bytes, CL_MEM_READ_WRITE);
             if (fresh_stock) {
                 // A fresh stock is all zero bytes (kernels::RayCodec): filled on the device, no copy.
                 const cl_uint zero = 0;
@@ -70,9 +78,15 @@ public:
                 check_cl(clEnqueueFillBuffer(queue_.get(), walls_lease_.get(), &zero, sizeof zero, 0,
                                              stock.walls.bytes(), 0, nullptr, nullptr),
                          "fill walls");
+                check_cl(clEnqueueFillBuffer(queue_.get(), tops_lease_.get(), &zero, sizeof zero, 0, tops_bytes, 0,
+                                             nullptr, nullptr),
+                         "fill tops");
             } else {
                 write(cells_lease_.get(), stock.stored(), stock.storage.bytes());
                 write(walls_lease_.get(), stock.stored_walls(), stock.walls.bytes());
+                tops_upload_.assign(stock.rays(), 0);
+                fill_tops(tops_upload_.data());
+                write(tops_lease_.get(), tops_upload_.data(), tops_bytes);
             }
             tiles_x_ = (stock.grid.nx + kDirtyTile - 1) / kDirtyTile;
             tiles_y_ = (stock.grid.ny + kDirtyTile - 1) / kDirtyTile;
@@ -159,6 +173,9 @@ public:
         kernels::set_arg(k, a++, walls());
         kernels::set_arg(k, a++, base_lo_);
         kernels::set_arg(k, a++, base_hi_);
+        kernels::set_arg(k, a++, tops());
+        kernels::set_arg(k, a++, top_base_);
+        kernels::set_arg(k, a++, cl_int(p.skip_lookups_below_tops ? 1 : 0));
         kernels::set_arg(k, a++, x0);
         kernels::set_arg(k, a++, y0);
         kernels::set_arg(k, a++, inv);
@@ -179,14 +196,17 @@ public:
         std::size_t n_cells = 0;
         for (const kernels::SweepCall& c : calls) n_cells += c.cells();
         if (n_cells == 0 || segs.empty()) return;
-        grow(segs_buf_, segs.size() * 6 * sizeof(float), CL_MEM_READ_ONLY);
         grow(sweep_buf_, n_cells * sizeof(kernels::SweepCellResult), CL_MEM_WRITE_ONLY);
+        grow(changed_buf_, n_cells, CL_MEM_READ_WRITE);
         host_segs_.resize(6 * segs.size());
         for (std::size_t i = 0; i < segs.size(); ++i) {
             const auto& s = segs[i];
             const float v[6] = {float(s.ax), float(s.ay), float(s.az), float(s.bx), float(s.by), float(s.bz)};
             std::copy(v, v + 6, host_segs_.begin() + std::ptrdiff_t(6 * i));
         }
+        const std::size_t table_first = host_segs_.size();
+        const cl_int refreshed_calls = stage_refresh_table(calls);
+        grow(segs_buf_, host_segs_.size() * sizeof(float), CL_MEM_READ_ONLY);
         check_cl(clEnqueueWriteBuffer(queue_.get(), segs_buf_.get(), CL_FALSE, 0, host_segs_.size() * sizeof(float),
                                       host_segs_.data(), 0, nullptr, nullptr),
                  "write segments");
@@ -223,9 +243,11 @@ public:
             kernels::set_arg(k, a++, first);
             kernels::set_arg(k, a++, walls());
             kernels::set_arg(k, a++, band);
+            kernels::set_arg(k, a++, changed_buf_.get());
             kernels::launch_1d(queue_.get(), k, c.cells(), group_);
             out_first += c.cells();
         }
+        refresh_tops(table_first, refreshed_calls);
         cl_event read = nullptr;
         check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
                                      out, 0, nullptr, &read),
@@ -263,6 +285,14 @@ public:
 
     // Kernel arguments are taken when a kernel is queued, so queued work keeps its tool's tables.
     void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
+
+    bool read_lookup_tops(std::vector<std::uint32_t>& tops) override {
+        tops.assign(stock_.rays(), 0);
+        check_cl(clEnqueueReadBuffer(queue_.get(), this->tops(), CL_TRUE, 0, tops.size() * sizeof(std::uint32_t),
+                                     tops.data(), 0, nullptr, nullptr),
+                 "read tops");
+        return true;
+    }
 
     void download(Stock& stock) override {
         if (wrap_host_) {
@@ -330,6 +360,56 @@ private:
 
     cl_mem cells() const { return wrap_host_ ? wrapped_cells_.get() : cells_lease_.get(); }
     cl_mem walls() const { return wrap_host_ ? wrapped_walls_.get() : walls_lease_.get(); }
+    cl_mem tops() const { return wrap_host_ ? wrapped_tops_.get() : tops_lease_.get(); }
+
+    // The per-ray tops of a stock that is not fresh (those of a fresh one are all 0).
+    void fill_tops(cl_uint* tops) const {
+        static_assert(sizeof(cl_uint) == sizeof(std::uint32_t));
+        kernels::refresh_tops_twin(stock_.view(), 0, 0, stock_.grid.nx, stock_.grid.ny,
+                                   reinterpret_cast<std::uint32_t*>(tops));
+    }
+
+    // The table of refresh_tops (remove.cl) for `calls`, appended to the staged segments so that
+    // one write carries both (on PoCL every command costs both cores a wake-up); returns the
+    // number of calls in it.
+    cl_int stage_refresh_table(const std::vector<kernels::SweepCall>& calls) {
+        const int nx = stock_.grid.nx, ny = stock_.grid.ny;
+        auto put = [&](cl_int v) { host_segs_.push_back(std::bit_cast<float>(v)); };
+        cl_int n = 0, changed_first = 0, items = 0;
+        for (const kernels::SweepCall& c : calls) {
+            const cl_int cells = cl_int(c.cells());
+            if (c.width > 0 && c.height > 0) {   // a call that wrote nothing has no table entry
+                const int i0 = std::max(c.i0 - 1, 0), j0 = std::max(c.j0 - 1, 0);
+                const int i1 = std::min(c.i0 + c.width + 1, nx), j1 = std::min(c.j0 + c.height + 1, ny);
+                if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
+                for (const cl_int v : {c.i0, c.j0, c.width, c.height, changed_first, items}) put(v);
+                items += (i1 - i0) * (j1 - j0);
+                ++n;
+            }
+            changed_first += cells;
+        }
+        put(items);
+        return n;
+    }
+
+    // After a flush's removal calls: the tops of the rays next to those they wrote, in one launch.
+    void refresh_tops(std::size_t table_first, cl_int n_calls) {
+        const cl_int items = std::bit_cast<cl_int>(host_segs_.back());
+        if (n_calls == 0 || items == 0) return;
+        cl_kernel k = refresh_.get();
+        int a = 0;
+        kernels::set_arg(k, a++, cells());
+        kernels::set_arg(k, a++, base_.get());
+        kernels::set_arg(k, a++, cl_int(stock_.grid.nx));
+        kernels::set_arg(k, a++, cl_int(stock_.grid.ny));
+        kernels::set_arg(k, a++, segs_buf_.get());
+        kernels::set_arg(k, a++, cl_int(table_first));
+        kernels::set_arg(k, a++, n_calls);
+        kernels::set_arg(k, a++, changed_buf_.get());
+        kernels::set_arg(k, a++, tops());
+        kernels::set_arg(k, a++, top_base_);
+        kernels::launch_1d(queue_.get(), k, std::size_t(items), group_);
+    }
 
     void will_cut(int i0, int j0, int i1, int j1) override {
         if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
@@ -450,17 +530,23 @@ private:
     std::vector<DeviceTool> tools_;
     const DeviceTool* tool_ = nullptr;
     kernels::QueueLease queue_;
-    kernels::KernelLease engage_, remove_;
+    kernels::KernelLease engage_, remove_, refresh_;
     bool wrap_host_ = false;
     std::size_t group_ = 0;
-    ClMem wrapped_cells_, wrapped_walls_;                // CPU devices: the host stock itself
+    // Per ray, the top by which engage.cl skips lookups (kernels::refresh_tops_twin), kept by
+    // remove.cl's refresh_tops: derived from the stock, never read back.
+    ZeroPages host_tops_;                                // CPU devices: in host pages
+    ClMem wrapped_cells_, wrapped_walls_, wrapped_tops_;  // CPU devices: the host stock itself
     std::optional<StockPages> host_pages_;               // and its pages made writable
-    kernels::BufferLease cells_lease_, walls_lease_;     // otherwise: the stock on the device
+    kernels::BufferLease cells_lease_, walls_lease_, tops_lease_;   // otherwise: the stock on the device
+    std::vector<cl_uint> tops_upload_;                   // source of the tops' write for a stock not fresh
+    cl_uint top_base_ = 0;
     int tiles_x_ = 0, tiles_y_ = 0;
     std::vector<std::uint8_t> dirty_;                    // tiles a removal may have changed
     kernels::BufferLease base_, coef_;
     cl_uint4 base_lo_{}, base_hi_{};
     kernels::BufferLease segs_buf_, sweep_buf_;
+    kernels::BufferLease changed_buf_;   // remove_sweep's flags of the rays it wrote, for refresh_tops
     struct Drain {
         kernels::QueueLease* queue = nullptr;
         ~Drain() {

@@ -11,6 +11,7 @@ Engagement::Engagement(Backend& backend, const ToolGeometry& tool, const LinearE
     : backend_(backend), phases_(phases) {
     set_kernel_law(law, engage_params_);
     engage_params_.wall_tolerance_mm = settings.wall_tolerance_mm;
+    engage_params_.skip_lookups_below_tops = settings.skip_lookups_below_tops;
     set_tool_params(tool);
     // An edge point lies within half a cell diagonal of its ray's centre: walls farther than that
     // from the centre cannot change a test. A whole cell keeps a margin.
