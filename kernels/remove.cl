@@ -190,6 +190,18 @@ float ray_top_at(__global const uint* cells, __constant uint* base, const int in
     return max(max(top.x, top.y), max(top.z, top.w));
 }
 
+// The highest top of the ray (i, j) and its eight neighbours (on the grid).
+float neighbours_top(__global const uint* cells, __constant uint* base, const int nx, const int ny, const int i,
+                     const int j) {
+    float top = EMPTY_HI;
+    for (int b = max(j - 1, 0); b <= min(j + 1, ny - 1); ++b)
+        for (int a = max(i - 1, 0); a <= min(i + 1, nx - 1); ++a) {
+            bool unused = false;
+            top = max(top, ray_top_at(cells, base, b * nx + a, &unused));
+        }
+    return top;
+}
+
 // The per-ray tops engage.cl skips lookups by, refreshed after a flush's removal calls: a ray's
 // top, or for a ray with the wall mark the highest top of it and its eight neighbours, since its
 // material may be that of the ray one cell across its wall (engage.cl's material_at). Bits XOR-ed
@@ -202,12 +214,22 @@ float ray_top_at(__global const uint* cells, __constant uint* base, const int in
 // calls: from table_first on in the segments' buffer (it rides along with them), per call 6 ints:
 //        its rectangle i0, j0, width, height (on the grid), where its flags start in all_changed (row
 //        by row), its first work item; then the number of work items (one per ray of each rectangle
-//        grown by one ray and clipped to the grid)
+//        grown by one ray and clipped to the grid). With no calls: every ray of the grid (after a
+//        window's lead-in, walked for its removal alone), one work item each.
 __kernel void refresh_tops(__global const uint* cells, __constant uint* base, const int nx, const int ny,
                            __global const float* all_segs, const int table_first, const int n_calls,
                            __global const uchar* all_changed, __global uint* tops, const uint top_base) {
-    __global const int* calls = (__global const int*)(all_segs + table_first);
     const int g = get_global_id(0);
+    if (n_calls == 0) {
+        if (g >= nx * ny) return;
+        bool marked = false;
+        float top = ray_top_at(cells, base, g, &marked);
+        if (marked) top = max(top, neighbours_top(cells, base, nx, ny, g % nx, g / nx));
+        const uint value = as_uint(top) ^ top_base;
+        if (tops[g] != value) tops[g] = value;
+        return;
+    }
+    __global const int* calls = (__global const int*)(all_segs + table_first);
     if (g >= calls[6 * n_calls]) return;
     int r = 0;
     while (r + 1 < n_calls && g >= calls[6 * (r + 1) + 5]) ++r;
@@ -229,13 +251,7 @@ __kernel void refresh_tops(__global const uint* cells, __constant uint* base, co
     }
     bool marked = false;
     float top = ray_top_at(cells, base, j * nx + i, &marked);
-    if (marked) {
-        for (int b = max(j - 1, 0); b <= min(j + 1, ny - 1); ++b)
-            for (int a = max(i - 1, 0); a <= min(i + 1, nx - 1); ++a) {
-                bool unused = false;
-                top = max(top, ray_top_at(cells, base, b * nx + a, &unused));
-            }
-    }
+    if (marked) top = max(top, neighbours_top(cells, base, nx, ny, i, j));
     const uint value = as_uint(top) ^ top_base;
     if (tops[j * nx + i] != value) tops[j * nx + i] = value;
 }

@@ -43,6 +43,10 @@ public:
     // The rays [i0, i1) x [j0, j1) are about to be read by engage() and cut by a later sweep(): a
     // backend that works in the host's arrays maps their pages writable first (StockPages).
     virtual void will_cut(int i0, int j0, int i1, int j1) = 0;
+    // Whether engage() calls follow the sweeps (false while a window's lead-in is walked for its
+    // removal alone): the OpenCL backend then stops keeping the tops below up to date, and
+    // rebuilds them all once when engaging resumes.
+    virtual void set_engaging(bool) {}
     // The per-ray tops by which the OpenCL engagement skips lookups (kernels::refresh_tops_twin says
     // what they hold), as the device has them after everything queued: for tests. False where the
     // backend keeps none (the scalar twins look up every edge point).

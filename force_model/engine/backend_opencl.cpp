@@ -205,7 +205,8 @@ public:
             std::copy(v, v + 6, host_segs_.begin() + std::ptrdiff_t(6 * i));
         }
         const std::size_t table_first = host_segs_.size();
-        const cl_int refreshed_calls = stage_refresh_table(calls);
+        const cl_int refreshed_calls = engaging_ ? stage_refresh_table(calls) : 0;
+        tops_stale_ = tops_stale_ || !engaging_;
         grow(segs_buf_, host_segs_.size() * sizeof(float), CL_MEM_READ_ONLY);
         check_cl(clEnqueueWriteBuffer(queue_.get(), segs_buf_.get(), CL_FALSE, 0, host_segs_.size() * sizeof(float),
                                       host_segs_.data(), 0, nullptr, nullptr),
@@ -247,7 +248,7 @@ public:
             kernels::launch_1d(queue_.get(), k, c.cells(), group_);
             out_first += c.cells();
         }
-        refresh_tops(table_first, refreshed_calls);
+        if (engaging_) refresh_tops(table_first, refreshed_calls);
         cl_event read = nullptr;
         check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
                                      out, 0, nullptr, &read),
@@ -285,6 +286,15 @@ public:
 
     // Kernel arguments are taken when a kernel is queued, so queued work keeps its tool's tables.
     void use_tool(std::size_t slot) override { tool_ = &tools_.at(slot); }
+
+    void set_engaging(bool engaging) override {
+        engaging_ = engaging;
+        if (!engaging_ || !tops_stale_) return;
+        // Every ray's top, once: a window's lead-in removed material without refreshing them.
+        if (host_pages_) host_pages_->prepare(0, 0, stock_.grid.nx, stock_.grid.ny);
+        launch_refresh(segs_buf_ ? segs_buf_.get() : tops(), 0, 0, stock_.rays());
+        tops_stale_ = false;
+    }
 
     bool read_lookup_tops(std::vector<std::uint32_t>& tops) override {
         tops.assign(stock_.rays(), 0);
@@ -396,19 +406,24 @@ private:
     void refresh_tops(std::size_t table_first, cl_int n_calls) {
         const cl_int items = std::bit_cast<cl_int>(host_segs_.back());
         if (n_calls == 0 || items == 0) return;
+        launch_refresh(segs_buf_.get(), cl_int(table_first), n_calls, std::size_t(items));
+    }
+
+    // refresh_tops over the calls of the table at `table_first` in `table`; with none, every ray.
+    void launch_refresh(cl_mem table, cl_int table_first, cl_int n_calls, std::size_t items) {
         cl_kernel k = refresh_.get();
         int a = 0;
         kernels::set_arg(k, a++, cells());
         kernels::set_arg(k, a++, base_.get());
         kernels::set_arg(k, a++, cl_int(stock_.grid.nx));
         kernels::set_arg(k, a++, cl_int(stock_.grid.ny));
-        kernels::set_arg(k, a++, segs_buf_.get());
-        kernels::set_arg(k, a++, cl_int(table_first));
+        kernels::set_arg(k, a++, table);
+        kernels::set_arg(k, a++, table_first);
         kernels::set_arg(k, a++, n_calls);
-        kernels::set_arg(k, a++, changed_buf_.get());
+        kernels::set_arg(k, a++, changed_buf_ ? changed_buf_.get() : tops());
         kernels::set_arg(k, a++, tops());
         kernels::set_arg(k, a++, top_base_);
-        kernels::launch_1d(queue_.get(), k, std::size_t(items), group_);
+        kernels::launch_1d(queue_.get(), k, items, group_);
     }
 
     void will_cut(int i0, int j0, int i1, int j1) override {
@@ -547,6 +562,8 @@ private:
     cl_uint4 base_lo_{}, base_hi_{};
     kernels::BufferLease segs_buf_, sweep_buf_;
     kernels::BufferLease changed_buf_;   // remove_sweep's flags of the rays it wrote, for refresh_tops
+    bool engaging_ = true;               // set_engaging
+    bool tops_stale_ = false;            // sweeps ran without refreshing the tops
     struct Drain {
         kernels::QueueLease* queue = nullptr;
         ~Drain() {

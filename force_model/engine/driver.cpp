@@ -136,6 +136,7 @@ bool Engine::window_rows_final() const {
 void Engine::limit_to(const TimeWindow& w) {
     window_ = w;
     replaying_ = true;
+    backend_.set_engaging(false);
 }
 
 void Engine::walk_interval(std::size_t i) {
@@ -144,7 +145,10 @@ void Engine::walk_interval(std::size_t i) {
     // (its rows before from_s are dropped later): the stock each of its steps sees is the one the
     // whole run gave it, the removal lag included.
     // (A step may fall on the interval's end time itself: >= keeps a window starting there whole.)
-    if (replaying_ && motion_.t_s[i + 1] >= window_->from_s) replaying_ = false;
+    if (replaying_ && motion_.t_s[i + 1] >= window_->from_s) {
+        replaying_ = false;
+        backend_.set_engaging(true);
+    }
     check_rows();
     // Rows already written are final (a batch in flight appends its own); the last one may still
     // take a stop's removed volume.

@@ -3,7 +3,8 @@
 // around it, is not above the element; remove.cl's refresh_tops keeps those tops after every
 // removal. Checked here:
 // - the tops the device holds equal refresh_tops_twin over the whole stock, after removals that
-//   leave walls (fresh stock), and as set up from a stock cut before (a base stock);
+//   leave walls (fresh stock), as set up from a stock cut before (a base stock), and once engaging
+//   resumes after removals made without (a window's lead-in);
 // - the rows with lookups skipped equal, bit for bit, those with every edge point looked up
 //   (EngineSettings::skip_lookups_below_tops), over a two-layer zig-zag pocket with round turns,
 //   from a fresh stock and from that run's final stock.
@@ -14,6 +15,7 @@
 #include "engine_fixtures.hpp"
 #include "motion_fixtures.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -169,10 +171,32 @@ TEST_CASE("skipped lookups: the device's per-ray tops are refresh_tops_twin's, a
     }
     // The same stock as a base stock: the tops are set up from it.
     opt.base_stock = cut.get();
-    force_model::EngineSetup again(spec, plan, opt, settings);
-    const TopsCheck from_base = check_tops(*again.backend, *again.stock);
-    CHECK(from_base.differing == 0);
-    CHECK(from_base.cut > 5000);
+    {
+        force_model::EngineSetup again(spec, plan, opt, settings);
+        const TopsCheck from_base = check_tops(*again.backend, *again.stock);
+        CHECK(from_base.differing == 0);
+        CHECK(from_base.cut > 5000);
+    }
+    // Removals with no engagement to follow (a window's lead-in) leave the tops as they were, and
+    // all of them are rebuilt when engaging resumes.
+    opt.base_stock = nullptr;
+    force_model::EngineSetup lead_in(spec, plan, opt, settings);
+    const force_model::ToolGeometry& tool = lead_in.tools.at(0);
+    kernels::SweepParams sp;
+    sp.lower_mm = tool.lower_mm;
+    sp.radius_mm = tool.radius_mm;
+    sp.cut_length_mm = tool.flute_length_mm;
+    sp.wall_band_mm = lead_in.stock->grid.cell_mm;
+    lead_in.backend->set_engaging(false);
+    cut_three_passes(*lead_in.backend, *lead_in.stock, sp);
+    std::vector<std::uint32_t> stale;
+    REQUIRE(lead_in.backend->read_lookup_tops(stale));
+    CHECK(std::all_of(stale.begin(), stale.end(), [](std::uint32_t t) { return t == 0; }));
+    lead_in.backend->set_engaging(true);
+    const TopsCheck rebuilt = check_tops(*lead_in.backend, *lead_in.stock);
+    CHECK(rebuilt.differing == 0);
+    CHECK(rebuilt.cut > 5000);
+    CHECK(rebuilt.raised_by_neighbour > 50);
 }
 
 TEST_CASE("skipped lookups: a two-layer pocket gives the same rows as with every edge point looked up",
