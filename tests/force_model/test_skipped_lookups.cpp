@@ -30,6 +30,17 @@ using testref::line_to;
 
 namespace {
 
+// The removal of the setup's first cutter, as the engine asks for it.
+kernels::SweepParams sweep_params(const force_model::EngineSetup& setup) {
+    const force_model::ToolGeometry& tool = setup.tools.at(0);
+    kernels::SweepParams sp;
+    sp.lower_mm = tool.lower_mm;
+    sp.radius_mm = tool.radius_mm;
+    sp.cut_length_mm = tool.flute_length_mm;
+    sp.wall_band_mm = setup.stock->grid.cell_mm;
+    return sp;
+}
+
 // Three passes 1.5 mm apart along x over the fixture's block, 3 mm deep, each removed as one
 // straight segment: every pass but the first cuts against the wall the one before left.
 void cut_three_passes(force_model::Backend& backend, const force_model::Stock& stock, const kernels::SweepParams& sp) {
@@ -148,12 +159,7 @@ TEST_CASE("skipped lookups: the device's per-ray tops are refresh_tops_twin's, a
     force_model::StockPtr cut;
     {
         force_model::EngineSetup setup(spec, plan, opt, settings);
-        const force_model::ToolGeometry& tool = setup.tools.at(0);
-        kernels::SweepParams sp;
-        sp.lower_mm = tool.lower_mm;
-        sp.radius_mm = tool.radius_mm;
-        sp.cut_length_mm = tool.flute_length_mm;
-        sp.wall_band_mm = setup.stock->grid.cell_mm;
+        const kernels::SweepParams sp = sweep_params(setup);
         // A fresh stock: all tops are a ray never cut's.
         const TopsCheck fresh = check_tops(*setup.backend, *setup.stock);
         CHECK(fresh.differing == 0);
@@ -181,14 +187,8 @@ TEST_CASE("skipped lookups: the device's per-ray tops are refresh_tops_twin's, a
     // all of them are rebuilt when engaging resumes.
     opt.base_stock = nullptr;
     force_model::EngineSetup lead_in(spec, plan, opt, settings);
-    const force_model::ToolGeometry& tool = lead_in.tools.at(0);
-    kernels::SweepParams sp;
-    sp.lower_mm = tool.lower_mm;
-    sp.radius_mm = tool.radius_mm;
-    sp.cut_length_mm = tool.flute_length_mm;
-    sp.wall_band_mm = lead_in.stock->grid.cell_mm;
     lead_in.backend->set_engaging(false);
-    cut_three_passes(*lead_in.backend, *lead_in.stock, sp);
+    cut_three_passes(*lead_in.backend, *lead_in.stock, sweep_params(lead_in));
     std::vector<std::uint32_t> stale;
     REQUIRE(lead_in.backend->read_lookup_tops(stale));
     CHECK(std::all_of(stale.begin(), stale.end(), [](std::uint32_t t) { return t == 0; }));
