@@ -65,7 +65,10 @@ __attribute__((always_inline)) void material_at(__global const float4* cells, __
     if (clearance + (fu * w.z + fv * w.w) * cell_mm <= wall_tol) {
         swept_from = w.y;
     } else if (clearance <= 0.0f) {
-        const int ai = (int)floor((float)ci + 0.5f + w.z), aj = (int)floor((float)cj + 0.5f + w.w);
+        // One cell over, whatever the stored normal says: the lookup tops (remove.cl's
+        // refresh_tops) count on the ray read being one of the 3 x 3 around this one.
+        const int ai = clamp((int)floor((float)ci + 0.5f + w.z), ci - 1, ci + 1);
+        const int aj = clamp((int)floor((float)cj + 0.5f + w.w), cj - 1, cj + 1);
         if (ai < 0 || aj < 0 || ai >= nx || aj >= ny) {
             *lo = (float4)(EMPTY_LO);
             *hi = (float4)(EMPTY_HI);
@@ -177,9 +180,8 @@ __kernel void engage(const int n_steps, __global const float* steps, const float
                 // Nothing a lookup may read at this ray (the ray itself, or the one across its wall)
                 // reaches above the ray's top: when that is not above the element's lowest point, the
                 // weight is 0 (no overlap over the sliver, and a flat-bottom point is inside nothing),
-                // so the lookup is left out. In a pocket three quarters of the edge points ahead of
-                // the tool lie over stock cut down already, and their lookups were most of this
-                // kernel's work.
+                // so the lookup is left out. In a pocket most edge points ahead of the tool lie over
+                // stock cut down already (docs/force_model.md, "Lookups skipped").
                 if (skip_below_tops && as_float(tops[cell[l]] ^ top_base) <= min(lane_a[l], lane_z[l])) continue;
                 float4 lo, hi;
                 material_at(cells, walls, base_lo, base_hi, cell[l], lane_u[l], lane_v[l], nx, ny, cell_mm, wall_tol, &lo,

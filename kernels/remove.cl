@@ -214,19 +214,23 @@ float neighbours_top(__global const uint* cells, __constant uint* base, const in
 // calls: from table_first on in the segments' buffer (it rides along with them), per call 6 ints:
 //        its rectangle i0, j0, width, height (on the grid), where its flags start in all_changed (row
 //        by row), its first work item; then the number of work items (one per ray of each rectangle
-//        grown by one ray and clipped to the grid). With no calls: every ray of the grid (after a
-//        window's lead-in, walked for its removal alone), one work item each.
+//        grown by one ray and clipped to the grid). With no calls: every ray of the rectangle
+//        rect_width x rect_height from (rect_i0, rect_j0) (after a window's lead-in, walked for its
+//        removal alone, over what it may have changed), one work item each; the table and the flags
+//        are not read.
 __kernel void refresh_tops(__global const uint* cells, __constant uint* base, const int nx, const int ny,
                            __global const float* all_segs, const int table_first, const int n_calls,
-                           __global const uchar* all_changed, __global uint* tops, const uint top_base) {
+                           __global const uchar* all_changed, const int rect_i0, const int rect_j0,
+                           const int rect_width, const int rect_height, __global uint* tops, const uint top_base) {
     const int g = get_global_id(0);
     if (n_calls == 0) {
-        if (g >= nx * ny) return;
+        if (g >= rect_width * rect_height) return;
+        const int i = rect_i0 + g % rect_width, j = rect_j0 + g / rect_width;
         bool marked = false;
-        float top = ray_top_at(cells, base, g, &marked);
-        if (marked) top = max(top, neighbours_top(cells, base, nx, ny, g % nx, g / nx));
+        float top = ray_top_at(cells, base, j * nx + i, &marked);
+        if (marked) top = max(top, neighbours_top(cells, base, nx, ny, i, j));
         const uint value = as_uint(top) ^ top_base;
-        if (tops[g] != value) tops[g] = value;
+        if (tops[j * nx + i] != value) tops[j * nx + i] = value;
         return;
     }
     __global const int* calls = (__global const int*)(all_segs + table_first);

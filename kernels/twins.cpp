@@ -276,7 +276,9 @@ Ray material_at(const DexelView& stock, double ci, double cj, double x, double y
     if (depth(wall) <= tolerance_mm) {
         swept_from = wall.z_from_mm;
     } else if (wall.clearance_mm <= 0) {
-        const double ai = std::floor(ci + 0.5 + wall.nx), aj = std::floor(cj + 0.5 + wall.ny);
+        // One cell over, whatever the stored normal says (engage.cl clamps alike).
+        const double ai = std::clamp(std::floor(ci + 0.5 + wall.nx), ci - 1, ci + 1);
+        const double aj = std::clamp(std::floor(cj + 0.5 + wall.ny), cj - 1, cj + 1);
         if (ai < 0 || aj < 0 || ai >= g.nx || aj >= g.ny) return kNoMaterial;
         ray = stock.load(std::size_t(aj) * g.nx + std::size_t(ai));
     }

@@ -12,6 +12,7 @@
 // device; at the end only the tiles a removal touched are read back (docs/force_model.md,
 // "Device state").
 #include "engine/backend.hpp"
+#include "engine/stock_map.hpp"
 #include "engine/stock_pages.hpp"
 #include "kernels/opencl_runtime.hpp"
 
@@ -204,9 +205,10 @@ public:
             const float v[6] = {float(s.ax), float(s.ay), float(s.az), float(s.bx), float(s.by), float(s.bz)};
             std::copy(v, v + 6, host_segs_.begin() + std::ptrdiff_t(6 * i));
         }
+        // The staged segments also carry refresh_tops' table of calls (one write for both).
         const std::size_t table_first = host_segs_.size();
-        const cl_int refreshed_calls = engaging_ ? stage_refresh_table(calls) : 0;
-        tops_stale_ = tops_stale_ || !engaging_;
+        const RefreshTable table = engaging_ ? stage_refresh_table(calls) : RefreshTable{};
+        if (!engaging_) grow_stale_box(calls);
         grow(segs_buf_, host_segs_.size() * sizeof(float), CL_MEM_READ_ONLY);
         check_cl(clEnqueueWriteBuffer(queue_.get(), segs_buf_.get(), CL_FALSE, 0, host_segs_.size() * sizeof(float),
                                       host_segs_.data(), 0, nullptr, nullptr),
@@ -248,7 +250,8 @@ public:
             kernels::launch_1d(queue_.get(), k, c.cells(), group_);
             out_first += c.cells();
         }
-        if (engaging_) refresh_tops(table_first, refreshed_calls);
+        if (table.items > 0)
+            launch_refresh(segs_buf_.get(), cl_int(table_first), table.calls, changed_buf_.get(), {}, table.items);
         cl_event read = nullptr;
         check_cl(clEnqueueReadBuffer(queue_.get(), sweep_buf_.get(), CL_FALSE, 0, n_cells * sizeof(kernels::SweepCellResult),
                                      out, 0, nullptr, &read),
@@ -256,7 +259,10 @@ public:
         last_read_ = ClEvent(read);
     }
 
-    void wait() override { check_cl(clFinish(queue_.get()), "clFinish"); }
+    void wait() override {
+        check_cl(clFinish(queue_.get()), "clFinish");
+        tops_upload_ = {};   // read by now
+    }
 
     // The queue is in order and every engage() and sweep() ends with a read of its results, so the
     // last read's event completes after everything queued before it.
@@ -289,11 +295,15 @@ public:
 
     void set_engaging(bool engaging) override {
         engaging_ = engaging;
-        if (!engaging_ || !tops_stale_) return;
-        // Every ray's top, once: a window's lead-in removed material without refreshing them.
-        if (host_pages_) host_pages_->prepare(0, 0, stock_.grid.nx, stock_.grid.ny);
-        launch_refresh(segs_buf_ ? segs_buf_.get() : tops(), 0, 0, stock_.rays());
-        tops_stale_ = false;
+        if (!engaging_ || stale_.i1 <= stale_.i0) return;
+        // Once, every ray a window's lead-in may have changed (its calls' rectangles and one ray
+        // around them), as it removed material without refreshing them.
+        if (host_pages_) host_pages_->prepare_tops(stale_.i0, stale_.j0, stale_.i1, stale_.j1);
+        // The table and the flags are not read for a rectangle: base_ stands in for them (it
+        // is never grown, so no later sweep can give it up while this is queued).
+        launch_refresh(base_.get(), 0, 0, base_.get(), stale_,
+                       std::size_t(stale_.i1 - stale_.i0) * std::size_t(stale_.j1 - stale_.j0));
+        stale_ = {};
     }
 
     bool read_lookup_tops(std::vector<std::uint32_t>& tops) override {
@@ -379,38 +389,55 @@ private:
                                    reinterpret_cast<std::uint32_t*>(tops));
     }
 
-    // The table of refresh_tops (remove.cl) for `calls`, appended to the staged segments so that
-    // one write carries both (on PoCL every command costs both cores a wake-up); returns the
-    // number of calls in it.
-    cl_int stage_refresh_table(const std::vector<kernels::SweepCall>& calls) {
-        const int nx = stock_.grid.nx, ny = stock_.grid.ny;
+    struct RefreshTable {
+        cl_int calls = 0;
+        std::size_t items = 0;   // work items: one per ray of each call's rectangle and one ray around it
+    };
+
+    // A call's rectangle grown by one ray, clipped to the grid.
+    CellRect grown(const kernels::SweepCall& c) const {
+        return {std::max(c.i0 - 1, 0), std::max(c.j0 - 1, 0), std::min(c.i0 + c.width + 1, stock_.grid.nx),
+                std::min(c.j0 + c.height + 1, stock_.grid.ny)};
+    }
+
+    // The table of refresh_tops (remove.cl) for `calls`, appended to the staged segments.
+    RefreshTable stage_refresh_table(const std::vector<kernels::SweepCall>& calls) {
         auto put = [&](cl_int v) { host_segs_.push_back(std::bit_cast<float>(v)); };
-        cl_int n = 0, changed_first = 0, items = 0;
+        RefreshTable t;
+        cl_int changed_first = 0;
         for (const kernels::SweepCall& c : calls) {
-            const cl_int cells = cl_int(c.cells());
-            if (c.width > 0 && c.height > 0) {   // a call that wrote nothing has no table entry
-                const int i0 = std::max(c.i0 - 1, 0), j0 = std::max(c.j0 - 1, 0);
-                const int i1 = std::min(c.i0 + c.width + 1, nx), j1 = std::min(c.j0 + c.height + 1, ny);
-                if (host_pages_) host_pages_->prepare(i0, j0, i1, j1);
-                for (const cl_int v : {c.i0, c.j0, c.width, c.height, changed_first, items}) put(v);
-                items += (i1 - i0) * (j1 - j0);
-                ++n;
+            if (c.width > 0 && c.height > 0) {   // a call that wrote nothing has no entry
+                const CellRect g = grown(c);
+                // Only the tops: the rays around a call are only read.
+                if (host_pages_) host_pages_->prepare_tops(g.i0, g.j0, g.i1, g.j1);
+                for (const cl_int v : {c.i0, c.j0, c.width, c.height, changed_first, cl_int(t.items)}) put(v);
+                t.items += std::size_t(g.i1 - g.i0) * std::size_t(g.j1 - g.j0);
+                ++t.calls;
             }
-            changed_first += cells;
+            changed_first += cl_int(c.cells());
         }
-        put(items);
-        return n;
+        put(cl_int(t.items));
+        return t;
     }
 
-    // After a flush's removal calls: the tops of the rays next to those they wrote, in one launch.
-    void refresh_tops(std::size_t table_first, cl_int n_calls) {
-        const cl_int items = std::bit_cast<cl_int>(host_segs_.back());
-        if (n_calls == 0 || items == 0) return;
-        launch_refresh(segs_buf_.get(), cl_int(table_first), n_calls, std::size_t(items));
+    // A window's lead-in: the rays its calls may change, for set_engaging.
+    void grow_stale_box(const std::vector<kernels::SweepCall>& calls) {
+        for (const kernels::SweepCall& c : calls) {
+            if (c.width <= 0 || c.height <= 0) continue;
+            const CellRect g = grown(c);
+            if (stale_.i1 <= stale_.i0) {
+                stale_ = g;
+            } else {
+                stale_ = {std::min(stale_.i0, g.i0), std::min(stale_.j0, g.j0), std::max(stale_.i1, g.i1),
+                          std::max(stale_.j1, g.j1)};
+            }
+        }
     }
 
-    // refresh_tops over the calls of the table at `table_first` in `table`; with none, every ray.
-    void launch_refresh(cl_mem table, cl_int table_first, cl_int n_calls, std::size_t items) {
+    // refresh_tops over the `n_calls` calls of the table at `table_first` in `table`, with their
+    // flags in `changed`; with none, over every ray of `rect`.
+    void launch_refresh(cl_mem table, cl_int table_first, cl_int n_calls, cl_mem changed, const CellRect& rect,
+                        std::size_t items) {
         cl_kernel k = refresh_.get();
         int a = 0;
         kernels::set_arg(k, a++, cells());
@@ -420,7 +447,11 @@ private:
         kernels::set_arg(k, a++, table);
         kernels::set_arg(k, a++, table_first);
         kernels::set_arg(k, a++, n_calls);
-        kernels::set_arg(k, a++, changed_buf_ ? changed_buf_.get() : tops());
+        kernels::set_arg(k, a++, changed);
+        kernels::set_arg(k, a++, cl_int(rect.i0));
+        kernels::set_arg(k, a++, cl_int(rect.j0));
+        kernels::set_arg(k, a++, cl_int(rect.i1 - rect.i0));
+        kernels::set_arg(k, a++, cl_int(rect.j1 - rect.j0));
         kernels::set_arg(k, a++, tops());
         kernels::set_arg(k, a++, top_base_);
         kernels::launch_1d(queue_.get(), k, items, group_);
@@ -554,7 +585,7 @@ private:
     ClMem wrapped_cells_, wrapped_walls_, wrapped_tops_;  // CPU devices: the host stock itself
     std::optional<StockPages> host_pages_;               // and its pages made writable
     kernels::BufferLease cells_lease_, walls_lease_, tops_lease_;   // otherwise: the stock on the device
-    std::vector<cl_uint> tops_upload_;                   // source of the tops' write for a stock not fresh
+    std::vector<cl_uint> tops_upload_;                   // source of the tops' write for a stock not fresh, until a wait
     cl_uint top_base_ = 0;
     int tiles_x_ = 0, tiles_y_ = 0;
     std::vector<std::uint8_t> dirty_;                    // tiles a removal may have changed
@@ -563,7 +594,7 @@ private:
     kernels::BufferLease segs_buf_, sweep_buf_;
     kernels::BufferLease changed_buf_;   // remove_sweep's flags of the rays it wrote, for refresh_tops
     bool engaging_ = true;               // set_engaging
-    bool tops_stale_ = false;            // sweeps ran without refreshing the tops
+    CellRect stale_;                     // the rays whose tops a lead-in's sweeps left (none: empty)
     struct Drain {
         kernels::QueueLease* queue = nullptr;
         ~Drain() {
@@ -572,7 +603,7 @@ private:
     };
     std::array<float, 10> coef_host_{};
     bool coef_written_ = false;
-    std::vector<float> host_segs_;
+    std::vector<float> host_segs_;   // the segments' staging, refresh_tops' table of calls after them
     struct Free {
         void operator()(float* p) const { std::free(p); }
     };

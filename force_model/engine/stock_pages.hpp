@@ -25,10 +25,16 @@ public:
         const std::size_t nx = std::size_t(stock_.grid.nx);
         stock_.storage.prepare_writable_rows(nx * ray, std::size_t(i0) * ray, std::size_t(i1) * ray, std::size_t(j0),
                                              std::size_t(j1));
+        prepare_tops(i0, j0, i1, j1);
+    }
+    // The tops alone (rays only read around a removal, or not at all).
+    void prepare_tops(int i0, int j0, int i1, int j1) {
+        i0 = std::max(i0, 0), j0 = std::max(j0, 0);
+        i1 = std::min(i1, stock_.grid.nx), j1 = std::min(j1, stock_.grid.ny);
+        if (!tops_ || i0 >= i1 || j0 >= j1) return;
         constexpr std::size_t top = sizeof(std::uint32_t);
-        if (tops_)
-            tops_->prepare_writable_rows(nx * top, std::size_t(i0) * top, std::size_t(i1) * top, std::size_t(j0),
-                                         std::size_t(j1));
+        tops_->prepare_writable_rows(std::size_t(stock_.grid.nx) * top, std::size_t(i0) * top, std::size_t(i1) * top,
+                                     std::size_t(j0), std::size_t(j1));
     }
 
 private:

@@ -42,20 +42,46 @@ kernels::SweepParams sweep_params(const force_model::EngineSetup& setup) {
 }
 
 // Three passes 1.5 mm apart along x over the fixture's block, 3 mm deep, each removed as one
-// straight segment: every pass but the first cuts against the wall the one before left.
-void cut_three_passes(force_model::Backend& backend, const force_model::Stock& stock, const kernels::SweepParams& sp) {
+// straight segment: every pass but the first cuts against the wall the one before left. Either a
+// sweep per pass, each waited for, or all three calls in one sweep (overlapping rectangles, as a
+// flush queues them) with a call of no width among them.
+void cut_three_passes(force_model::Backend& backend, const force_model::Stock& stock, const kernels::SweepParams& sp,
+                      bool one_sweep = false) {
     const auto& g = stock.grid;
     const double z = 7, reach_mm = sp.radius_mm + g.cell_mm;
+    std::vector<kernels::SweepSegment> segs;
+    std::vector<kernels::SweepCall> calls;
     for (int pass = 0; pass < 3; ++pass) {
         const double y = 8 + 1.5 * pass, x0 = 4, x1 = 30;
         kernels::SweepCall call;
+        call.first_segment = segs.size();
         call.segments = 1;
         call.i0 = std::max(0, int(std::floor((x0 - reach_mm - g.x0_mm) / g.cell_mm)));
         call.j0 = std::max(0, int(std::floor((y - reach_mm - g.y0_mm) / g.cell_mm)));
         call.width = std::min(g.nx, int(std::ceil((x1 + reach_mm - g.x0_mm) / g.cell_mm))) - call.i0;
         call.height = std::min(g.ny, int(std::ceil((y + reach_mm - g.y0_mm) / g.cell_mm))) - call.j0;
-        std::vector<kernels::SweepCellResult> out(call.cells());
-        backend.sweep({{x0, y, z, x1, y, z}}, {call}, sp, out.data());
+        segs.push_back({x0, y, z, x1, y, z});
+        calls.push_back(call);
+        if (pass == 1) {
+            kernels::SweepCall empty = call;
+            empty.width = 0;
+            calls.push_back(empty);
+        }
+    }
+    if (one_sweep) {
+        std::size_t cells = 0;
+        for (const auto& c : calls) cells += c.cells();
+        std::vector<kernels::SweepCellResult> out(cells);
+        backend.sweep(segs, calls, sp, out.data());
+        backend.wait();
+        return;
+    }
+    for (const kernels::SweepCall& c : calls) {
+        if (c.cells() == 0) continue;
+        kernels::SweepCall alone = c;
+        alone.first_segment = 0;
+        std::vector<kernels::SweepCellResult> out(c.cells());
+        backend.sweep({segs[c.first_segment]}, {alone}, sp, out.data());
         backend.wait();
     }
 }
@@ -183,9 +209,18 @@ TEST_CASE("skipped lookups: the device's per-ray tops are refresh_tops_twin's, a
         CHECK(from_base.differing == 0);
         CHECK(from_base.cut > 5000);
     }
-    // Removals with no engagement to follow (a window's lead-in) leave the tops as they were, and
-    // all of them are rebuilt when engaging resumes.
+    // The three passes as one flush's calls.
     opt.base_stock = nullptr;
+    {
+        force_model::EngineSetup flush(spec, plan, opt, settings);
+        cut_three_passes(*flush.backend, *flush.stock, sweep_params(flush), true);
+        const TopsCheck one_sweep = check_tops(*flush.backend, *flush.stock);
+        CHECK(one_sweep.differing == 0);
+        CHECK(one_sweep.cut > 5000);
+        CHECK(one_sweep.raised_by_neighbour > 50);
+    }
+    // Removals with no engagement to follow (a window's lead-in) leave the tops as they were, and
+    // those they may have changed are rebuilt when engaging resumes.
     force_model::EngineSetup lead_in(spec, plan, opt, settings);
     lead_in.backend->set_engaging(false);
     cut_three_passes(*lead_in.backend, *lead_in.stock, sweep_params(lead_in));
