@@ -55,6 +55,25 @@ struct Path {
     double spindle_rpm = 10000;
 };
 
+// One layer of zig-zag pocketing at height z: in at x = -6, five passes along x between x_lo and
+// x_hi, `stepover_mm` apart from y0 up, joined by half-circle turns (so later passes cut against
+// the walls the earlier ones left, round ones included), and out at x = -6. Blocks are named
+// "<name> entry", "<name> pass k", "<name> turn k", "<name> exit".
+inline void add_zigzag_layer(Path& p, double z, const std::string& name, double y0, double stepover_mm, double x_lo,
+                             double x_hi) {
+    double y = y0;
+    p.segments.push_back(line_to({-6, y, z}, name + " entry"));
+    for (int pass = 0; pass < 5; ++pass) {
+        const bool forward = pass % 2 == 0;
+        const double x_end = forward ? x_hi : x_lo;
+        p.segments.push_back(line_to({x_end, y, z}, name + " pass " + std::to_string(pass)));
+        p.segments.push_back(
+            arc_to({x_end, y + stepover_mm, z}, x_end, y + stepover_mm / 2, forward, name + " turn " + std::to_string(pass)));
+        y += stepover_mm;
+    }
+    p.segments.push_back(line_to({-6, y, z}, name + " exit"));
+}
+
 struct PathState {
     Vec3 pos_mm{}, vel_mm_s{};
     std::size_t segment = 0;

@@ -16,7 +16,6 @@
 using namespace cutload;
 using namespace cutload::enginetest;
 using force_model::Device;
-using testref::arc_to;
 using testref::line_to;
 
 namespace {
@@ -29,19 +28,7 @@ testref::Path pocket_path() {
     p.feed_mm_min = 3000;
     p.spindle_rpm = 10000;
     p.start_mm = {-6, 4, 7};
-    auto layer = [&](double z, const std::string& name) {
-        double y = 4;
-        p.segments.push_back(line_to({-6, y, z}, name + " entry"));
-        for (int pass = 0; pass < 5; ++pass) {
-            const bool forward = pass % 2 == 0;
-            const double x_end = forward ? 34 : 2;
-            p.segments.push_back(line_to({x_end, y, z}, name + " pass " + std::to_string(pass)));
-            // Half circle of radius 1.5 mm to the next pass (ccw on the right end going up).
-            p.segments.push_back(arc_to({x_end, y + 3, z}, x_end, y + 1.5, forward, name + " turn " + std::to_string(pass)));
-            y += 3;
-        }
-        p.segments.push_back(line_to({-6, y, z}, name + " exit"));
-    };
+    auto layer = [&](double z, const std::string& name) { testref::add_zigzag_layer(p, z, name, 4, 3, 2, 34); };
     layer(7, "L1");
     p.segments.push_back(line_to({-6, 19, 20}, "lift"));
     p.segments.push_back(line_to({-6, 4, 20}, "back"));
