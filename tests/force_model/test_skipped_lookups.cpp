@@ -240,3 +240,32 @@ TEST_CASE("skipped lookups: a two-layer pocket gives the same rows as with every
     require_same_rows(predict_pocket(aside, true, all.final_stock.get()),
                       predict_pocket(aside, false, all.final_stock.get()));
 }
+
+TEST_CASE("skipped lookups: wall normals out of range in a start stock still give the rows of every point looked up",
+          "[engine][opencl][skipped_lookups]") {
+    if (!opencl_available()) {
+        WARN("no OpenCL device: the scalar twins look up every point");
+        return;
+    }
+    // A stock file's walls are not checked for unit normals (a damaged or hostile file with a good
+    // checksum). The ray read across a wall is clamped to the 3 x 3 around the ray, which the tops
+    // of walled rays cover, so skipping still leaves out only lookups that find nothing.
+    const motion_io::MotionModel m = testref::uniform_motion(pocket_path());
+    const force_model::Prediction first = predict_pocket(m, false);
+    REQUIRE(first.final_stock);
+    force_model::StockPtr odd = force_model::copy_stock(*first.final_stock);
+    const kernels::DexelView v = odd->view();
+    std::size_t scaled = 0;
+    for (std::size_t r = 0; r < odd->rays(); ++r)
+        for (int slot = 0; slot < kernels::kWallSlots; ++slot) {
+            kernels::Wall w = v.wall(r, slot);
+            if (!w.exists()) continue;
+            w.nx *= 3.5f;
+            w.ny *= 3.5f;
+            v.store_wall(r, w, slot);
+            ++scaled;
+        }
+    REQUIRE(scaled > 1000);
+    const motion_io::MotionModel aside = testref::uniform_motion(pocket_path(), 0.001, {0, -1.25, 6});
+    require_same_rows(predict_pocket(aside, true, odd.get()), predict_pocket(aside, false, odd.get()));
+}
