@@ -170,6 +170,8 @@ void save_stock(const Stock& s, const std::string& path);
 StockPtr load_stock(const std::string& path);                                  // std::runtime_error when bad
 // The same format through any stream (a compressing one, say); errors start with `source`.
 void save_stock(const Stock& s, std::ostream& out);
+// How many bytes save_stock writes for `s` (a store can set their room aside first).
+std::uint64_t stock_file_bytes(const Stock& s);
 StockPtr load_stock(std::istream& in, const std::string& source);
 double stock_volume_mm3(const Stock& s);
 

@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <new>
-#include <sstream>
 #include <streambuf>
 #include <stdexcept>
 #include <string>
@@ -34,6 +33,7 @@ struct WallEntry {
     std::uint64_t ray;
     float wall[kernels::kWallFloats];   // decoded: clearance, z_from, nx, ny
 };
+static_assert(sizeof(WallEntry) == sizeof(std::uint64_t) + kernels::kWallFloats * sizeof(float), "written as is: no padding");
 
 // FNV-1a: catches truncation and bit rot; the file is not a security boundary.
 std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 1469598103934665603ull) {
@@ -202,17 +202,20 @@ bool write_stock(const Stock& s, std::ostream& out) {
         sum = fnv1a(ray.data(), sizeof ray, sum);
     }
     const kernels::DexelView v = s.view();
+    // Each list counted, then written entry by entry: a list gathered first held up to 48 bytes a
+    // walled ray while it grew.
     for (int slot = 0; slot < kernels::kWallSlots; ++slot) {
-        std::vector<WallEntry> walls;
-        for (std::size_t r = 0; r < s.rays(); ++r) {
-            const kernels::Wall w = v.wall(r, slot);
-            if (w.exists()) walls.push_back({r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}});
-        }
-        const std::uint64_t n_walls = walls.size();
+        std::uint64_t n_walls = 0;
+        for (std::size_t r = 0; r < s.rays(); ++r) n_walls += v.wall(r, slot).exists() ? 1 : 0;
         out.write(reinterpret_cast<const char*>(&n_walls), sizeof n_walls);
         sum = fnv1a(&n_walls, sizeof n_walls, sum);
-        out.write(reinterpret_cast<const char*>(walls.data()), std::streamsize(walls.size() * sizeof(WallEntry)));
-        sum = fnv1a(walls.data(), walls.size() * sizeof(WallEntry), sum);
+        for (std::size_t r = 0; r < s.rays(); ++r) {
+            const kernels::Wall w = v.wall(r, slot);
+            if (!w.exists()) continue;
+            const WallEntry e{r, {w.clearance_mm, w.z_from_mm, w.nx, w.ny}};
+            out.write(reinterpret_cast<const char*>(&e), sizeof e);
+            sum = fnv1a(&e, sizeof e, sum);
+        }
     }
     out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
     return bool(out);
@@ -297,12 +300,33 @@ public:
     }
 };
 
+// Writes into a buffer of fixed size; a write past its end fails the stream.
+class FixedBuffer : public std::streambuf {
+public:
+    explicit FixedBuffer(std::string& bytes) { setp(bytes.data(), bytes.data() + bytes.size()); }
+    bool full() const { return pptr() == epptr(); }
+};
+
 }  // namespace
 
+// The header, the frame, every ray, each wall list with its count, the checksum (write_stock).
+std::uint64_t stock_file_bytes(const Stock& s) {
+    std::size_t walls = 0;
+    const kernels::DexelView v = s.view();
+    for (int slot = 0; slot < kernels::kWallSlots; ++slot)
+        for (std::size_t r = 0; r < s.rays(); ++r) walls += v.wall(r, slot).exists() ? 1 : 0;
+    return sizeof(Header) + sizeof(Frame) + s.rays() * sizeof(kernels::Ray) +
+           std::size_t(kernels::kWallSlots) * sizeof(std::uint64_t) + walls * sizeof(WallEntry) + sizeof(std::uint64_t);
+}
+
 std::string save_stock_bytes(const Stock& s) {
-    std::ostringstream out(std::ios::binary);
-    if (!write_stock(s, out)) throw std::runtime_error("writing the stock into memory failed");
-    return std::move(out).str();
+    // Sized once: a growing string stream held up to twice the stock's bytes while it grew, at the
+    // end of every service run (docs/force_model.md, "Memory at the end of a run").
+    std::string bytes(stock_file_bytes(s), '\0');
+    FixedBuffer buffer(bytes);
+    std::ostream out(&buffer);
+    if (!write_stock(s, out) || !buffer.full()) throw std::runtime_error("writing the stock into memory failed");
+    return bytes;
 }
 
 StockPtr load_stock_bytes(std::string_view bytes, const std::string& source) {

@@ -34,6 +34,7 @@ TEST_CASE("stock bytes are the stock file's bytes and load to the same stock", "
     force_model::save_stock(stock, path);
     const std::string bytes = force_model::save_stock_bytes(stock);
     CHECK(bytes == file_bytes(path));   // one format: the file is the bytes
+    CHECK(force_model::stock_file_bytes(stock) == bytes.size());   // what a store sets aside for them
     // A header, one decoded ray per cell, two wall lists with their counts and the checksum.
     CHECK(bytes.size() > stock.rays() * sizeof(kernels::Ray) + 2 * 8 + 8);
 
