@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <ostream>
 #include <span>
 #include <string>
 #include <string_view>
@@ -91,7 +92,11 @@ public:
     // Results, written in the transaction that marks the run done.
     virtual void add_block(std::int64_t run_id, std::int64_t idx, const std::string& body_json, bool flagged) = 0;
     virtual void add_series_chunk(std::int64_t run_id, const SeriesChunkInfo& info, std::span<const unsigned char> data) = 0;
-    virtual void set_final_stock(std::int64_t run_id, std::string_view bytes) = 0;
+    // The final stock: `write` puts exactly `bytes` bytes (force_model::save_stock's) into the stream
+    // it is given. SQLite takes them into the row as they come, so the stock is never held whole
+    // twice; PostgreSQL gathers them first.
+    virtual void set_final_stock(std::int64_t run_id, std::uint64_t bytes,
+                                 const std::function<void(std::ostream&)>& write) = 0;
     virtual void set_program_body(std::int64_t run_id, const std::string& body_json) = 0;
     virtual void mark_done(std::int64_t run_id, const std::string& summary_json, const std::string& block_names_json,
                            bool flagged, const std::string& finished_at) = 0;

@@ -84,8 +84,6 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
     const app::RunResult r = app::predict_run(in, control);
     if (forces) forces->finish();
     for (const std::string& w : r.warnings) spdlog::info("run {}: {}", id, w);
-    const std::string stock_bytes = force_model::save_stock_bytes(*r.prediction.final_stock);
-
     if (ctx.cancel) throw force_model::Cancelled();   // nothing stored for a run cancelled at the finish
     int alerts = 0;
     {
@@ -97,7 +95,7 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
         db::Transaction tx(*s);
         if (!s->jobs().holds(db::kRunQueue, id, ctx.claim)) return std::nullopt;
         const json kinematics = kinematics_summary(r.tool_axis, r.tool_lean_deg, r.fixed_tilt, r.turning);
-        alerts = store_result(*s, id, r.motion, r.prediction, stock_bytes, program_result ? &*program_result : nullptr,
+        alerts = store_result(*s, id, r.motion, r.prediction, program_result ? &*program_result : nullptr,
                               opt.limit_alerts, &ctx.cancel, forces ? &*forces : nullptr, in.machine ? &kinematics : nullptr,
                               r.motion_tool_axis);
         tx.commit();

@@ -232,7 +232,6 @@ void LiveRuns::run_worker(std::shared_ptr<Worker> w) {
         app::LiveResult r = app::run_live(*source, w->opt, cb, w->stop);
         force_model::Prediction p = std::move(r.prediction);
         p.samples = std::move(all_rows);
-        const std::string stock = p.final_stock ? force_model::save_stock_bytes(*p.final_stock) : std::string();
         json gaps = json::array();
         for (const auto& g : r.gaps) gaps.push_back(gap_json(g));
         std::int64_t alerts = 0;
@@ -248,7 +247,7 @@ void LiveRuns::run_worker(std::shared_ptr<Worker> w) {
                         {"origin_ns", r.origin_ns}};
         auto s = store_.session();
         db::Transaction tx(*s);
-        store_live_result(*s, id, r.motion, p, p.final_stock ? &stock : nullptr, int(alerts), live);
+        store_live_result(*s, id, r.motion, p, int(alerts), live);
         s->live().close(id, app::to_string(r.end), db::now_iso());
         tx.commit();
         spdlog::info("live run {} closed: {} ({} rows, {} blocks)", id, r.end_reason, r.force_rows, p.blocks.size());
@@ -304,7 +303,7 @@ void LiveRuns::close_stored(std::int64_t run_id, const std::string& reason) {
                     {"end_reason", reason},
                     {"gaps", gaps}};
     motion_io::MotionModel no_motion;   // the grid was in the lost process's memory only
-    store_live_result(*s, run_id, no_motion, p, nullptr, int(rec->alerts), live);
+    store_live_result(*s, run_id, no_motion, p, int(rec->alerts), live);
     s->live().close(run_id, "service_restart", db::now_iso());
     tx.commit();
 }

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -42,29 +43,33 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
 }
 
 
-SeriesData motion_series(const motion_io::MotionModel& m) {
-    SeriesData d;
-    d.t_s = m.t_s;
-    d.values.reserve(m.size() * series_channels(SeriesId::Motion).size());
+// The series rows go into the builder as they are made: a SeriesData of the whole motion first
+// would hold 32 bytes a sample (about 120 MB for an hour at 1 ms) at the end of every run.
+void write_motion_series(db::RunRepository& runs, std::int64_t run_id, const motion_io::MotionModel& m) {
+    SeriesBuilder b(SeriesId::Motion, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
+        runs.add_series_chunk(run_id, info, blob);
+    });
     for (std::size_t i = 0; i < m.size(); ++i) {
         const double v = std::sqrt(m.vx_mm_s[i] * m.vx_mm_s[i] + m.vy_mm_s[i] * m.vy_mm_s[i] + m.vz_mm_s[i] * m.vz_mm_s[i]);
         const float row[] = {static_cast<float>(m.x_mm[i]), static_cast<float>(m.y_mm[i]), static_cast<float>(m.z_mm[i]),
                              static_cast<float>(v * 60.0), static_cast<float>(m.spindle_rpm[i]),
                              static_cast<float>(m.block[i])};
-        d.values.insert(d.values.end(), std::begin(row), std::end(row));
+        static_assert(std::size(row) == 6);
+        b.add(m.t_s[i], row);
     }
-    return d;
+    b.finish();
 }
 
 // A turning tool's axis per motion sample, on the motion's times.
-SeriesData tool_axis_series(const motion_io::MotionModel& m, std::span<const std::array<float, 3>> axis) {
+void write_tool_axis_series(db::RunRepository& runs, std::int64_t run_id, const motion_io::MotionModel& m,
+                            std::span<const std::array<float, 3>> axis) {
     if (axis.size() != m.size())
         throw std::invalid_argument(fmt::format("a tool axis for {} motion samples, not {}", axis.size(), m.size()));
-    SeriesData d;
-    d.t_s = m.t_s;
-    d.values.reserve(3 * axis.size());
-    for (const auto& a : axis) d.values.insert(d.values.end(), a.begin(), a.end());
-    return d;
+    SeriesBuilder b(SeriesId::ToolAxis, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
+        runs.add_series_chunk(run_id, info, blob);
+    });
+    for (std::size_t i = 0; i < m.size(); ++i) b.add(m.t_s[i], axis[i].data());
+    b.finish();
 }
 
 struct RunRefs {
@@ -291,7 +296,7 @@ namespace {
 
 // store_result and store_live_result: `alerts_raised` set means the alerts were raised already.
 int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion, const force_model::Prediction& p,
-              const std::string* stock_bytes, const ProgramResult* program, bool limit_alerts,
+              const ProgramResult* program, bool limit_alerts,
               std::optional<int> alerts_raised, const json* live, const std::atomic<bool>* cancel,
               ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr,
               std::span<const std::array<float, 3>> tool_axis = {}) {
@@ -312,9 +317,12 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
         forces->remove_file();
     }
     else write_series(runs, run_id, SeriesId::Forces, force_series(p));
-    write_series(runs, run_id, SeriesId::Motion, motion_series(motion));
-    if (!tool_axis.empty()) write_series(runs, run_id, SeriesId::ToolAxis, tool_axis_series(motion, tool_axis));
-    if (stock_bytes) runs.set_final_stock(run_id, *stock_bytes);
+    write_motion_series(runs, run_id, motion);
+    if (!tool_axis.empty()) write_tool_axis_series(runs, run_id, motion, tool_axis);
+    // Written into the store as it is serialised (db::RunRepository::set_final_stock).
+    if (p.final_stock)
+        runs.set_final_stock(run_id, force_model::stock_file_bytes(*p.final_stock),
+                             [&](std::ostream& out) { force_model::save_stock(*p.final_stock, out); });
     const int alerts = alerts_raised ? *alerts_raised : raise_alerts(s, run_id, p, limit_alerts);
     json summary = summary_json(p, p.final_stock ? force_model::stock_volume_mm3(*p.final_stock) : 0.0,
                                 forces ? forces->rows() : p.samples.size());
@@ -354,10 +362,10 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
 }  // namespace
 
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts, const std::atomic<bool>* cancel, ForceSeriesSpool* forces, const json* kinematics,
+                 const force_model::Prediction& p, const ProgramResult* program, bool limit_alerts,
+                 const std::atomic<bool>* cancel, ForceSeriesSpool* forces, const json* kinematics,
                  std::span<const std::array<float, 3>> tool_axis) {
-    return store_run(s, run_id, motion, p, &stock_bytes, program, limit_alerts, std::nullopt, nullptr, cancel, forces,
+    return store_run(s, run_id, motion, p, program, limit_alerts, std::nullopt, nullptr, cancel, forces,
                      kinematics, tool_axis);
 }
 
@@ -444,9 +452,8 @@ void ForceSeriesSpool::replay(db::RunRepository& runs, std::int64_t run_id) cons
 json block_summary_json(std::size_t idx, const force_model::BlockSummary& b) { return block_json(idx, b); }
 
 int store_live_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
-                      const force_model::Prediction& p, const std::string* stock_bytes, int alerts_raised,
-                      const json& live) {
-    return store_run(s, run_id, motion, p, stock_bytes, nullptr, false, alerts_raised, &live, nullptr);
+                      const force_model::Prediction& p, int alerts_raised, const json& live) {
+    return store_run(s, run_id, motion, p, nullptr, false, alerts_raised, &live, nullptr);
 }
 
 }  // namespace cutload::server

@@ -62,8 +62,7 @@ private:
 // sample (app::RunResult::motion_tool_axis), stored as SeriesId::ToolAxis when not empty; it must
 // then be as long as `motion` (std::invalid_argument).
 int store_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
-                 const force_model::Prediction& p, const std::string& stock_bytes, const ProgramResult* program,
-                 bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr,
+                 const force_model::Prediction& p, const ProgramResult* program, bool limit_alerts = true, const std::atomic<bool>* cancel = nullptr,
                  ForceSeriesSpool* forces = nullptr, const json* kinematics = nullptr,
                  std::span<const std::array<float, 3>> tool_axis = {});
 
@@ -75,10 +74,9 @@ json kinematics_summary(const std::array<double, 3>& tool_axis, double tool_lean
 
 // A live run's close (live_runs.cpp): the same rows as store_result, but its alerts were raised
 // block by block while it ran (`alerts_raised` of them, none now), `live` goes into the summary
-// as "live", and a run closed after a restart has no final stock (stock_bytes null).
+// as "live", and a run closed after a restart has no final stock (p.final_stock null).
 int store_live_result(db::Session& s, std::int64_t run_id, const motion_io::MotionModel& motion,
-                      const force_model::Prediction& p, const std::string* stock_bytes, int alerts_raised,
-                      const json& live);
+                      const force_model::Prediction& p, int alerts_raised, const json& live);
 
 // A block summary as the blocks API shows it (idx: its place in the run).
 json block_summary_json(std::size_t idx, const force_model::BlockSummary& b);

@@ -3,8 +3,30 @@
 
 #include <fmt/format.h>
 
+#include <ostream>
+#include <streambuf>
+
 namespace cutload::db::postgres {
 namespace {
+
+// std::streambuf appending to a string (reserved by the caller).
+class StringSink : public std::streambuf {
+public:
+    explicit StringSink(std::string& s) : s_(s) {}
+
+protected:
+    int_type overflow(int_type c) override {
+        if (!traits_type::eq_int_type(c, traits_type::eof())) s_.push_back(traits_type::to_char_type(c));
+        return traits_type::not_eof(c);
+    }
+    std::streamsize xsputn(const char* p, std::streamsize n) override {
+        s_.append(p, static_cast<std::size_t>(n));
+        return n;
+    }
+
+private:
+    std::string& s_;
+};
 
 constexpr const char* kRunColumns =
     "id, name, program, machine_id, tool_id, material_id, base_run, state, progress, error, attempts, upload_dir, "
@@ -112,8 +134,20 @@ void Runs::add_series_chunk(std::int64_t run_id, const SeriesChunkInfo& i, std::
            Params().add(run_id).add(i.series).add(i.level).add(i.chunk).add(i.t0_s).add(i.t1_s).add(i.n).add_blob(data));
 }
 
-void Runs::set_final_stock(std::int64_t run_id, std::string_view bytes) {
-    c_.run("INSERT INTO run_stock(run_id, data) VALUES ($1, $2)", Params().add(run_id).add_blob(bytes));
+void Runs::set_final_stock(std::int64_t run_id, std::uint64_t bytes, const std::function<void(std::ostream&)>& write) {
+    // A bytea parameter is one value in memory: the bytes are gathered first.
+    std::string data;
+    data.reserve(bytes);
+    {
+        StringSink sink(data);
+        std::ostream out(&sink);
+        write(out);
+        out.flush();
+    }
+    if (data.size() != bytes)
+        throw std::runtime_error(fmt::format("postgres: the final stock of run {}: {} of {} bytes came", run_id, data.size(),
+                                             bytes));
+    c_.run("INSERT INTO run_stock(run_id, data) VALUES ($1, $2)", Params().add(run_id).add_blob(data));
 }
 
 void Runs::set_program_body(std::int64_t run_id, const std::string& body_json) {

@@ -39,7 +39,7 @@ public:
     bool upload_dir_in_use(const std::string& upload_dir) override;
     void add_block(std::int64_t run_id, std::int64_t idx, const std::string& body_json, bool flagged) override;
     void add_series_chunk(std::int64_t run_id, const SeriesChunkInfo& info, std::span<const unsigned char> data) override;
-    void set_final_stock(std::int64_t run_id, std::string_view bytes) override;
+    void set_final_stock(std::int64_t run_id, std::uint64_t bytes, const std::function<void(std::ostream&)>& write) override;
     void set_program_body(std::int64_t run_id, const std::string& body_json) override;
     void mark_done(std::int64_t run_id, const std::string& summary_json, const std::string& block_names_json, bool flagged,
                    const std::string& finished_at) override;

@@ -3,6 +3,9 @@
 #include <fmt/format.h>
 #include <sqlite3.h>
 
+#include <streambuf>
+#include <vector>
+
 
 namespace cutload::db::sqlite {
 namespace {
@@ -20,6 +23,40 @@ Error::Kind kind_of(int code) {
     const char* msg = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
     throw Error(fmt::format("sqlite: {}: {}", what, msg), kind_of(db ? sqlite3_extended_errcode(db) : rc));
 }
+
+// std::streambuf into an open blob handle; a write past the blob's end fails the stream.
+class BlobBuf : public std::streambuf {
+public:
+    BlobBuf(sqlite3_blob* blob, std::uint64_t bytes) : blob_(blob), bytes_(bytes), buf_(1 << 20) {
+        setp(buf_.data(), buf_.data() + buf_.size());
+    }
+    std::uint64_t written() const { return at_; }
+
+protected:
+    int_type overflow(int_type c) override {
+        if (!drain()) return traits_type::eof();
+        if (!traits_type::eq_int_type(c, traits_type::eof())) {
+            *pptr() = traits_type::to_char_type(c);
+            pbump(1);
+        }
+        return traits_type::not_eof(c);
+    }
+    int sync() override { return drain() ? 0 : -1; }
+
+private:
+    bool drain() {
+        const std::uint64_t n = static_cast<std::uint64_t>(pptr() - pbase());
+        if (n == 0) return true;
+        if (at_ + n > bytes_ || sqlite3_blob_write(blob_, pbase(), static_cast<int>(n), static_cast<int>(at_)) != SQLITE_OK)
+            return false;
+        at_ += n;
+        setp(buf_.data(), buf_.data() + buf_.size());
+        return true;
+    }
+    sqlite3_blob* blob_;
+    std::uint64_t bytes_, at_ = 0;
+    std::vector<char> buf_;
+};
 
 }  // namespace
 
@@ -161,6 +198,29 @@ void Connection::set_busy_timeout(int ms) { sqlite3_busy_timeout(db_, ms); }
 
 std::int64_t Connection::last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
 int Connection::changes() const { return sqlite3_changes(db_); }
+
+void Connection::write_blob(const char* table, const char* column, std::int64_t rowid, std::uint64_t bytes,
+                            const std::function<void(std::ostream&)>& write) {
+    if (bytes > static_cast<std::uint64_t>(sqlite3_limit(db_, SQLITE_LIMIT_LENGTH, -1)))
+        throw Error(fmt::format("sqlite: a {} value of {} bytes is over the length limit", column, bytes), Error::Kind::Other);
+    sqlite3_blob* blob = nullptr;
+    if (int rc = sqlite3_blob_open(db_, "main", table, column, rowid, 1, &blob); rc != SQLITE_OK) {
+        sqlite3_blob_close(blob);
+        fail(db_, rc, fmt::format("open {}.{} of row {}", table, column, rowid));
+    }
+    struct Close {
+        sqlite3_blob* b;
+        ~Close() { sqlite3_blob_close(b); }
+    } close{blob};
+    BlobBuf buf(blob, bytes);
+    std::ostream out(&buf);
+    write(out);
+    out.flush();
+    if (!out || buf.written() != bytes)
+        throw Error(fmt::format("sqlite: writing {}.{} of row {}: {} of {} bytes came", table, column, rowid, buf.written(),
+                                bytes),
+                    Error::Kind::Other);
+}
 
 ImmediateTransaction::~ImmediateTransaction() {
     if (!open_) return;

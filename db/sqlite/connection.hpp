@@ -8,7 +8,9 @@
 #include "db/store.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <optional>
+#include <ostream>
 #include <span>
 #include <string>
 #include <string_view>
@@ -84,6 +86,11 @@ public:
     void set_busy_timeout(int ms);
     std::int64_t last_insert_id() const;
     int changes() const;
+    // Fills the blob `column` of row `rowid` in `table`, created beforehand as zeroblob(bytes), with
+    // what `write` puts into the stream, in pieces as it comes: a value of tens of MB (a stock) is
+    // never held whole, by the caller or by SQLite. Throws unless exactly `bytes` bytes came.
+    void write_blob(const char* table, const char* column, std::int64_t rowid, std::uint64_t bytes,
+                    const std::function<void(std::ostream&)>& write);
 
 private:
     struct Cached {

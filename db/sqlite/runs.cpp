@@ -107,8 +107,13 @@ void Runs::add_series_chunk(std::int64_t run_id, const SeriesChunkInfo& i, std::
     st.run();
 }
 
-void Runs::set_final_stock(std::int64_t run_id, std::string_view bytes) {
-    c_.prepare("INSERT INTO run_stock(run_id, data) VALUES (?, ?)").bind(1, run_id).bind_blob(2, bytes.data(), bytes.size()).run();
+void Runs::set_final_stock(std::int64_t run_id, std::uint64_t bytes, const std::function<void(std::ostream&)>& write) {
+    // run_id is the table's rowid (INTEGER PRIMARY KEY).
+    c_.prepare("INSERT INTO run_stock(run_id, data) VALUES (?, zeroblob(?))")
+        .bind(1, run_id)
+        .bind(2, static_cast<std::int64_t>(bytes))
+        .run();
+    c_.write_blob("run_stock", "data", run_id, bytes, write);
 }
 
 void Runs::set_program_body(std::int64_t run_id, const std::string& body_json) {

@@ -5,11 +5,14 @@
 #include "db/runs.hpp"
 #include "db/store.hpp"
 #include "harness.hpp"
+#include "force_model/force_model.hpp"
 #include "server/results.hpp"
 
 #include <sys/stat.h>
 
 #include <atomic>
+#include <span>
+#include <string>
 
 using namespace cutload::test;
 
@@ -149,17 +152,25 @@ TEST_CASE("job stop: a cancel that lands while a run's results are written rolls
     motion.session_start = {0};
     cutload::force_model::Prediction p;
     p.blocks.resize(1);
+    // 240 000 rays, 7.7 MB: several of the pieces the store writes the stock in.
+    p.final_stock = cutload::force_model::make_stock({{0, 0, -5}, {60, 40, 0}}, 0.1);
+    const std::string stock_bytes = cutload::force_model::save_stock_bytes(*p.final_stock);
 
     std::atomic<bool> cancel{true};
     const std::int64_t cancelled = claimed();
-    REQUIRE_THROWS_AS(cutload::server::store_result(*s, cancelled, motion, p, "", nullptr, true, &cancel),
+    REQUIRE_THROWS_AS(cutload::server::store_result(*s, cancelled, motion, p, nullptr, true, &cancel),
                       cutload::force_model::Cancelled);
     REQUIRE(s->runs().status(cancelled)->state == cutload::db::JobState::Running);   // the pool finishes it as cancelled
     REQUIRE(s->runs().blocks(cancelled, 0, std::nullopt, 10).empty());
+    REQUIRE_FALSE(s->runs().has_final_stock(cancelled));
 
     cancel = false;
     const std::int64_t stored = claimed();
-    cutload::server::store_result(*s, stored, motion, p, "", nullptr, true, &cancel);
+    cutload::server::store_result(*s, stored, motion, p, nullptr, true, &cancel);
     REQUIRE(s->runs().status(stored)->state == cutload::db::JobState::Done);
     REQUIRE(s->runs().blocks(stored, 0, std::nullopt, 10).size() == 1);
+    // The stock went into the row in pieces (SQLite's blob handle): the same bytes as in one piece.
+    std::string read_back;
+    REQUIRE(s->runs().read_final_stock(stored, [&](std::span<const unsigned char> b) { read_back.assign(b.begin(), b.end()); }));
+    CHECK(read_back == stock_bytes);
 }
