@@ -32,10 +32,13 @@ Engine::Engine(const motion_io::MotionModel& motion, const RunSpec& spec, const 
     number_ = motion.size() > 0 ? plan.number_at(0) : -1;
     if (motion.size() > 0 && plan.slot_at(0) < 0) slot_ = -1;
     rows_.use_tool(slot_, number_, tool_->shank_diameter_mm);
-    rows_.reserve(std::min(expected_rows(motion, angle_step_deg_), kMaxReservedRows));
 }
 
 void Engine::run() {
+    // Rows kept whole are reserved for the whole run; taken ones need a piece or two
+    // (take_rows_as_they_come), and reserving the run's first had set aside up to 500 MB of
+    // address space for nothing, which a host with strict overcommit counts.
+    if (!take_rows_) rows_.reserve(std::min(expected_rows(motion_, angle_step_deg_), kMaxReservedRows));
     if (motion_.size() < 2) return;
     const auto sessions = session_ranges(motion_);
     checkpointing_ = options_.checkpoint && !window_ && sessions.size() == 1;
@@ -64,8 +67,6 @@ void Engine::take_rows_as_they_come(RowTaker take) {
     if (watch_rows_) throw std::logic_error("engine: rows are either taken or watched, not both");
     take_rows_ = std::move(take);
     // A piece and the batch that completes past it, not the whole run.
-    rows_.samples = {};
-    rows_.extra = {};
     rows_.reserve(2 * kRowsOutPiece);
 }
 
