@@ -22,6 +22,9 @@
 // resolution (resolution=full) at 10, 50 and 95 % of the run, each walked from the run's last stock
 // checkpoint before it.
 //
+// The CLI and the service run with --max-force-rows 1e9: the default bound (2e8 rows, about two
+// hours of cutting) would refuse runs of --minutes 120 and more, and the bench measures the scale.
+//
 // Usage: bench_long [--minutes M] [--device cpu|opencl] [--via cli|service|both] [--forces csv|bin] [--cutload PATH] [--keep]
 //   defaults: 60 minutes, opencl, both, csv (the CLI's --out FORCES.csv, or FORCES.bin), ../cli/cutload beside
 //   this program; --keep keeps the folder.
@@ -126,12 +129,16 @@ struct Child : ChildRun {
     std::string out;
 };
 
+// Its standard output, then its standard error (where cutload says why it failed).
 Child run_and_read(const std::vector<std::string>& args, const fs::path& out_file) {
     Child c;
-    static_cast<ChildRun&>(c) = run_child(args, out_file.string());
-    std::ifstream in(out_file);
+    const std::string err_file = out_file.string() + ".err";
+    static_cast<ChildRun&>(c) = run_child(args, out_file.string(), err_file);
     std::stringstream ss;
-    ss << in.rdbuf();
+    for (const std::string& f : {out_file.string(), err_file}) {
+        std::ifstream in(f);
+        ss << in.rdbuf();
+    }
     c.out = ss.str();
     return c;
 }
@@ -340,7 +347,7 @@ int through_cli(const fs::path& cutload, const fs::path& dir, const std::string&
     std::printf("load average before: %s\n", load_average().c_str());
     const Child c = run_and_read({fs::absolute(cutload).string(), "predict", (dir / "roughing_dryrun.csv").string(), "--spec",
                                (dir / "run.json").string(), "--out", (dir / forces_file).string(), "--blocks",
-                               (dir / "BLOCKS.csv").string(), "--device", device, "-q"},
+                               (dir / "BLOCKS.csv").string(), "--device", device, "--max-force-rows", "1e9", "-q"},
                               dir / "predict.out");
     std::printf("load average after:  %s\n", load_average().c_str());
     if (c.status != 0) {
@@ -415,7 +422,7 @@ int windows_through_cli(const fs::path& cutload, const fs::path& dir, const std:
         std::snprintf(window, sizeof window, "%.0f:%.0f", from_s, to_s);
         const Child c = run_and_read({fs::absolute(cutload).string(), "predict", (dir / "roughing_dryrun.csv").string(),
                                       "--spec", (dir / "run.json").string(), "--out", (dir / "WINDOW.csv").string(),
-                                      "--window", window, "--device", device, "-q"},
+                                      "--window", window, "--device", device, "--max-force-rows", "1e9", "-q"},
                                      dir / "window.out");
         if (c.status != 0) {
             std::printf("  --window %s failed (exit status %d): %s\n", window, c.status, c.out.c_str());

@@ -67,7 +67,8 @@ struct ChildRun {
 
 // Runs args[0] with args, its stdout into `stdout_path` (its own output is not what is measured)
 // and its stderr discarded.
-inline ChildRun run_child(const std::vector<std::string>& args, const std::string& stdout_path = "/dev/null") {
+inline ChildRun run_child(const std::vector<std::string>& args, const std::string& stdout_path = "/dev/null",
+                          const std::string& stderr_path = "/dev/null") {
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -76,7 +77,7 @@ inline ChildRun run_child(const std::vector<std::string>& args, const std::strin
     const auto t0 = std::chrono::steady_clock::now();
     const pid_t pid = fork();
     if (pid == 0) {
-        if (std::freopen(stdout_path.c_str(), "w", stdout) == nullptr || std::freopen("/dev/null", "w", stderr) == nullptr)
+        if (std::freopen(stdout_path.c_str(), "w", stdout) == nullptr || std::freopen(stderr_path.c_str(), "w", stderr) == nullptr)
             _exit(126);
         execv(argv[0], argv.data());
         _exit(127);
