@@ -7,6 +7,7 @@
 #include "app/tool_centre_point.hpp"
 #include "app/work_bounds.hpp"
 #include "core.hpp"
+#include "freed_memory.hpp"
 #include "json_in.hpp"
 #include "spec_refs.hpp"
 #include "db/optimizations.hpp"
@@ -830,6 +831,7 @@ void recomputed_forces_route(Core& core, Ctx& x) {
         x.res.set_header("Retry-After", "1");
         throw ApiError(503, "busy", "another window is being recomputed; try again in a moment");
     }
+    const ReleaseFreedMemoryOnExit release_freed_memory;   // the log's motion model and two stocks
     app::RunInput in = run_input(inputs, dir, core.opt.use_opencl);
     in.limits = work_limits(core.opt);
     in.keep_final_stock = false;

@@ -1,4 +1,5 @@
 #include "jobs.hpp"
+#include "freed_memory.hpp"
 
 #include "program.hpp"
 #include "db/jobs.hpp"
@@ -291,6 +292,7 @@ void Jobs::worker() {
 }
 
 void Jobs::run(const Claimed& job, const std::atomic<bool>& cancel) {
+    const ReleaseFreedMemoryOnExit release_freed_memory;   // a run's motion model and stocks
     const JobKind& kind = *job.kind;
     const auto t_start = std::chrono::steady_clock::now();
     auto elapsed_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
