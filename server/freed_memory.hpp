@@ -7,9 +7,9 @@ namespace cutload::server {
 // glibc keeps freed blocks in the arena of the thread that allocated them, and a run's motion
 // model is made of blocks it serves from those arenas once its mmap threshold has risen, so a
 // server whose threads each served one job or window kept about that much per thread:
-// bench_long's 30-minute run held 1.65 GB after twelve recomputed windows, 292 MB once trimmed
-// (docs/api.md, "Memory at a run's end"). Declared first in a job or handler, it runs after
-// everything else there is gone.
+// bench_long's 30-minute run held 1.66 GB after twelve recomputed windows, 292 MB once trimmed
+// (docs/api.md, "Memory after a job or a recomputed window"). Declared first in a job or a
+// handler, it runs after everything else there is gone.
 class ReleaseFreedMemoryOnExit {
 public:
     ReleaseFreedMemoryOnExit() = default;
