@@ -10,6 +10,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <atomic>
 #include <span>
 #include <string>
@@ -173,4 +174,40 @@ TEST_CASE("job stop: a cancel that lands while a run's results are written rolls
     std::string read_back;
     REQUIRE(s->runs().read_final_stock(stored, [&](std::span<const unsigned char> b) { read_back.assign(b.begin(), b.end()); }));
     CHECK(read_back == stock_bytes);
+}
+
+TEST_CASE("job stop: a final stock whose writer gives other than the bytes announced is refused and leaves no row") {
+    TempDir dir;
+    auto store = cutload::db::Store::open(store_location(dir.path(), "store.db"));
+    store->migrate();
+    auto s = store->session();
+    cutload::db::NewRun nr;
+    nr.inputs_json = "{}";
+    nr.created_at = cutload::db::now_iso();
+    const std::int64_t id = s->runs().create(nr);
+    // 3 MiB announced: the SQLite store takes them in 1 MiB pieces, so the short writer has
+    // written pieces into the row before the count fails.
+    const std::uint64_t announced = 3u << 20;
+    const auto writes = [](std::uint64_t n) {
+        return [n](std::ostream& out) {
+            const std::string piece(4096, 'x');
+            for (std::uint64_t at = 0; at < n; at += piece.size())
+                out.write(piece.data(), static_cast<std::streamsize>(std::min<std::uint64_t>(piece.size(), n - at)));
+        };
+    };
+    for (const std::uint64_t given : {announced - 5000, announced + 1}) {
+        cutload::db::Transaction tx(*s);
+        CHECK_THROWS_WITH(s->runs().set_final_stock(id, announced, writes(given)),
+                          Catch::Contains(std::to_string(announced)));
+        // The caller's transaction ends without a commit: nothing of the stock stays.
+    }
+    CHECK_FALSE(s->runs().has_final_stock(id));
+    {
+        cutload::db::Transaction tx(*s);
+        s->runs().set_final_stock(id, announced, writes(announced));
+        tx.commit();
+    }
+    std::uint64_t stored = 0;
+    REQUIRE(s->runs().read_final_stock(id, [&](std::span<const unsigned char> b) { stored = b.size(); }));
+    CHECK(stored == announced);
 }
