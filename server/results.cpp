@@ -46,9 +46,7 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
 // The series rows go into the builder as they are made: a SeriesData of the whole motion first
 // would hold 32 bytes a sample (about 120 MB for an hour at 1 ms) at the end of every run.
 void write_motion_series(db::RunRepository& runs, std::int64_t run_id, const motion_io::MotionModel& m) {
-    SeriesBuilder b(SeriesId::Motion, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
-        runs.add_series_chunk(run_id, info, blob);
-    });
+    SeriesBuilder b(SeriesId::Motion, store_chunks(runs, run_id));
     for (std::size_t i = 0; i < m.size(); ++i) {
         const double v = std::sqrt(m.vx_mm_s[i] * m.vx_mm_s[i] + m.vy_mm_s[i] * m.vy_mm_s[i] + m.vz_mm_s[i] * m.vz_mm_s[i]);
         const float row[] = {static_cast<float>(m.x_mm[i]), static_cast<float>(m.y_mm[i]), static_cast<float>(m.z_mm[i]),
@@ -65,9 +63,7 @@ void write_tool_axis_series(db::RunRepository& runs, std::int64_t run_id, const 
                             std::span<const std::array<float, 3>> axis) {
     if (axis.size() != m.size())
         throw std::invalid_argument(fmt::format("a tool axis for {} motion samples, not {}", axis.size(), m.size()));
-    SeriesBuilder b(SeriesId::ToolAxis, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
-        runs.add_series_chunk(run_id, info, blob);
-    });
+    SeriesBuilder b(SeriesId::ToolAxis, store_chunks(runs, run_id));
     for (std::size_t i = 0; i < m.size(); ++i) b.add(m.t_s[i], axis[i].data());
     b.finish();
 }

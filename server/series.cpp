@@ -114,11 +114,15 @@ void SeriesBuilder::finish() {
 
 std::size_t SeriesBuilder::rows() const { return levels_.empty() ? 0 : levels_[0].total; }
 
+ChunkSink store_chunks(db::RunRepository& runs, std::int64_t run_id) {
+    return [&runs, run_id](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
+        runs.add_series_chunk(run_id, info, blob);
+    };
+}
+
 void write_series(db::RunRepository& runs, std::int64_t run_id, SeriesId s, const SeriesData& d) {
     const std::size_t k = series_channels(s).size();
-    SeriesBuilder b(s, [&](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
-        runs.add_series_chunk(run_id, info, blob);
-    });
+    SeriesBuilder b(s, store_chunks(runs, run_id));
     for (std::size_t i = 0; i < d.t_s.size(); ++i) b.add(d.t_s[i], &d.values[i * k]);
     b.finish();
 }

@@ -72,6 +72,9 @@ private:
     std::vector<Level> levels_;
 };
 
+// A sink that stores each chunk as a row of the run's series (inside an open transaction).
+ChunkSink store_chunks(db::RunRepository& runs, std::int64_t run_id);
+
 // Inside an open transaction.
 void write_series(db::RunRepository& runs, std::int64_t run_id, SeriesId s, const SeriesData& d);
 
