@@ -45,6 +45,45 @@ private:
     bool new_session_ = true;
 };
 
+// Fills a piece of the model and hands it out each time it is full (ingest_in_pieces).
+class PieceSink final : public GridSink {
+public:
+    PieceSink(std::size_t piece_samples, double step_s, const detail::BlockTable& blocks,
+              const std::function<void(const MotionModel&, std::size_t)>& each)
+        : piece_samples_(std::max<std::size_t>(piece_samples, 1)), blocks_(blocks), each_(each), fill_(piece_) {
+        piece_.step_s = step_s;
+    }
+    void begin_session() override { fill_.begin_session(); }
+    void sample(const GridSample& s) override {
+        if (piece_.size() == piece_samples_) hand_out();
+        fill_.sample(s);
+    }
+    // The rest, once the log is read.
+    void hand_out() {
+        if (piece_.size() == 0) return;
+        const std::vector<std::string>& names = blocks_.names();
+        piece_.block_names.insert(piece_.block_names.end(), names.begin() + std::ptrdiff_t(piece_.block_names.size()),
+                                  names.end());
+        each_(piece_, first_);
+        first_ += piece_.size();
+        for (auto* v : {&piece_.t_s, &piece_.x_mm, &piece_.y_mm, &piece_.z_mm, &piece_.vx_mm_s, &piece_.vy_mm_s,
+                        &piece_.vz_mm_s, &piece_.spindle_rpm, &piece_.spindle_angle_deg})
+            v->clear();
+        piece_.block.clear();
+        piece_.tool.clear();
+        piece_.session_start.clear();
+        for (std::size_t k = 0; k < 3; ++k) piece_.rot_deg[k].clear(), piece_.rot_vel_deg_s[k].clear();
+    }
+
+private:
+    std::size_t piece_samples_;
+    const detail::BlockTable& blocks_;
+    const std::function<void(const MotionModel&, std::size_t)>& each_;
+    MotionModel piece_;
+    ModelSink fill_;
+    std::size_t first_ = 0;
+};
+
 // Measures the motion on its way to the real sink, so inspect reports the same extent ingest builds.
 class ExtentSink final : public GridSink {
 public:
@@ -217,6 +256,17 @@ IngestReport inspect(const std::string& path, const ReadOptions& opt, const std:
     VisitSink sink(each_sample);
     detail::BlockTable blocks;
     return run_pipeline(path, opt, sink, blocks);
+}
+
+IngestReport ingest_in_pieces(const std::string& path, const ReadOptions& opt, std::size_t piece_samples,
+                              const std::function<void(const MotionModel& piece, std::size_t first_sample)>& each_piece,
+                              std::vector<std::string>* block_names) {
+    detail::BlockTable blocks;
+    PieceSink sink(piece_samples, opt.step_ms * 1e-3, blocks, each_piece);
+    IngestReport r = run_pipeline(path, opt, sink, blocks);
+    sink.hand_out();
+    if (block_names) *block_names = blocks.names();
+    return r;
 }
 
 std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,

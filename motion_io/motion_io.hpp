@@ -183,6 +183,17 @@ IngestReport inspect(const std::string& path, const ReadOptions& opt);
 // (positions, rotary axes, times bit for bit; a rotary axis the log lacks at 0) until it returns
 // false: a caller can look at the motion as it passes without holding it.
 IngestReport inspect(const std::string& path, const ReadOptions& opt, const std::function<bool(const MotionState&)>& each_sample);
+// The same motion as ingest() builds, handed out in pieces of `piece_samples` samples (the last
+// one shorter) as it is repaired, so that memory does not grow with the log's length (predict of
+// an hour-long log). `piece` holds samples [first_sample, first_sample + piece.size()) of the
+// whole model, bit for bit: its session_start lists, as indices into the piece, the sessions that
+// begin in it (0 when the piece starts a session); block_names is the whole list so far (the
+// names of every block its samples index); tool is -1 throughout for a log without a tool channel
+// (where ingest() leaves it empty). The piece is reused: it is valid during the call only.
+// `block_names`, when given, gets the log's whole list at the end.
+IngestReport ingest_in_pieces(const std::string& path, const ReadOptions& opt, std::size_t piece_samples,
+                              const std::function<void(const MotionModel& piece, std::size_t first_sample)>& each_piece,
+                              std::vector<std::string>* block_names = nullptr);
 // Writes t_s,x_mm,y_mm,z_mm,feed_mm_min,spindle_rpm,spindle_angle_deg,block; returns rows written.
 std::size_t resample_to_csv(const std::string& path, const ReadOptions& opt, const std::string& out_csv,
                             IngestReport* report = nullptr);
