@@ -284,6 +284,20 @@ struct StockCheckpoint {
 // samples, blocks, tools and sessions, the run spec, the base stock's rays and walls) and of this
 // build's checkpoint rules. A checkpoint is resumed only by a run of the same key.
 std::uint64_t checkpoint_key(const motion_io::MotionModel& motion, const RunSpec& spec, const Stock* base_stock);
+// The same key taken piece by piece, for a run whose motion is never held whole
+// (motion_io::ingest_in_pieces): add() each piece in order, then key(). A model without a tool
+// channel (tool empty) hashes as one whose samples name no tool (-1), as its pieces have it.
+class CheckpointKey {
+public:
+    void add(const motion_io::MotionModel& piece, std::size_t first_sample);
+    std::uint64_t key(double step_s, const RunSpec& spec, const Stock* base_stock) const;
+
+private:
+    // One hash per channel (t, x, y, z, vx, vy, vz, rpm, angle, block, tool, session starts).
+    std::array<std::uint64_t, 12> hash_{};
+    std::array<std::uint64_t, 12> count_{};
+    bool started_ = false;
+};
 
 struct PredictOptions {
     Device device = Device::OpenCL;
