@@ -1,13 +1,15 @@
 // StreamingPrediction: the engine driver (engine/driver.hpp) over a motion model that grows. Rows
 // are taken out as they become final so memory stays bounded by the motion grid (about 100 bytes
-// a sample) rather than by the rows (one per angle step). Each block's summary is accumulated
-// row by row across batches by the BlockAccumulator that predict()'s BlockSummaries use, and
-// handed out when the block has ended, so it equals the offline summary.
+// a sample) rather than by the rows (one per angle step); at the WholeLog pace the walked motion
+// is dropped too. Each block's summary is accumulated row by row across batches by the
+// BlockAccumulator that predict()'s BlockSummaries use, and handed out when the block has ended,
+// so it equals the offline summary.
 #include "force_model/streaming.hpp"
 #include "cutters/cutter.hpp"
 #include "engine/block_summary.hpp"
 #include "engine/driver.hpp"
 #include "engine/motion_walk.hpp"
+#include "engine/rows.hpp"
 #include "engine/setup.hpp"
 #include "engine/tool_plan.hpp"
 
@@ -15,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 namespace cutload::force_model {
@@ -22,15 +25,18 @@ namespace cutload::force_model {
 struct StreamingPrediction::Impl {
     RunSpec spec;
     PredictOptions opt;
+    StreamPace pace;
     EngineSettings settings;
     EnginePhases phases;
     motion_io::MotionModel motion;
     ToolPlan plan;   // grows with the motion (ToolPlan::append)
     std::vector<Limits> slot_limits;
     std::unique_ptr<EngineSetup> setup;
-    std::unique_ptr<Engine> engine;
+    std::unique_ptr<Engine> engine;   // at the WholeLog pace made with the first walk (below)
     std::size_t walked = 0;          // samples whose interval to the next has been walked (next to walk from)
     std::size_t session_begin = 0;
+    std::size_t added = 0;           // samples added in all
+    std::size_t forgotten = 0;       // WholeLog: samples dropped from the motion's front
     // Every block's summary so far, by block index + 1 (0: rows without a block), accumulated
     // across batches; `order` is the order of first appearance, `open` the blocks with motion or
     // rows not yet handed out.
@@ -40,10 +46,19 @@ struct StreamingPrediction::Impl {
     std::size_t cutting_steps = 0;
     double last_row_t_s = 0;
     bool have_row = false;
+    // simulated_seconds() of the motion, session by session, without holding it.
+    double simulated_s = 0, session_t0_s = 0, last_t_s = 0;
+    std::size_t sessions = 1, session_samples = 0;
+    StreamOutput* out_now = nullptr;   // WholeLog without rows_out: where the engine's rows go
     std::chrono::steady_clock::time_point wall0 = std::chrono::steady_clock::now();
 
-    Impl(const RunSpec& s, const PredictOptions& o) : spec(s), opt(o) {
+    Impl(const RunSpec& s, const PredictOptions& o, StreamPace p) : spec(s), opt(o), pace(p) {
         opt.progress = nullptr;
+        if (pace == StreamPace::Live) {
+            // The live run hands out its own rows (take_rows) and writes no checkpoints.
+            opt.rows_out = nullptr;
+            opt.checkpoint = nullptr;
+        }
         if (!(spec.resolution.angle_step_deg > 0) || !(spec.resolution.axial_step_mm > 0) || !(spec.resolution.grid_mm > 0))
             throw SpecError("resolution: steps must be > 0");
         plan = plan_tools(motion, spec);
@@ -54,8 +69,18 @@ struct StreamingPrediction::Impl {
             slot_limits.push_back(t.limits);
         }
         setup = std::make_unique<EngineSetup>(spec, plan, opt, settings);
-        engine = std::make_unique<Engine>(motion, spec, plan, opt, settings, *setup, phases);
+        // predict() makes its engine knowing the first sample's tool; the whole log's pace waits
+        // for it too, so the engine starts as predict()'s does.
+        if (pace == StreamPace::Live) engine = std::make_unique<Engine>(motion, spec, plan, opt, settings, *setup, phases);
         motion.session_start.push_back(0);
+    }
+
+    Engine& the_engine() {
+        if (engine) return *engine;
+        engine = std::make_unique<Engine>(motion, spec, plan, opt, settings, *setup, phases);
+        engine->take_rows_as_they_come([this](const RowTable& rows, std::size_t n) { take_from_engine(rows, n); });
+        if (opt.checkpoint && !motion.t_s.empty()) engine->write_checkpoints_from(motion.t_s.front());
+        return *engine;
     }
 
     BlockAccumulator& block_at(std::int32_t block, double t_s) {
@@ -72,6 +97,14 @@ struct StreamingPrediction::Impl {
         return *acc[k];
     }
 
+    void count_row(const ForceSample& s, const RowExtra& x) {
+        block_at(s.block, s.t_s).add_row(s, x, slot_limits);
+        cutting_steps += x.engaged > 0 ? 1 : 0;
+        last_row_t_s = s.t_s;
+        have_row = true;
+    }
+
+    // Live: the rows final so far, taken from the engine's table (all but the last one unless `all`).
     void take_rows(StreamOutput& out, bool all) {
         RowTable& rows = engine->rows();
         const std::size_t n = rows.size();
@@ -79,13 +112,19 @@ struct StreamingPrediction::Impl {
         const std::size_t take = n - keep;
         for (std::size_t r = 0; r < take; ++r) {
             out.samples.push_back(rows.samples[r]);
-            block_at(rows.samples[r].block, rows.samples[r].t_s).add_row(rows.samples[r], rows.extra[r], slot_limits);
-            cutting_steps += rows.extra[r].engaged > 0 ? 1 : 0;
-            last_row_t_s = rows.samples[r].t_s;
-            have_row = true;
+            count_row(rows.samples[r], rows.extra[r]);
         }
         rows.samples.erase(rows.samples.begin(), rows.samples.begin() + std::ptrdiff_t(take));
         rows.extra.erase(rows.extra.begin(), rows.extra.begin() + std::ptrdiff_t(take));
+    }
+
+    // WholeLog: the engine hands its rows out as predict() with rows_out has them.
+    void take_from_engine(const RowTable& rows, std::size_t n) {
+        const std::span<const ForceSample> piece(rows.samples.data(), n);
+        check_finite_rows(piece);
+        for (std::size_t r = 0; r < n; ++r) count_row(rows.samples[r], rows.extra[r]);
+        if (opt.rows_out) opt.rows_out(piece);
+        else out_now->samples.insert(out_now->samples.end(), piece.begin(), piece.end());
     }
 
     // Hands out the summary of every open block whose rows have all been taken (all of them when
@@ -102,35 +141,64 @@ struct StreamingPrediction::Impl {
         }
     }
 
-    void walk_new() {
-        const std::size_t n = motion.size();
+    // Walks every interval added (`lag` = 0), or all but the last `lag` (the whole log's pace: a
+    // checkpoint is never due at the last sample of a log, and the sample added last may not be).
+    void walk_new(std::size_t lag = 0) {
+        const std::size_t n = motion.size() >= lag ? motion.size() - lag : 0;
         if (n > walked + 1) {
-            engine->walk(walked, n);
+            the_engine().walk(walked, n);
             walked = n - 1;
         }
     }
+
+    // WholeLog: the samples before the next interval to walk are not read again.
+    void forget_walked() {
+        const std::size_t k = walked;
+        if (k == 0) return;
+        for (auto* v : {&motion.t_s, &motion.x_mm, &motion.y_mm, &motion.z_mm, &motion.vx_mm_s, &motion.vy_mm_s,
+                        &motion.vz_mm_s, &motion.spindle_rpm, &motion.spindle_angle_deg})
+            v->erase(v->begin(), v->begin() + std::ptrdiff_t(k));
+        motion.block.erase(motion.block.begin(), motion.block.begin() + std::ptrdiff_t(k));
+        motion.tool.erase(motion.tool.begin(), motion.tool.begin() + std::ptrdiff_t(k));
+        plan.forget_front(k);
+        the_engine().forget_samples(k);
+        walked -= k;
+        session_begin -= std::min(k, session_begin);
+        motion.session_start.assign(1, 0);
+        forgotten += k;
+    }
+
+    void end_of_session() {
+        if (session_samples >= 2) simulated_s += last_t_s - session_t0_s;
+        session_samples = 0;
+    }
 };
 
-StreamingPrediction::StreamingPrediction(const RunSpec& spec, const PredictOptions& opt)
-    : impl_(std::make_unique<Impl>(spec, opt)) {}
+StreamingPrediction::StreamingPrediction(const RunSpec& spec, const PredictOptions& opt, StreamPace pace)
+    : impl_(std::make_unique<Impl>(spec, opt, pace)) {}
 
 StreamingPrediction::~StreamingPrediction() = default;
 
-std::size_t StreamingPrediction::motion_samples() const { return impl_->motion.size(); }
+std::size_t StreamingPrediction::motion_samples() const { return impl_->added; }
 const motion_io::MotionModel& StreamingPrediction::motion() const { return impl_->motion; }
 
 void StreamingPrediction::begin_session() {
     Impl& m = *impl_;
     if (m.motion.size() == m.session_begin) return;   // nothing in the current one yet
+    if (m.pace == StreamPace::WholeLog && m.opt.checkpoint)
+        throw std::logic_error("streaming: checkpoints are written for a log of one session");
     m.walk_new();
-    m.engine->end_session();
+    m.the_engine().end_session();
+    m.end_of_session();
+    ++m.sessions;
     m.session_begin = m.motion.size();
     m.walked = m.session_begin;
     m.motion.session_start.push_back(m.session_begin);
 }
 
 void StreamingPrediction::add(const motion_io::MotionState& s, const std::vector<std::string>& block_names) {
-    motion_io::MotionModel& mm = impl_->motion;
+    Impl& m = *impl_;
+    motion_io::MotionModel& mm = m.motion;
     if (mm.block_names.size() != block_names.size()) mm.block_names = block_names;
     mm.t_s.push_back(s.t_s);
     mm.x_mm.push_back(s.pos_mm[0]);
@@ -144,13 +212,49 @@ void StreamingPrediction::add(const motion_io::MotionState& s, const std::vector
     mm.block.push_back(s.block);
     mm.tool.push_back(s.tool);
     mm.step_s = mm.size() >= 2 ? mm.t_s[mm.size() - 1] - mm.t_s[mm.size() - 2] : mm.step_s;
-    impl_->plan.append(s.tool);
-    impl_->block_at(s.block, s.t_s).add_motion(s.t_s);
+    m.plan.append(s.tool);
+    m.block_at(s.block, s.t_s).add_motion(s.t_s);
+    if (m.session_samples++ == 0) m.session_t0_s = s.t_s;
+    m.last_t_s = s.t_s;
+    ++m.added;
+}
+
+void StreamingPrediction::add(const motion_io::MotionModel& piece) { add(piece, 0, piece.size()); }
+
+void StreamingPrediction::add(const motion_io::MotionModel& piece, std::size_t begin, std::size_t end) {
+    Impl& m = *impl_;
+    if (m.motion.block_names.size() != piece.block_names.size()) m.motion.block_names = piece.block_names;
+    auto next_session = std::size_t(std::lower_bound(piece.session_start.begin(), piece.session_start.end(), begin) -
+                                    piece.session_start.begin());
+    motion_io::MotionState s;
+    for (std::size_t i = begin; i < std::min(end, piece.size()); ++i) {
+        if (next_session < piece.session_start.size() && piece.session_start[next_session] == i) {
+            begin_session();
+            ++next_session;
+        }
+        s.t_s = piece.t_s[i];
+        s.pos_mm[0] = piece.x_mm[i], s.pos_mm[1] = piece.y_mm[i], s.pos_mm[2] = piece.z_mm[i];
+        s.vel_mm_s[0] = piece.vx_mm_s[i], s.vel_mm_s[1] = piece.vy_mm_s[i], s.vel_mm_s[2] = piece.vz_mm_s[i];
+        s.spindle_rpm = piece.spindle_rpm[i];
+        s.spindle_angle_deg = piece.spindle_angle_deg[i];
+        s.block = piece.block[i];
+        s.tool = piece.tool.empty() ? -1 : piece.tool[i];
+        add(s, piece.block_names);
+    }
+    // The grid's own step, not one rounded from two times.
+    m.motion.step_s = piece.step_s;
 }
 
 void StreamingPrediction::advance(StreamOutput& out) {
     Impl& m = *impl_;
     if (m.opt.cancel && m.opt.cancel->load()) throw Cancelled();
+    if (m.pace == StreamPace::WholeLog) {
+        m.out_now = &out;
+        m.walk_new(2);
+        m.hand_out(out, false);
+        m.forget_walked();
+        return;
+    }
     m.walk_new();
     m.engine->settle();
     m.take_rows(out, false);
@@ -159,17 +263,24 @@ void StreamingPrediction::advance(StreamOutput& out) {
 
 Prediction StreamingPrediction::finish(StreamOutput& out) {
     Impl& m = *impl_;
+    m.out_now = &out;
     m.walk_new();
-    m.engine->end_session();
-    m.take_rows(out, true);
-    m.hand_out(out, true);
-    m.setup->backend->download(*m.setup->stock);
     Prediction p;
+    if (m.added > 0 || m.pace == StreamPace::Live) {
+        Engine& engine = m.the_engine();
+        engine.end_session();
+        if (m.pace == StreamPace::WholeLog) engine.drain_rows();
+        else m.take_rows(out, true);
+        p.stats.steps = engine.steps();
+    }
+    m.end_of_session();
+    m.hand_out(out, true);
+    const bool keep_stock = m.pace == StreamPace::Live || m.opt.keep_final_stock;
+    if (keep_stock) m.setup->backend->download(*m.setup->stock);
     p.block_names = m.motion.block_names;
     for (std::size_t k : m.order) p.blocks.push_back(m.acc[k]->summary());
-    p.final_stock = std::move(m.setup->stock);
-    p.stats.simulated_s = simulated_seconds(m.motion);
-    p.stats.steps = m.engine->steps();
+    if (keep_stock) p.final_stock = std::move(m.setup->stock);
+    p.stats.simulated_s = m.simulated_s;
     p.stats.cutting_steps = m.cutting_steps;
     p.stats.unknown_tool_samples = m.plan.unknown_samples;
     p.stats.unknown_tools = m.plan.unknown_tools;

@@ -18,6 +18,20 @@
 
 namespace cutload::force_model {
 
+// How a stream is walked.
+enum class StreamPace {
+    // A live run: advance() ends the batch, so every row so far comes out then; the motion is kept
+    // (motion()).
+    Live,
+    // A log read in pieces (motion_io::ingest_in_pieces): batches as predict() makes them, so the
+    // rows, summaries, checkpoints and final stock are predict()'s on the whole log, bit for bit.
+    // advance() walks all but the last two samples added and drops the motion it walked, so memory
+    // is bounded by the pieces, the batches and the stock, not by the log's length. Rows go to
+    // opt.rows_out when set (else StreamOutput::samples); opt.checkpoint is used, for a log of one
+    // session (a second session then is a std::logic_error).
+    WholeLog,
+};
+
 struct StreamOutput {
     std::vector<ForceSample> samples;        // final rows, in time order, since the last call
     // Blocks that ended since the last call (the motion moved on to another block and no row of it
@@ -28,9 +42,10 @@ struct StreamOutput {
 
 class StreamingPrediction {
 public:
-    // opt.base_stock, opt.device and opt.cancel are used (progress is not). Throws SpecError for a
-    // bad spec, std::runtime_error when the device cannot be set up.
-    StreamingPrediction(const RunSpec& spec, const PredictOptions& opt);
+    // opt.base_stock, opt.device and opt.cancel are used (progress is not); at the WholeLog pace
+    // also opt.rows_out, opt.checkpoint, opt.max_rows and opt.keep_final_stock. Throws SpecError
+    // for a bad spec, std::runtime_error when the device cannot be set up.
+    StreamingPrediction(const RunSpec& spec, const PredictOptions& opt, StreamPace pace = StreamPace::Live);
     ~StreamingPrediction();
     StreamingPrediction(const StreamingPrediction&) = delete;
     StreamingPrediction& operator=(const StreamingPrediction&) = delete;
@@ -40,6 +55,11 @@ public:
     // (MotionState::block indexes it; it only grows).
     void begin_session();
     void add(const motion_io::MotionState& s, const std::vector<std::string>& block_names);
+    // A piece of the log's motion (motion_io::ingest_in_pieces): its sessions begun where its
+    // session_start says, its samples added.
+    void add(const motion_io::MotionModel& piece);
+    // Its samples [begin, end) alone (a piece walked a part at a time, for progress and cancels).
+    void add(const motion_io::MotionModel& piece, std::size_t begin, std::size_t end);
 
     // Walks the samples added since the last call and appends the final rows and ended blocks to
     // `out` (not cleared). The last row is held back until the next call (a stop's removed volume
@@ -51,8 +71,9 @@ public:
     // the stats.
     Prediction finish(StreamOutput& out);
 
-    std::size_t motion_samples() const;
-    // The motion grid walked so far (all of it: about 100 bytes a sample).
+    std::size_t motion_samples() const;   // added so far
+    // The motion grid added so far (at the Live pace all of it: about 100 bytes a sample; at the
+    // WholeLog pace what is not walked yet).
     const motion_io::MotionModel& motion() const;
 
 private:

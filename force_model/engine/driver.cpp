@@ -118,6 +118,17 @@ void Engine::walk(std::size_t from, std::size_t to) {
     }
 }
 
+void Engine::forget_samples(std::size_t n) {
+    current_interval_ -= std::min(n, current_interval_);
+    start_sample_ -= std::min(n, start_sample_);
+    forgotten_ += n;
+}
+
+void Engine::write_checkpoints_from(double t0_s) {
+    checkpointing_ = options_.checkpoint && !window_;
+    last_checkpoint_t_s_ = t0_s;
+}
+
 void Engine::settle() {
     flush_batch();
     complete();
@@ -186,7 +197,7 @@ void Engine::checkpoint_before(std::size_t sample) {
     if (sample + 1 >= motion_.size() || t_s - last_checkpoint_t_s_ < options_.checkpoint_every_s) return;
     last_checkpoint_t_s_ = t_s;
     backend_.download(stock_);
-    options_.checkpoint(StockCheckpoint{sample, t_s}, stock_);
+    options_.checkpoint(StockCheckpoint{forgotten_ + sample, t_s}, stock_);
 }
 
 // Whether the tool and its holder stay clear of the stock over the interval (coarse tile map).

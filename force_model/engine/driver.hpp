@@ -40,6 +40,13 @@ public:
     void walk(std::size_t from, std::size_t to);
     void settle();
     void end_session();
+    // A motion model that drops the samples it has walked (StreamingPrediction's whole-log pace):
+    // its first `n` samples are gone, so every index from now on is n lower. Checkpoints keep
+    // counting from the log's first sample.
+    void forget_samples(std::size_t n);
+    // Checkpoints (PredictOptions::checkpoint) as run() writes them for a motion of one session,
+    // from a walk by walk(): the caller knows the log has one session. `t0_s`: its first sample.
+    void write_checkpoints_from(double t0_s);
 
     // Rows taken out as they become final (PredictOptions::rows_out): whenever the table holds a
     // piece's worth, `take(rows, n)` gets its first n rows, which the engine then drops; the last
@@ -139,6 +146,7 @@ private:
     bool replaying_ = false;             // walking the motion before the window
     std::size_t start_sample_ = 0;       // resume_at
     bool checkpointing_ = false;         // run() of one session with PredictOptions::checkpoint
+    std::size_t forgotten_ = 0;          // samples dropped from the motion's front (forget_samples)
     double last_checkpoint_t_s_ = 0;
 };
 

@@ -43,6 +43,10 @@ void ToolPlan::append(std::int32_t t) {
     }
 }
 
+void ToolPlan::forget_front(std::size_t n) {
+    for (auto* v : {&slot, &number}) v->erase(v->begin(), v->begin() + std::ptrdiff_t(std::min(n, v->size())));
+}
+
 ToolPlan single_cutter_plan(const motion_io::MotionModel& motion, const Cutter& cutter, const Limits& limits) {
     ToolPlan plan;
     plan.tools.push_back({cutter, -1, limits});

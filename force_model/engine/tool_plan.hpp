@@ -36,6 +36,8 @@ struct ToolPlan {
     // Appends the next sample's slot and number from its T number (-1: it names none). How
     // plan_tools() fills the per-sample lists, and how a live run's plan grows with its motion.
     void append(std::int32_t t);
+    // The first n samples' entries are gone (a motion that drops what it walked, Engine::forget_samples).
+    void forget_front(std::size_t n);
 
     // How append() maps T numbers (set by plan_tools / single_cutter_plan).
     bool one_cutter = true;                        // slot 0 throughout; rows carry the sample's T number
