@@ -7,6 +7,7 @@
 
 #include "force_model/engine_settings.hpp"
 #include "force_model/logged_commanded.hpp"
+#include "force_model/streaming.hpp"
 
 #include <fmt/format.h>
 
@@ -21,7 +22,7 @@ namespace cutload::app {
 namespace {
 
 // Samples cut by a tool the table does not have get no forces: say how many, and which tools.
-std::string unknown_tool_warning(const force_model::PredictStats& stats, const motion_io::MotionModel& motion) {
+std::string unknown_tool_warning(const force_model::PredictStats& stats, std::size_t samples) {
     if (stats.unknown_tool_samples == 0) return {};
     std::string list;
     bool unnamed = false;
@@ -30,7 +31,7 @@ std::string unknown_tool_warning(const force_model::PredictStats& stats, const m
         else list += fmt::format("{}T{}", list.empty() ? "" : ", ", t);
     }
     if (unnamed) list += fmt::format("{}samples that name no tool", list.empty() ? "" : ", and ");
-    const double share = 100.0 * double(stats.unknown_tool_samples) / double(std::max<std::size_t>(motion.size(), 1));
+    const double share = 100.0 * double(stats.unknown_tool_samples) / double(std::max<std::size_t>(samples, 1));
     return fmt::format("{} samples ({:.1f} % of the log) run with a tool the run spec's table does not have ({}): no "
                        "forces are predicted for them and their blocks are flagged unknown_tool{}",
                        stats.unknown_tool_samples, share, list,
@@ -167,6 +168,127 @@ void check_run_work(const WorkEstimate& work, const WorkLimits& limits, const Cu
 }
 
 namespace {
+
+// The device: the one prepare_device() chose, when it is choosing.
+void take_device(const RunInput& in, force_model::PredictOptions& po, RunResult& r) {
+    po.device = in.device;
+    if (in.device_ready.valid()) {
+        const DeviceChoice choice = in.device_ready.get();
+        po.device = choice.device;
+        r.device_note = choice.note;
+    }
+}
+
+// A whole run's stock checkpoints into the folder, every `every_s` of motion at least. One that
+// cannot be written is a warning, and no more are written after it.
+void write_checkpoints(const CheckpointFolder& folder, std::uint64_t key, double actual_s, force_model::PredictOptions& po,
+                       std::vector<std::string>& warnings) {
+    po.checkpoint_every_s = std::max(folder.every_s, actual_s / kMaxCheckpoints);
+    po.checkpoint = [&folder, key, &warnings, writing = true](const force_model::StockCheckpoint& at,
+                                                              const force_model::Stock& stock) mutable {
+        if (!writing) return;
+        try {
+            write_checkpoint(folder.dir, key, at, stock);
+        } catch (const std::exception& e) {
+            writing = false;
+            warnings.push_back(fmt::format("the stock checkpoint at t = {:.3f} s was not kept ({}), nor any after it: "
+                                           "windows of this run are recomputed from further back",
+                                           at.t_s, e.what()));
+        }
+    };
+}
+
+// Samples a log's motion is read in when it is not kept whole (RunInput::keep_motion): 65 s at a
+// 1 ms step, about 5 MB.
+constexpr std::size_t kMotionPieceSamples = std::size_t(1) << 16;
+constexpr std::size_t kProgressSamples = 2048;
+
+// A run of the log alone whose motion is not kept: read twice in pieces, never whole. The first
+// read gives what the job checks before it predicts (the report, the block names, the checkpoint
+// key); the second is walked as it is read (force_model::StreamingPrediction at the WholeLog
+// pace), the very rows, summaries, checkpoints and final stock predict() gives on the whole model.
+RunResult predict_streamed(const RunInput& in, const Control& control) {
+    Tracker track(control);
+    RunResult r;
+    r.motion_kept = false;
+    track.begin(Phase::Ingest, 0, 0);
+    motion_io::ReadOptions read = in.read;
+    if (in.device_ready.valid() && in.device_ready.wait_for(std::chrono::seconds(0)) != std::future_status::ready)
+        read.threads = 1;   // as predict_steps: PoCL is opening on the other core
+    const bool checkpointing = in.checkpoints.has_value();
+    force_model::CheckpointKey key;
+    std::vector<std::string> block_names;
+    double t0_s = 0, t1_s = 0;
+    std::size_t sessions = 0;   // of the model (the report also counts those too short to keep)
+    r.ingest = motion_io::ingest_in_pieces(
+        in.log_path, read, kMotionPieceSamples,
+        [&](const motion_io::MotionModel& piece, std::size_t first) {
+            track.check();
+            if (first == 0) t0_s = piece.t_s.front();
+            t1_s = piece.t_s.back();
+            sessions += piece.session_start.size();
+            if (checkpointing) key.add(piece, first);
+        },
+        &block_names);
+    const std::size_t samples = r.ingest.extent.samples;
+    if (samples < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
+    r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
+    if (!r.ingest.rotary_axes.empty())
+        r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
+                                         "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
+                                         r.ingest.rotary_axes));
+    r.work = estimate_run_work(r.ingest, in.spec, CuttingOrientation{}, CommandedWork{}, in.rows_out.has_value());
+    check_run_work(r.work, in.limits, CuttingOrientation{});
+
+    force_model::PredictOptions po;
+    take_device(in, po, r);
+    if (in.base_stock && !same_frame(force_model::stock_grid_frame(*in.base_stock), force_model::Rotation3{}))
+        throw InputError("base_stock", frame_mismatch(force_model::stock_grid_frame(*in.base_stock), ToolFrame{}));
+    po.base_stock = in.base_stock;
+    po.keep_final_stock = in.keep_final_stock;
+    po.cancel = control.cancel;
+    po.max_rows = max_rows(in.limits);
+    std::optional<RowsPipe> pipe;   // the rows' encoding and writing overlap the engine's walk
+    if (in.rows_out) {
+        if (in.rows_out->begin) in.rows_out->begin(block_names, r.work.force_rows);
+        pipe.emplace([&](std::span<force_model::ForceSample> rows) { in.rows_out->rows(rows); });
+        po.rows_out = [&](std::span<const force_model::ForceSample> rows) {
+            r.rows += rows.size();
+            pipe->push(rows);
+        };
+    }
+    // As predict() writes them: for a log of one session.
+    if (checkpointing && sessions == 1)
+        write_checkpoints(*in.checkpoints, key.key(in.read.step_ms * 1e-3, in.spec, in.base_stock), t1_s - t0_s, po,
+                          r.warnings);
+
+    track.begin(Phase::Predict, 0, 1);
+    force_model::StreamingPrediction engine(in.spec, po, force_model::StreamPace::WholeLog);
+    force_model::StreamOutput out;
+    motion_io::ingest_in_pieces(in.log_path, read, kMotionPieceSamples,
+                                [&](const motion_io::MotionModel& piece, std::size_t first) {
+                                    // A piece is a second or two of work: walked a part at a time,
+                                    // progress moves and a cancel is seen within a fraction of that.
+                                    for (std::size_t b = 0; b < piece.size(); b += kProgressSamples) {
+                                        engine.add(piece, b, b + kProgressSamples);
+                                        engine.advance(out);
+                                        out.blocks.clear();   // finish() gives them all
+                                        track.report(double(first + std::min(piece.size(), b + kProgressSamples)) /
+                                                     double(samples));
+                                    }
+                                    if (in.motion_out) in.motion_out(piece);
+                                });
+    r.prediction = engine.finish(out);
+    if (pipe) pipe->finish();
+    r.prediction.samples = std::move(out.samples);
+    r.rows += r.prediction.samples.size();
+    r.motion.step_s = in.read.step_ms * 1e-3;
+    r.motion.block_names = r.prediction.block_names;
+    r.walked_from_s = t0_s;
+    if (const std::string w = unknown_tool_warning(r.prediction.stats, samples); !w.empty()) r.warnings.push_back(w);
+    track.done();
+    return r;
+}
 
 RunResult predict_steps(const RunInput& in, const Control& control) {
     Tracker track(control);
@@ -336,12 +458,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     }
     force_model::PredictOptions po;
     po.window = in.window;
-    po.device = in.device;
-    if (in.device_ready.valid()) {
-        const DeviceChoice choice = in.device_ready.get();
-        po.device = choice.device;
-        r.device_note = choice.note;
-    }
+    take_device(in, po, r);
     // The stock lies in the engine's frame: a base stock must have been cut in it.
     const force_model::Rotation3 grid_frame = frame.tilted ? frame.grid_from_stock() : force_model::Rotation3{};
     if (in.base_stock && !same_frame(force_model::stock_grid_frame(*in.base_stock), grid_frame))
@@ -390,21 +507,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     // Stock checkpoints: a whole run writes them, a window resumes at the last one before it.
     const bool checkpointing = in.checkpoints && !in.machine;
     const std::uint64_t key = checkpointing ? force_model::checkpoint_key(r.motion, spec, in.base_stock) : 0;
-    bool writing = checkpointing && !in.window;
-    if (writing) {
-        po.checkpoint_every_s = std::max(in.checkpoints->every_s, actual_s / kMaxCheckpoints);
-        po.checkpoint = [&](const force_model::StockCheckpoint& at, const force_model::Stock& stock) {
-            if (!writing) return;
-            try {
-                write_checkpoint(in.checkpoints->dir, key, at, stock);
-            } catch (const std::exception& e) {
-                writing = false;
-                r.warnings.push_back(fmt::format("the stock checkpoint at t = {:.3f} s was not kept ({}), nor any after it: "
-                                                 "windows of this run are recomputed from further back",
-                                                 at.t_s, e.what()));
-            }
-        };
-    }
+    if (checkpointing && !in.window) write_checkpoints(*in.checkpoints, key, actual_s, po, r.warnings);
     force_model::StockPtr resume_stock;
     std::optional<CheckpointFile> resume_at;
     if (checkpointing && in.window) {
@@ -450,7 +553,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
     po.checkpoint = nullptr;   // the commanded prediction's stock is no state of the run's
     r.rows = rows_out + r.prediction.samples.size();
     if (po.max_rows > 0) po.max_rows = std::max<std::size_t>(1, po.max_rows - std::min(po.max_rows, r.rows));
-    if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion); !w.empty()) r.warnings.push_back(w);
+    if (const std::string w = unknown_tool_warning(r.prediction.stats, r.motion.size()); !w.empty()) r.warnings.push_back(w);
     if (in.window) {
         // A window is the actual motion's forces alone: the comparison is the whole run's.
     } else if (r.program) {
@@ -486,7 +589,10 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
 RunResult predict_run(const RunInput& in, const Control& control) {
     return cancellable(control, [&] {
         try {
-            return predict_steps(in, control);
+            // The motion is needed whole to map a program onto it, to compare it with a commanded
+            // path, to turn it through a machine's kinematics, and to walk a window.
+            const bool stream = !in.keep_motion && !in.program && !in.commanded_from_log && !in.machine && !in.window;
+            return stream ? predict_streamed(in, control) : predict_steps(in, control);
         } catch (const force_model::TooManyRows& e) {
             throw TooMuchWork("force_rows", fmt::format("{} (--max-force-rows)", e.what()));
         }

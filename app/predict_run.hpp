@@ -70,6 +70,15 @@ struct RunInput {
     // folder, a window resumes its walk at the last one of the same run at or before its start
     // (RunResult::walked_from_s). One that cannot be written or read is a warning, never an error.
     std::optional<CheckpointFolder> checkpoints;
+    // False: the log's motion is not held whole. A run of the log alone (no program, no
+    // commanded_from_log, no machine, no window: each needs the motion whole, and keeps it) is then
+    // read in pieces, twice: once for the checks made before predicting, once walked as it is read,
+    // so its memory does not grow with the log's length (docs/force_model.md, "Streaming a log").
+    // RunResult::motion then holds no samples (motion_kept false) and motion_out, when set, gets
+    // each piece once the engine has it. The rows, summaries, checkpoints and final stock are the
+    // same either way.
+    bool keep_motion = true;
+    std::function<void(const motion_io::MotionModel& piece)> motion_out;
 };
 
 // A machine definition file (docs/machines.md), with the errors of an errors file when one is
@@ -126,6 +135,7 @@ void check_run_work(const WorkEstimate& estimate, const WorkLimits& limits, cons
 
 struct RunResult {
     motion_io::MotionModel motion;               // the repaired log; blocks named after the program's when mapped
+    bool motion_kept = true;                     // false: streamed (RunInput::keep_motion), `motion` has no samples
     motion_io::IngestReport ingest;
     force_model::Prediction prediction;          // forces, block summaries and flags, final stock, stats
     motion_io::SamplingCheck sampling;           // coarse data (position_quantized, sampling_coarse), said out loud

@@ -64,6 +64,7 @@ void run_predict(const PredictArgs& a) {
     in.tool_length_mm = a.tool_length_mm;
     if (!a.window.empty()) in.window = parse_window(a.window);
     if (!a.checkpoints.empty()) in.checkpoints = app::CheckpointFolder{a.checkpoints};
+    in.keep_motion = false;   // nothing below reads it: a log alone is walked as it is read
 
     // The rows go to FORCES.csv (or FORCES.bin) as they come: an hour-long log writes about 10^8 of them.
     // With a machine the rows carry their forces in machine axes too (docs/formats.md, FORCES.csv).
