@@ -53,6 +53,10 @@ std::optional<std::string> predict_run(JobContext& ctx, db::Store& store, const 
             forces.emplace(dir / spool_name, force_series_first_level(expected_rows, opt.max_raw_rows));
         },
         [&](std::span<const force_model::ForceSample> rows) { forces->add(rows); }};
+    // A run of the log alone is walked as it is read: its motion series is spooled beside the
+    // forces rather than held whole (app::RunInput::keep_motion).
+    in.keep_motion = false;
+    in.motion_out = [&](const motion_io::MotionModel& piece) { forces->add_motion(piece); };
 
     // Stock checkpoints for the windows recomputed later (app/checkpoints.hpp), beside the uploads.
     // An earlier claim's (a process that died) may be of another device or version: this claim

@@ -45,8 +45,7 @@ json block_json(std::size_t idx, const force_model::BlockSummary& b) {
 
 // The series rows go into the builder as they are made: a SeriesData of the whole motion first
 // would hold 32 bytes a sample (about 120 MB for an hour at 1 ms) at the end of every run.
-void write_motion_series(db::RunRepository& runs, std::int64_t run_id, const motion_io::MotionModel& m) {
-    SeriesBuilder b(SeriesId::Motion, store_chunks(runs, run_id));
+void add_motion_rows(SeriesBuilder& b, const motion_io::MotionModel& m) {
     for (std::size_t i = 0; i < m.size(); ++i) {
         const double v = std::sqrt(m.vx_mm_s[i] * m.vx_mm_s[i] + m.vy_mm_s[i] * m.vy_mm_s[i] + m.vz_mm_s[i] * m.vz_mm_s[i]);
         const float row[] = {static_cast<float>(m.x_mm[i]), static_cast<float>(m.y_mm[i]), static_cast<float>(m.z_mm[i]),
@@ -55,6 +54,11 @@ void write_motion_series(db::RunRepository& runs, std::int64_t run_id, const mot
         static_assert(std::size(row) == 6);
         b.add(m.t_s[i], row);
     }
+}
+
+void write_motion_series(db::RunRepository& runs, std::int64_t run_id, const motion_io::MotionModel& m) {
+    SeriesBuilder b(SeriesId::Motion, store_chunks(runs, run_id));
+    add_motion_rows(b, m);
     b.finish();
 }
 
@@ -313,7 +317,7 @@ int store_run(db::Session& s, std::int64_t run_id, const motion_io::MotionModel&
         forces->remove_file();
     }
     else write_series(runs, run_id, SeriesId::Forces, force_series(p));
-    write_motion_series(runs, run_id, motion);
+    if (!(forces && forces->holds_motion())) write_motion_series(runs, run_id, motion);
     if (!tool_axis.empty()) write_tool_axis_series(runs, run_id, motion, tool_axis);
     // Written into the store as it is serialised (db::RunRepository::set_final_stock).
     if (p.final_stock)
@@ -391,27 +395,66 @@ int force_series_first_level(double expected_rows, double max_raw_rows) {
     return level;
 }
 
-ForceSeriesSpool::ForceSeriesSpool(fs::path file, int first_level)
+ChunkSpool::ChunkSpool(fs::path file, SeriesId series, int first_level)
     : file_(std::move(file)), out_(file_, std::ios::binary | std::ios::trunc),
-      builder_(SeriesId::Forces,
+      builder_(series,
                [this](const db::SeriesChunkInfo& info, std::span<const unsigned char> blob) {
                    const SpoolHeader h{info.series, info.level, info.chunk, info.t0_s, info.t1_s, info.n, blob.size()};
                    out_.write(reinterpret_cast<const char*>(&h), sizeof h);
                    out_.write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
-                   if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
+                   if (!out_) throw std::runtime_error("cannot write the series spool " + file_.string());
                    bytes_ += sizeof h + blob.size();
                },
-               first_level),
-      first_level_(first_level) {
-    if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
+               first_level) {
+    if (!out_) throw std::runtime_error("cannot write the series spool " + file_.string());
 }
 
-ForceSeriesSpool::~ForceSeriesSpool() { remove_file(); }
+ChunkSpool::~ChunkSpool() { remove_file(); }
 
-void ForceSeriesSpool::remove_file() {
+void ChunkSpool::remove_file() {
     out_.close();
     std::error_code ec;
     fs::remove(file_, ec);
+}
+
+void ChunkSpool::finish() {
+    builder_.finish();
+    out_.flush();
+    if (!out_) throw std::runtime_error("cannot write the series spool " + file_.string());
+    out_.close();
+}
+
+void ChunkSpool::replay(db::RunRepository& runs, std::int64_t run_id) const {
+    std::ifstream in(file_, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read the series spool " + file_.string());
+    SpoolHeader h;
+    std::vector<unsigned char> blob;
+    while (in.read(reinterpret_cast<char*>(&h), sizeof h)) {
+        // A chunk holds kChunkElems elements (under 1 MB); a header past 1 GiB is not one this wrote.
+        if (h.bytes > (std::uint64_t(1) << 30))
+            throw std::runtime_error(fmt::format("the series spool {} is corrupt: a chunk of {} bytes", file_.string(), h.bytes));
+        blob.resize(h.bytes);
+        if (!in.read(reinterpret_cast<char*>(blob.data()), static_cast<std::streamsize>(h.bytes)))
+            throw std::runtime_error("the series spool " + file_.string() + " ends inside a chunk");
+        runs.add_series_chunk(run_id, db::SeriesChunkInfo{h.series, h.level, h.chunk, h.t0_s, h.t1_s, h.n}, blob);
+    }
+}
+
+ForceSeriesSpool::ForceSeriesSpool(fs::path file, int first_level)
+    : file_(std::move(file)), forces_(file_, SeriesId::Forces, first_level), first_level_(first_level) {}
+
+void ForceSeriesSpool::add_motion(const motion_io::MotionModel& piece) {
+    if (!motion_) {
+        fs::path motion_file = file_;
+        motion_file.replace_extension(".motion.spool");
+        motion_.emplace(motion_file, SeriesId::Motion);
+    }
+    add_motion_rows(motion_->builder(), piece);
+}
+
+void ForceSeriesSpool::remove_file() {
+    forces_.remove_file();
+    if (motion_) motion_->remove_file();
 }
 
 void ForceSeriesSpool::add(std::span<const force_model::ForceSample> rows) {
@@ -419,30 +462,20 @@ void ForceSeriesSpool::add(std::span<const force_model::ForceSample> rows) {
     static_assert(sizeof row / sizeof row[0] == 12, "forces series channels");
     for (const force_model::ForceSample& r : rows) {
         force_row(r, {}, row);
-        builder_.add(r.t_s, row);
+        forces_.builder().add(r.t_s, row);
     }
 }
 
 void ForceSeriesSpool::finish() {
-    builder_.finish();
-    out_.flush();
-    if (!out_) throw std::runtime_error("cannot write the force series spool " + file_.string());
-    out_.close();
+    forces_.finish();
+    if (motion_) motion_->finish();
 }
 
-std::size_t ForceSeriesSpool::rows() const { return builder_.rows(); }
+std::size_t ForceSeriesSpool::rows() const { return forces_.builder().rows(); }
 
 void ForceSeriesSpool::replay(db::RunRepository& runs, std::int64_t run_id) const {
-    std::ifstream in(file_, std::ios::binary);
-    if (!in) throw std::runtime_error("cannot read the force series spool " + file_.string());
-    SpoolHeader h;
-    std::vector<unsigned char> blob;
-    while (in.read(reinterpret_cast<char*>(&h), sizeof h)) {
-        blob.resize(h.bytes);
-        if (!in.read(reinterpret_cast<char*>(blob.data()), static_cast<std::streamsize>(h.bytes)))
-            throw std::runtime_error("the force series spool " + file_.string() + " ends inside a chunk");
-        runs.add_series_chunk(run_id, db::SeriesChunkInfo{h.series, h.level, h.chunk, h.t0_s, h.t1_s, h.n}, blob);
-    }
+    forces_.replay(runs, run_id);
+    if (motion_) motion_->replay(runs, run_id);
 }
 
 json block_summary_json(std::size_t idx, const force_model::BlockSummary& b) { return block_json(idx, b); }

@@ -10,6 +10,7 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <span>
 
 namespace cutload::server {
@@ -26,29 +27,55 @@ SeriesData force_series(const force_model::Prediction& p, const std::vector<std:
 // max_raw_rows (0: no limit), else the first envelope level that fits (docs/api.md, "Long runs").
 int force_series_first_level(double expected_rows, double max_raw_rows);
 
-// A run's forces series built while the engine runs (app::RunInput::rows_out), its chunks spooled
-// to a file beside the run's uploads rather than held in memory, and copied into the store by
-// store_result in the transaction that marks the run done. The file is removed on destruction.
-class ForceSeriesSpool {
+// One series' chunks spooled to a file as its builder makes them, copied into the store later
+// (replay). The file is removed on destruction.
+class ChunkSpool {
 public:
-    ForceSeriesSpool(std::filesystem::path file, int first_level);
-    ~ForceSeriesSpool();
-    ForceSeriesSpool(const ForceSeriesSpool&) = delete;
-    ForceSeriesSpool& operator=(const ForceSeriesSpool&) = delete;
-    void add(std::span<const force_model::ForceSample> rows);
-    void finish();   // after the last rows
-    std::size_t rows() const;
-    int first_level() const { return first_level_; }
-    std::uint64_t bytes() const { return bytes_; }
+    ChunkSpool(std::filesystem::path file, SeriesId series, int first_level = 0);
+    ~ChunkSpool();
+    ChunkSpool(const ChunkSpool&) = delete;
+    ChunkSpool& operator=(const ChunkSpool&) = delete;
+    SeriesBuilder& builder() { return builder_; }
+    const SeriesBuilder& builder() const { return builder_; }
+    void finish();   // after the last row
     void replay(db::RunRepository& runs, std::int64_t run_id) const;
     void remove_file();
+    std::uint64_t bytes() const { return bytes_; }
 
 private:
     std::filesystem::path file_;
     std::ofstream out_;
     SeriesBuilder builder_;
-    int first_level_;
     std::uint64_t bytes_ = 0;
+};
+
+// A run's forces series built while the engine runs (app::RunInput::rows_out), its chunks spooled
+// to a file beside the run's uploads rather than held in memory, and copied into the store by
+// store_result in the transaction that marks the run done. The files are removed on destruction.
+class ForceSeriesSpool {
+public:
+    ForceSeriesSpool(std::filesystem::path file, int first_level);
+    ForceSeriesSpool(const ForceSeriesSpool&) = delete;
+    ForceSeriesSpool& operator=(const ForceSeriesSpool&) = delete;
+    void add(std::span<const force_model::ForceSample> rows);
+    // A piece of the run's motion (app::RunInput::motion_out), spooled as its motion series: a run
+    // whose motion is not kept whole stores it from here. A file of its own ("NAME.motion.spool"
+    // beside "NAME.spool"): the motion comes from the engine's thread while the rows come from the
+    // rows pipe's.
+    void add_motion(const motion_io::MotionModel& piece);
+    bool holds_motion() const { return motion_.has_value(); }
+    void finish();   // after the last rows and motion
+    std::size_t rows() const;
+    int first_level() const { return first_level_; }
+    std::uint64_t bytes() const { return forces_.bytes() + (motion_ ? motion_->bytes() : 0); }
+    void replay(db::RunRepository& runs, std::int64_t run_id) const;
+    void remove_file();
+
+private:
+    std::filesystem::path file_;
+    ChunkSpool forces_;
+    std::optional<ChunkSpool> motion_;
+    int first_level_;
 };
 
 // Returns the number of alerts raised. The run must be 'running'; it becomes 'done'. `program`:
