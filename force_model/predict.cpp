@@ -65,25 +65,9 @@ void check_plan(const ToolPlan& plan) {
         }
 }
 
-// The rows of a Prediction are checked as they leave the engine (check_finite_rows); this checks the rest.
-void check_summaries(const Prediction& p) {
-    for (const BlockSummary& b : p.blocks)
-        for (const double v : {b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N, b.peak_torque_Nm, b.peak_power_kW,
-                               b.max_chip_mm, b.max_bending_MPa, b.max_radial_engagement_mm, b.max_axial_engagement_mm,
-                               b.removed_mm3})
-            if (!std::isfinite(v))
-                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
-                                         "; nothing is written");
-    for (const BlockSummary& b : p.blocks)
-        for (const FlagHit& f : b.flags)
-            if (!std::isfinite(f.value) || !std::isfinite(f.t_s))
-                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
-                                         "; nothing is written");
-}
-
 void check_outputs(const Prediction& p) {
     check_finite_rows(p.samples);
-    check_summaries(p);
+    check_finite_summaries(p);
 }
 
 std::vector<Limits> slot_limits(const ToolPlan& plan) {
@@ -151,7 +135,7 @@ Prediction collect(const motion_io::MotionModel& motion, const ToolPlan& plan, E
     p.stats.steps = engine.steps();
     p.stats.device = setup.backend->name();
     setup.backend.reset();
-    check_summaries(p);
+    check_finite_summaries(p);
     return p;
 }
 

@@ -49,7 +49,9 @@ struct StreamingPrediction::Impl {
     // simulated_seconds() of the motion, session by session, without holding it.
     double simulated_s = 0, session_t0_s = 0, last_t_s = 0;
     std::size_t sessions = 1, session_samples = 0;
-    StreamOutput* out_now = nullptr;   // WholeLog without rows_out: where the engine's rows go
+    // WholeLog without rows_out: the rows the engine handed out since the last call (a session
+    // that ends inside add() hands out its rows then), moved to the next call's StreamOutput.
+    std::vector<ForceSample> held_rows;
     std::chrono::steady_clock::time_point wall0 = std::chrono::steady_clock::now();
 
     Impl(const RunSpec& s, const PredictOptions& o, StreamPace p) : spec(s), opt(o), pace(p) {
@@ -124,7 +126,12 @@ struct StreamingPrediction::Impl {
         check_finite_rows(piece);
         for (std::size_t r = 0; r < n; ++r) count_row(rows.samples[r], rows.extra[r]);
         if (opt.rows_out) opt.rows_out(piece);
-        else out_now->samples.insert(out_now->samples.end(), piece.begin(), piece.end());
+        else held_rows.insert(held_rows.end(), piece.begin(), piece.end());
+    }
+
+    void give_held_rows(StreamOutput& out) {
+        out.samples.insert(out.samples.end(), held_rows.begin(), held_rows.end());
+        held_rows.clear();
     }
 
     // Hands out the summary of every open block whose rows have all been taken (all of them when
@@ -249,8 +256,8 @@ void StreamingPrediction::advance(StreamOutput& out) {
     Impl& m = *impl_;
     if (m.opt.cancel && m.opt.cancel->load()) throw Cancelled();
     if (m.pace == StreamPace::WholeLog) {
-        m.out_now = &out;
         m.walk_new(2);
+        m.give_held_rows(out);
         m.hand_out(out, false);
         m.forget_walked();
         return;
@@ -263,7 +270,6 @@ void StreamingPrediction::advance(StreamOutput& out) {
 
 Prediction StreamingPrediction::finish(StreamOutput& out) {
     Impl& m = *impl_;
-    m.out_now = &out;
     m.walk_new();
     Prediction p;
     if (m.added > 0 || m.pace == StreamPace::Live) {
@@ -273,6 +279,7 @@ Prediction StreamingPrediction::finish(StreamOutput& out) {
         else m.take_rows(out, true);
         p.stats.steps = engine.steps();
     }
+    m.give_held_rows(out);
     m.end_of_session();
     m.hand_out(out, true);
     const bool keep_stock = m.pace == StreamPace::Live || m.opt.keep_final_stock;
@@ -287,6 +294,7 @@ Prediction StreamingPrediction::finish(StreamOutput& out) {
     p.stats.device = m.setup->backend->name();
     p.stats.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - m.wall0).count();
     m.setup->backend.reset();
+    check_finite_summaries(p);
     return p;
 }
 

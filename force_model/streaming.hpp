@@ -28,7 +28,8 @@ enum class StreamPace {
     // advance() walks all but the last two samples added and drops the motion it walked, so memory
     // is bounded by the pieces, the batches and the stock, not by the log's length. Rows go to
     // opt.rows_out when set (else StreamOutput::samples); opt.checkpoint is used, for a log of one
-    // session (a second session then is a std::logic_error).
+    // session (a second session then is a std::logic_error). opt.window, opt.resume and
+    // opt.session_begins are not: a caller that needs them predicts the whole model.
     WholeLog,
 };
 

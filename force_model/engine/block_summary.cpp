@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace cutload::force_model {
 
@@ -125,6 +126,21 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
     BlockSummaries s(motion, slot_limits);
     s.add_rows(rows.data(), extra.data(), rows.size());
     return s.result();
+}
+
+void check_finite_summaries(const Prediction& p) {
+    for (const BlockSummary& b : p.blocks)
+        for (const double v : {b.t_start_s, b.t_end_s, b.peak_force_N, b.mean_force_N, b.peak_torque_Nm, b.peak_power_kW,
+                               b.max_chip_mm, b.max_bending_MPa, b.max_radial_engagement_mm, b.max_axial_engagement_mm,
+                               b.removed_mm3})
+            if (!std::isfinite(v))
+                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
+                                         "; nothing is written");
+    for (const BlockSummary& b : p.blocks)
+        for (const FlagHit& f : b.flags)
+            if (!std::isfinite(f.value) || !std::isfinite(f.t_s))
+                throw std::runtime_error("predict: the engine computed a non-finite summary for block " + b.block +
+                                         "; nothing is written");
 }
 
 }  // namespace cutload::force_model

@@ -63,4 +63,8 @@ std::vector<BlockSummary> summarise_blocks(const motion_io::MotionModel& motion,
 // The name a block index is summarised under ("(none)" for rows without a block).
 std::string block_name(const std::vector<std::string>& block_names, std::int32_t block);
 
+// The rows of a Prediction are checked as they leave the engine (check_finite_rows); this checks
+// its block summaries and flags (std::runtime_error naming the block).
+void check_finite_summaries(const Prediction& p);
+
 }  // namespace cutload::force_model

@@ -187,6 +187,24 @@ TEST_CASE("streamed log: a second session and a tool change give predict()'s res
             check_same(reference, streamed(m, spec, d, 0, piece, nullptr, true));
         }
     }
+    // Without rows_out the rows come in the StreamOutputs; the first session's end, inside add(),
+    // hands out its rows before any advance(), and they come with the next call.
+    for (force_model::Device d : devices()) {
+        Run with_rows = whole(m, spec, d, 0);
+        force_model::PredictOptions o;
+        o.device = d;
+        force_model::StreamingPrediction s(spec, o, force_model::StreamPace::WholeLog);
+        s.add(m);
+        force_model::StreamOutput out;
+        s.advance(out);
+        CHECK(out.samples.size() > 8192);
+        Run held;
+        held.rows = std::move(out.samples);
+        force_model::StreamOutput rest;
+        held.p = s.finish(rest);
+        held.rows.insert(held.rows.end(), rest.samples.begin(), rest.samples.end());
+        check_same(with_rows, held);
+    }
     // predict() writes none for a log of several sessions: a stream asked for them says so.
     Run run;
     force_model::StreamingPrediction s(spec, options(force_model::Device::Cpu, run, 0.2), force_model::StreamPace::WholeLog);
