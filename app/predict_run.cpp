@@ -265,8 +265,17 @@ RunResult predict_streamed(const RunInput& in, const Control& control) {
     track.begin(Phase::Predict, 0, 1);
     force_model::StreamingPrediction engine(in.spec, po, force_model::StreamPace::WholeLog);
     force_model::StreamOutput out;
-    motion_io::ingest_in_pieces(in.log_path, read, kMotionPieceSamples,
-                                [&](const motion_io::MotionModel& piece, std::size_t first) {
+    // A log still being written gives more the second time: what was checked and named before
+    // would not be what is walked.
+    const auto changed = [&](std::size_t now_samples) {
+        return motion_io::IngestError(fmt::format("{}: the log changed while it was read ({} motion samples the first "
+                                                  "time, {} the second): predict it once it is complete",
+                                                  in.log_path, samples, now_samples));
+    };
+    const motion_io::IngestReport second = motion_io::ingest_in_pieces(
+        in.log_path, read, kMotionPieceSamples, [&](const motion_io::MotionModel& piece, std::size_t first) {
+                                    if (first + piece.size() > samples || piece.block_names.size() > block_names.size())
+                                        throw changed(first + piece.size());
                                     // A piece is a second or two of work: walked a part at a time,
                                     // progress moves and a cancel is seen within a fraction of that.
                                     for (std::size_t b = 0; b < piece.size(); b += kProgressSamples) {
@@ -278,6 +287,7 @@ RunResult predict_streamed(const RunInput& in, const Control& control) {
                                     }
                                     if (in.motion_out) in.motion_out(piece);
                                 });
+    if (second.extent.samples != samples) throw changed(second.extent.samples);
     r.prediction = engine.finish(out);
     if (pipe) pipe->finish();
     r.prediction.samples = std::move(out.samples);

@@ -140,3 +140,28 @@ TEST_CASE("predict_run streamed: a run with its program keeps the motion it maps
     CHECK(handed_out == 0);
     CHECK(r.commanded);
 }
+
+TEST_CASE("predict_run streamed: a log that grows between its two reads is refused, saying so", "[app][predict][streamed]") {
+    Scratch dir("streamed_growing");
+    const std::filesystem::path log = static_cast<const std::filesystem::path&>(dir) / "growing.csv";
+    write_text(log, read_text(source_path("data/demo_dryrun.csv")));
+    app::RunInput in = demo_input(false);
+    in.log_path = log.string();
+    in.keep_motion = false;
+    // The controller's logger appends two more seconds after the first read, as a log still being
+    // written does.
+    app::Control control;
+    bool appended = false;
+    control.progress = [&](app::Phase phase, double) {
+        if (phase != app::Phase::Predict || appended) return;
+        appended = true;
+        std::ofstream more(log, std::ios::app);
+        for (int i = 1; i <= 1000; ++i) {
+            const double t = 14.877752 + 0.002 * i;
+            more << t << ",9998," << t + 0.002 << ",0," << t + 0.004 << ",185.000,-295.000,-310.000,N610\n";
+        }
+    };
+    REQUIRE_THROWS_WITH(app::predict_run(in, control), Catch::Contains("the log changed while it was read") &&
+                                                           Catch::Contains("growing.csv"));
+    CHECK(appended);
+}
