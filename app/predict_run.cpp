@@ -169,6 +169,18 @@ void check_run_work(const WorkEstimate& work, const WorkLimits& limits, const Cu
 
 namespace {
 
+// What every run says of the log it read (r.ingest, `samples` of motion): fewer than two samples
+// are refused; coarse data is said out loud, never predicted from silently (docs/formats.md,
+// "Coarse data"); rotary axes without a machine are taken as absent, and the user is told.
+void check_log_read(const RunInput& in, std::size_t samples, RunResult& r) {
+    if (samples < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
+    r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
+    if (!in.machine && !r.ingest.rotary_axes.empty())
+        r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
+                                         "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
+                                         r.ingest.rotary_axes));
+}
+
 // The device: the one prepare_device() chose, when it is choosing.
 void take_device(const RunInput& in, force_model::PredictOptions& po, RunResult& r) {
     po.device = in.device;
@@ -231,12 +243,7 @@ RunResult predict_streamed(const RunInput& in, const Control& control) {
         },
         &block_names);
     const std::size_t samples = r.ingest.extent.samples;
-    if (samples < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
-    r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
-    if (!r.ingest.rotary_axes.empty())
-        r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
-                                         "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
-                                         r.ingest.rotary_axes));
+    check_log_read(in, samples, r);
     r.work = estimate_run_work(r.ingest, in.spec, CuttingOrientation{}, CommandedWork{}, in.rows_out.has_value());
     check_run_work(r.work, in.limits, CuttingOrientation{});
 
@@ -319,9 +326,7 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
         read.threads = 1;
     r.motion = motion_io::ingest(in.log_path, read, &r.ingest);
     std::optional<MachineAxesForces> machine_axes;
-    if (r.motion.size() < 2) throw motion_io::IngestError(in.log_path + ": the log holds fewer than two motion samples");
-    // Coarse data is said out loud, never predicted from silently (docs/formats.md, "Coarse data").
-    r.sampling = motion_io::check_sampling(r.ingest, force_model::max_flutes(in.spec));
+    check_log_read(in, r.motion.size(), r);
     // The program is read in the machine's axes, from where the log's axes start.
     const std::optional<std::array<double, 3>> axes_start_mm = log_start_mm(r.motion);
     force_model::RunSpec spec = in.spec;   // in the tool's frame for a fixed tilt
@@ -374,10 +379,6 @@ RunResult predict_steps(const RunInput& in, const Control& control) {
             r.tool_lean_deg = frame.lean_deg;
             r.fixed_tilt = frame.tilted;
         }
-    } else if (!r.ingest.rotary_axes.empty()) {
-        r.warnings.push_back(fmt::format("the log holds rotary axes ({}) but no machine definition was given: the tool "
-                                         "is taken to move along x, y, z only (give the machine, e.g. --machine FILE)",
-                                         r.ingest.rotary_axes));
     }
 
     // Before predicting: a log without the program's block names takes them by mapping.
