@@ -36,7 +36,6 @@ struct StreamingPrediction::Impl {
     std::size_t walked = 0;          // samples whose interval to the next has been walked (next to walk from)
     std::size_t session_begin = 0;
     std::size_t added = 0;           // samples added in all
-    std::size_t forgotten = 0;       // WholeLog: samples dropped from the motion's front
     // Every block's summary so far, by block index + 1 (0: rows without a block), accumulated
     // across batches; `order` is the order of first appearance, `open` the blocks with motion or
     // rows not yet handed out.
@@ -48,7 +47,7 @@ struct StreamingPrediction::Impl {
     bool have_row = false;
     // simulated_seconds() of the motion, session by session, without holding it.
     double simulated_s = 0, session_t0_s = 0, last_t_s = 0;
-    std::size_t sessions = 1, session_samples = 0;
+    std::size_t session_samples = 0;
     // WholeLog without rows_out: the rows the engine handed out since the last call (a session
     // that ends inside add() hands out its rows then), moved to the next call's StreamOutput.
     std::vector<ForceSample> held_rows;
@@ -172,7 +171,6 @@ struct StreamingPrediction::Impl {
         walked -= k;
         session_begin -= std::min(k, session_begin);
         motion.session_start.assign(1, 0);
-        forgotten += k;
     }
 
     void end_of_session() {
@@ -197,7 +195,6 @@ void StreamingPrediction::begin_session() {
     m.walk_new();
     m.the_engine().end_session();
     m.end_of_session();
-    ++m.sessions;
     m.session_begin = m.motion.size();
     m.walked = m.session_begin;
     m.motion.session_start.push_back(m.session_begin);
